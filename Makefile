@@ -1,0 +1,45 @@
+# Every target installs what it needs into .venv first; `make test` is what CI runs.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+NETS := 4way-stop t-stop y-uncontrolled
+
+.PHONY: help install test lint format nets run clean
+
+help:
+	@echo "make run      describe the bundled 4-way stop and drive an ego through it"
+	@echo "make test     install into .venv and run the whole test suite"
+	@echo "make lint     ruff and mypy --strict"
+	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+test: $(STAMP)
+	$(BIN)/pytest
+
+lint: $(STAMP)
+	$(BIN)/ruff check service tests
+	$(BIN)/ruff format --check service tests
+	$(BIN)/mypy
+
+format: $(STAMP)
+	$(BIN)/ruff check --fix service tests
+	$(BIN)/ruff format service tests
+
+nets: $(STAMP)
+	cd sumo_nets && for net in $(NETS); do ../$(BIN)/netconvert -c $$net.netccfg || exit 1; done
+
+run: $(STAMP)
+	$(BIN)/scengen intersection 4way-stop
+	$(BIN)/scengen new 4way-stop --ego S2C_1:C2W_1 -o /tmp/scengen-demo.json
+	$(BIN)/scengen drive /tmp/scengen-demo.json
+
+clean:
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

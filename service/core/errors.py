@@ -1,0 +1,91 @@
+"""The exception tree of the core: every error the domain raises, with its context.
+
+    ScengenError                    root; never raised itself
+    ├── InvalidInput                the caller's input is wrong; the message names the problem
+    │   ├── UnknownNetwork          a network reference is neither bundled nor a readable file
+    │   ├── UnknownJunction         a junction id that is not in the network, or none was named
+    │   ├── UnknownLane             a lane id that is not a fork or an exit of the intersection
+    │   ├── UnknownRoute            a (fork, exit) pair that no connection links
+    │   └── InvalidTestCase         a test-case document that fails validation
+    ├── UnsupportedIntersection     the junction's control type has no rule set
+    ├── NetworkBuildFailed          netconvert could not rebuild a network
+    ├── SimulationFailed            SUMO refused or broke off a drive
+    └── BudgetExceeded              a solver or simulator call ran out of its time budget
+
+Adapters (CLI, HTTP API, jobs) map these classes once, to exit codes or problem types.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+
+class ScengenError(Exception):
+    """Root of every error raised by ``service.core``."""
+
+    def __init__(self, message: str, **context: object) -> None:
+        super().__init__(message)
+        self.message = message
+        self.context = {key: value for key, value in context.items() if value is not None}
+
+    def __str__(self) -> str:
+        return self.message
+
+    def __reduce__(self) -> tuple[object, ...]:
+        # Keep the context when an error crosses a process boundary.
+        return (_rebuild_error, (type(self), self.message, self.context))
+
+
+def _rebuild_error(
+    cls: type[ScengenError], message: str, context: dict[str, object]
+) -> ScengenError:
+    return cls(message, **context)
+
+
+class InvalidInput(ScengenError):
+    """Raised when the caller's input is wrong; the message names the bad value."""
+
+
+class UnknownNetwork(InvalidInput):
+    """Raised when a network reference is neither a bundled name nor a readable file."""
+
+
+class UnknownJunction(InvalidInput):
+    """Raised when a junction id is not in the network, or a junction must be named."""
+
+
+class UnknownLane(InvalidInput):
+    """Raised when a lane id is not a fork or an exit of the intersection."""
+
+
+class UnknownRoute(InvalidInput):
+    """Raised when no connection of the junction links the given fork and exit."""
+
+
+class InvalidTestCase(InvalidInput):
+    """Raised when a test-case document fails validation; names the bad field."""
+
+
+class UnsupportedIntersection(ScengenError):
+    """Raised when a junction's control type has no traffic-rule set."""
+
+
+class NetworkBuildFailed(ScengenError):
+    """Raised when netconvert fails to rebuild a network (control-type override)."""
+
+
+class SimulationFailed(ScengenError):
+    """Raised when SUMO refuses a drive or the car leaves the planned route."""
+
+
+class BudgetExceeded(ScengenError):
+    """Raised when a solver or simulator call runs out of its time budget and is killed."""
+
+
+def choices(values: Iterable[str], limit: int = 30) -> str:
+    """A readable, sorted list of valid choices for an error message (long lists are cut)."""
+    ordered = sorted(values)
+    shown = ", ".join(ordered[:limit])
+    if len(ordered) > limit:
+        shown += f", ... ({len(ordered) - limit} more)"
+    return shown or "(none)"
