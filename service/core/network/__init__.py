@@ -1,0 +1,35 @@
+"""The intersection model: load a SUMO network and describe one junction of it."""
+
+from service.core.network.load import (
+    bundled_networks,
+    load_intersection,
+    read_network,
+    resolve_network,
+)
+from service.core.network.model import (
+    ConnectingLane,
+    ControlType,
+    Exit,
+    Fork,
+    Intersection,
+    Route,
+    Turn,
+    route_id,
+)
+from service.core.network.override import file_sha256
+
+__all__ = [
+    "ConnectingLane",
+    "ControlType",
+    "Exit",
+    "Fork",
+    "Intersection",
+    "Route",
+    "Turn",
+    "bundled_networks",
+    "file_sha256",
+    "load_intersection",
+    "read_network",
+    "resolve_network",
+    "route_id",
+]

@@ -1,0 +1,285 @@
+"""Load a SUMO network and build the intersection model of one of its junctions."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import sumolib
+from shapely.geometry import LineString, Polygon
+from shapely.ops import substring, unary_union
+
+from service.core.errors import (
+    InvalidInput,
+    UnknownJunction,
+    UnknownNetwork,
+    UnsupportedIntersection,
+    choices,
+)
+from service.core.network.lanes import (
+    approach_polyline,
+    departure_polyline,
+    heading_of,
+    is_internal,
+    shape_2d,
+    via_chain,
+)
+from service.core.network.model import (
+    ConnectingLane,
+    ControlType,
+    Exit,
+    Fork,
+    Intersection,
+    Route,
+    Turn,
+)
+from service.core.network.override import rebuild_with_control
+from service.core.network.relations import (
+    APPROACH_WINDOW,
+    SLIVER_RADIUS,
+    conflicting_routes,
+    fork_relations,
+)
+
+SUPPORTED = tuple(c.value for c in ControlType)
+TURNS = {"s": Turn.STRAIGHT, "l": Turn.LEFT, "L": Turn.LEFT, "r": Turn.RIGHT, "R": Turn.RIGHT}
+STOP_STATES = {"s", "w"}
+DRAWN_LENGTH = 30.0  # metres of approach and departure kept for pictures
+
+
+def bundled_networks_dir() -> Path:
+    """``sumo_nets/``: inside the installed package, or beside it in a source checkout."""
+    package = Path(__file__).resolve().parents[2]
+    for candidate in (package / "sumo_nets", package.parent / "sumo_nets"):
+        if candidate.is_dir():
+            return candidate
+    raise UnknownNetwork("the bundled networks (sumo_nets/) are missing from this installation")
+
+
+def bundled_networks() -> dict[str, Path]:
+    """Short name -> path of every bundled network."""
+    return {
+        path.name.removesuffix(".net.xml"): path
+        for path in sorted(bundled_networks_dir().glob("*.net.xml"))
+    }
+
+
+def resolve_network(ref: str | Path) -> Path:
+    """A bundled network's short name or a path to a ``.net.xml``, as a path that exists."""
+    bundled = bundled_networks()
+    if str(ref) in bundled:
+        return bundled[str(ref)]
+    path = Path(ref)
+    if path.is_file():
+        return path.resolve()
+    raise UnknownNetwork(
+        f"network {str(ref)!r} is neither a bundled network ({choices(bundled)}) "
+        "nor a readable .net.xml file",
+        network=str(ref),
+    )
+
+
+def read_network(path: Path) -> Any:
+    try:
+        return sumolib.net.readNet(str(path), withInternal=True)
+    except Exception as exc:  # sumolib raises bare SAX and key errors on bad files
+        raise InvalidInput(f"cannot read SUMO network {path}: {exc}", network=str(path)) from exc
+
+
+def _junction_arms(node: Any) -> int:
+    return sum(1 for edge in node.getIncoming() if edge.getFunction() != "internal")
+
+
+def _choose_junction(net: Any, path: Path, junction: str | None) -> str:
+    nodes: dict[str, Any] = {
+        str(node.getID()): node for node in net.getNodes() if node.getType() != "internal"
+    }
+    if junction is not None:
+        if junction not in nodes:
+            crossings = [j for j, node in nodes.items() if _junction_arms(node) >= 3]
+            raise UnknownJunction(
+                f"junction {junction!r} is not in {path.name}; junctions with 3 or more "
+                f"approaches: {choices(crossings)}",
+                network=str(path),
+            )
+        return junction
+    supported = [j for j, node in nodes.items() if node.getType() in SUPPORTED]
+    if len(supported) == 1:
+        return supported[0]
+    crossings = [f"{j} ({n.getType()})" for j, n in nodes.items() if _junction_arms(n) >= 3]
+    reason = "several junctions" if supported else "no junction"
+    raise UnknownJunction(
+        f"{path.name} has {reason} of a supported control type ({', '.join(SUPPORTED)}); "
+        f"name one with --junction (and --control to override its type). Junctions with 3 or "
+        f"more approaches: {choices(crossings)}",
+        network=str(path),
+    )
+
+
+def _parse_control(control: ControlType | str | None) -> ControlType | None:
+    if control is None or isinstance(control, ControlType):
+        return control
+    try:
+        return ControlType(control)
+    except ValueError:
+        raise InvalidInput(
+            f"control type {control!r} is not supported; valid choices: {', '.join(SUPPORTED)}"
+        ) from None
+
+
+def load_intersection(
+    network: str | Path,
+    junction: str | None = None,
+    control: ControlType | str | None = None,
+    cache_dir: Path | None = None,
+    sliver_radius: float = SLIVER_RADIUS,
+) -> Intersection:
+    """Build the intersection model of ``junction`` (default: the only supported one).
+
+    With ``control``, the junction is rebuilt with netconvert to that control type first
+    (the rebuilt network is cached in ``cache_dir``).
+    """
+    source = resolve_network(network)
+    wanted = _parse_control(control)
+    net = read_network(source)
+    junction_id = _choose_junction(net, source, junction)
+    current = net.getNode(junction_id).getType()
+    effective = source
+    if wanted is not None and wanted.value != current:
+        effective = rebuild_with_control(source, junction_id, wanted.value, cache_dir)
+        net = read_network(effective)
+        current = net.getNode(junction_id).getType()
+    if current not in SUPPORTED:
+        raise UnsupportedIntersection(
+            f"junction {junction_id!r} has control type {current!r}, which has no traffic-rule "
+            f"set; supported types: {', '.join(SUPPORTED)} (override with --control)",
+            junction=junction_id,
+        )
+    return _build(net, source, effective, junction_id, ControlType(current), sliver_radius)
+
+
+def _build(
+    net: Any,
+    source: Path,
+    effective: Path,
+    junction: str,
+    control: ControlType,
+    sliver_radius: float,
+) -> Intersection:
+    node = net.getNode(junction)
+    forks: dict[str, Fork] = {}
+    exits: dict[str, Exit] = {}
+    lanes: dict[str, ConnectingLane] = {}
+    routes: dict[str, Route] = {}
+    for edge in node.getIncoming():
+        if edge.getFunction() == "internal":
+            continue
+        for lane in edge.getLanes():
+            if not lane.allows("passenger"):
+                continue
+            for connection in lane.getOutgoing():
+                turn = TURNS.get(connection.getDirection())
+                to_lane = connection.getToLane()
+                if turn is None or is_internal(to_lane.getID()) or not to_lane.allows("passenger"):
+                    continue
+                chain = via_chain(net, connection)
+                if not chain:
+                    raise UnsupportedIntersection(
+                        f"junction {junction!r} has no internal lanes (network built with "
+                        "--no-internal-links); rebuild it with internal links",
+                        junction=junction,
+                    )
+                lanes[chain[0]] = _connecting_lane(net, chain)
+                route = Route(
+                    fork=lane.getID(),
+                    exit=to_lane.getID(),
+                    connecting_lane=chain[0],
+                    turn=turn,
+                    link_state=connection.getState(),
+                )
+                routes[route.id] = route
+                exits.setdefault(to_lane.getID(), _exit(net, to_lane, junction))
+            if any(r.fork == lane.getID() for r in routes.values()):
+                forks[lane.getID()] = _fork(net, lane, junction, routes)
+    if not routes:
+        raise UnsupportedIntersection(
+            f"junction {junction!r} has no connections for cars", junction=junction
+        )
+    right, opposite, same = fork_relations(forks)
+    return Intersection(
+        network_file=effective,
+        source_file=source,
+        junction=junction,
+        control=control,
+        overridden=effective != source,
+        polygon=Polygon(shape_2d(node)).buffer(0),
+        forks=forks,
+        exits=exits,
+        connecting_lanes=lanes,
+        routes=dict(sorted(routes.items())),
+        conflicts=conflicting_routes(routes, lanes, sliver_radius),
+        to_its_right=right,
+        opposite=opposite,
+        same_direction=same,
+    )
+
+
+def _connecting_lane(net: Any, chain: list[str]) -> ConnectingLane:
+    points: list[tuple[float, float]] = []
+    pieces = []
+    width = net.getLane(chain[0]).getWidth()
+    for lane_id in chain:
+        shape = shape_2d(net.getLane(lane_id))
+        pieces.append(LineString(shape).buffer(width / 2.0, cap_style="flat", join_style="round"))
+        points.extend(p for p in shape if not points or p != points[-1])
+    return ConnectingLane(
+        id=chain[0],
+        internal_lanes=tuple(chain),
+        centreline=LineString(points),
+        polygon=unary_union(pieces),
+        width=width,
+    )
+
+
+def _chord_heading(points: list[tuple[float, float]], at_end: bool) -> float:
+    line = LineString(points)
+    window = min(APPROACH_WINDOW, line.length)
+    if at_end:
+        start = line.interpolate(line.length - window)
+        return heading_of((start.x, start.y), points[-1])
+    end = line.interpolate(window)
+    return heading_of(points[0], (end.x, end.y))
+
+
+def _fork(net: Any, lane: Any, junction: str, routes: dict[str, Route]) -> Fork:
+    polyline = approach_polyline(net, lane, junction, DRAWN_LENGTH)
+    states = {r.link_state for r in routes.values() if r.fork == lane.getID()}
+    return Fork(
+        lane=lane.getID(),
+        edge=lane.getEdge().getID(),
+        heading=round(_chord_heading(polyline, at_end=True), 6),
+        stop_line=shape_2d(lane)[-1],
+        stop_sign=bool(states & STOP_STATES),
+        width=lane.getWidth(),
+        approach=_clip(polyline, DRAWN_LENGTH, at_end=True),
+    )
+
+
+def _clip(points: list[tuple[float, float]], length: float, at_end: bool) -> LineString:
+    line = LineString(points)
+    if line.length <= length:
+        return line
+    if at_end:
+        return substring(line, line.length - length, line.length)
+    return substring(line, 0.0, length)
+
+
+def _exit(net: Any, lane: Any, junction: str) -> Exit:
+    polyline = departure_polyline(net, lane, junction, DRAWN_LENGTH)
+    return Exit(
+        lane=lane.getID(),
+        edge=lane.getEdge().getID(),
+        heading=round(_chord_heading(polyline, at_end=False), 6),
+        width=lane.getWidth(),
+        departure=_clip(polyline, DRAWN_LENGTH, at_end=False),
+    )

@@ -1,0 +1,162 @@
+"""The intersection model: forks, exits, connecting lanes, routes and their relations.
+
+Coordinates are SUMO network coordinates in metres. Headings are degrees clockwise from
+north (+y), in [0, 360): SUMO's own convention, so 90 points along +x.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import StrEnum
+from pathlib import Path
+
+from shapely.geometry import LineString, Polygon
+
+from service.core.errors import UnknownLane, UnknownRoute, choices
+
+Point = tuple[float, float]
+
+
+class ControlType(StrEnum):
+    """Junction control types that have a traffic-rule set (SUMO junction types)."""
+
+    ALLWAY_STOP = "allway_stop"
+    PRIORITY_STOP = "priority_stop"
+    RIGHT_BEFORE_LEFT = "right_before_left"
+
+
+class Turn(StrEnum):
+    """Turn direction of a route, from SUMO's connection direction."""
+
+    LEFT = "left"
+    RIGHT = "right"
+    STRAIGHT = "straight"
+
+
+@dataclass(frozen=True)
+class Fork:
+    """An incoming lane of the intersection; it ends at the stop line."""
+
+    lane: str
+    edge: str
+    heading: float  # approach heading over the last metres before the stop line
+    stop_line: Point  # centre of the stop line (end of the lane's centreline)
+    stop_sign: bool
+    width: float
+    approach: LineString  # centreline of the last metres before the stop line
+
+
+@dataclass(frozen=True)
+class Exit:
+    """An outgoing lane of the intersection."""
+
+    lane: str
+    edge: str
+    heading: float  # departure heading over the first metres after the junction
+    width: float
+    departure: LineString  # centreline of the first metres after the junction
+
+
+@dataclass(frozen=True)
+class ConnectingLane:
+    """The path through the junction of one connection: SUMO's chain of internal lanes."""
+
+    id: str  # the first internal lane of the chain, as SUMO names it
+    internal_lanes: tuple[str, ...]
+    centreline: LineString
+    polygon: Polygon
+    width: float
+
+    @property
+    def length(self) -> float:
+        return float(self.centreline.length)
+
+
+@dataclass(frozen=True)
+class Route:
+    """A way through the intersection: fork, connecting lane, exit and turn direction."""
+
+    fork: str
+    exit: str
+    connecting_lane: str
+    turn: Turn
+    link_state: str  # SUMO's link state: 'w' all-way stop, 's' stop, 'm' minor, 'M' major, ...
+
+    @property
+    def id(self) -> str:
+        return route_id(self.fork, self.exit)
+
+
+def route_id(fork: str, exit_lane: str) -> str:
+    """The public id of a route: ``FORK_LANE:EXIT_LANE``."""
+    return f"{fork}:{exit_lane}"
+
+
+@dataclass(frozen=True)
+class Intersection:
+    """One junction of a network with everything the traffic rules and the steps need."""
+
+    network_file: Path  # the network the model was built from (rebuilt if overridden)
+    source_file: Path  # the network the caller named
+    junction: str
+    control: ControlType
+    overridden: bool  # the control type was changed with netconvert
+    polygon: Polygon
+    forks: dict[str, Fork]
+    exits: dict[str, Exit]
+    connecting_lanes: dict[str, ConnectingLane]
+    routes: dict[str, Route]
+    conflicts: dict[str, frozenset[str]]  # route id -> ids of conflicting routes
+    to_its_right: dict[str, frozenset[str]]  # fork -> forks whose traffic comes from its right
+    opposite: dict[str, frozenset[str]]  # fork -> forks approaching head-on (same highway)
+    same_direction: dict[str, frozenset[str]] = field(default_factory=dict)
+
+    def route(self, route_ref: str) -> Route:
+        """The route with id ``FORK:EXIT``; raises UnknownRoute naming the valid ids."""
+        if route_ref in self.routes:
+            return self.routes[route_ref]
+        fork, sep, exit_lane = route_ref.partition(":")
+        if not sep:
+            raise UnknownRoute(
+                f"route {route_ref!r} is not of the form FORK_LANE:EXIT_LANE; "
+                f"valid routes at junction {self.junction!r}: {choices(self.routes)}",
+                junction=self.junction,
+            )
+        self.fork(fork)
+        self.exit(exit_lane)
+        raise UnknownRoute(
+            f"no connection from fork {fork!r} to exit {exit_lane!r} at junction "
+            f"{self.junction!r}; valid routes: {choices(self.routes)}",
+            junction=self.junction,
+        )
+
+    def fork(self, lane: str) -> Fork:
+        """The fork on ``lane``; raises UnknownLane naming the valid forks."""
+        if lane not in self.forks:
+            raise UnknownLane(
+                f"lane {lane!r} is not a fork (incoming lane) of junction {self.junction!r}; "
+                f"valid forks: {choices(self.forks)}",
+                junction=self.junction,
+            )
+        return self.forks[lane]
+
+    def exit(self, lane: str) -> Exit:
+        """The exit on ``lane``; raises UnknownLane naming the valid exits."""
+        if lane not in self.exits:
+            raise UnknownLane(
+                f"lane {lane!r} is not an exit (outgoing lane) of junction {self.junction!r}; "
+                f"valid exits: {choices(self.exits)}",
+                junction=self.junction,
+            )
+        return self.exits[lane]
+
+    def connecting_lane_of(self, route: Route) -> ConnectingLane:
+        return self.connecting_lanes[route.connecting_lane]
+
+    def on_different_highways(self, fork_a: str, fork_b: str) -> bool:
+        """Forks on different highways: neither the same road nor head-on opposite."""
+        return (
+            fork_a != fork_b
+            and fork_b not in self.opposite.get(fork_a, frozenset())
+            and fork_b not in self.same_direction.get(fork_a, frozenset())
+        )

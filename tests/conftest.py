@@ -1,0 +1,45 @@
+"""Session fixtures: each network is parsed once; overridden networks go to a temp cache."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from service.core.network import Intersection, load_intersection
+
+DATA = Path(__file__).parent / "data"
+TOWN05 = DATA / "carla" / "Town05.net.xml"
+TOWN07 = DATA / "carla" / "Town07.net.xml"
+
+
+@pytest.fixture(scope="session")
+def cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("networks")
+
+
+@pytest.fixture(scope="session")
+def four_way() -> Intersection:
+    return load_intersection("4way-stop")
+
+
+@pytest.fixture(scope="session")
+def t_stop() -> Intersection:
+    return load_intersection("t-stop")
+
+
+@pytest.fixture(scope="session")
+def y_junction() -> Intersection:
+    return load_intersection("y-uncontrolled")
+
+
+@pytest.fixture(scope="session")
+def town07_y(cache_dir: Path) -> Intersection:
+    """Town07's Y-shaped junction 358 (plain priority in CARLA) made uncontrolled."""
+    return load_intersection(TOWN07, "358", "right_before_left", cache_dir)
+
+
+@pytest.fixture(scope="session")
+def town05_allway(cache_dir: Path) -> Intersection:
+    """Town05's four-arm junction 396 (plain priority in CARLA) made an all-way stop."""
+    return load_intersection(TOWN05, "396", "allway_stop", cache_dir)
