@@ -1,0 +1,258 @@
+"""The ``scengen`` command line: a thin adapter over ``service.core``.
+
+Exit codes: 0 success, 2 bad input (one line on stderr), 3 the work could not be done
+(SUMO, netconvert or a budget failed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
+from service.core.events import compute_events
+from service.core.network import ControlType, bundled_networks, load_intersection
+from service.core.network.describe import describe_intersection
+from service.core.poses import generate_poses
+from service.core.testcase import (
+    dump_testcase,
+    load_testcase_intersection,
+    new_testcase,
+    read_testcase,
+)
+
+EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 2, 3
+CONTROLS = [c.value for c in ControlType]
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="scengen",
+        description="Intersection test-cases of increasing complexity for autonomous vehicles.",
+    )
+    commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    networks = commands.add_parser("networks", help="list the bundled networks")
+    networks.set_defaults(run=_run_networks)
+
+    inter = commands.add_parser(
+        "intersection", help="describe a junction: forks, routes, conflicts, right-of relations"
+    )
+    _network_arguments(inter)
+    inter.add_argument("--json", action="store_true", help="print one JSON object")
+    inter.add_argument("--plot", type=Path, metavar="FILE", help="also draw it to FILE (.png/.svg)")
+    inter.set_defaults(run=_run_intersection)
+
+    new = commands.add_parser("new", help="write an ego-only test-case")
+    _network_arguments(new)
+    new.add_argument("--ego", required=True, metavar="FORK_LANE:EXIT_LANE", help="ego route")
+    new.add_argument(
+        "--start-distance",
+        type=float,
+        default=30.0,
+        metavar="M",
+        help="ego front bumper before the stop line (default 30 m)",
+    )
+    new.add_argument(
+        "--start-speed",
+        type=float,
+        default=8.0,
+        metavar="V",
+        help="ego speed at t = 0 (default 8 m/s)",
+    )
+    new.add_argument("--duration", type=float, default=20.0, help="seconds (default 20)")
+    new.add_argument("--timestep", type=float, default=0.1, help="seconds (default 0.1)")
+    new.add_argument("--name", default="", help="a name for the test-case")
+    new.add_argument("-o", "--output", type=Path, metavar="FILE", help="write here, not stdout")
+    new.set_defaults(run=_run_new)
+
+    drive = commands.add_parser(
+        "drive", help="Step 1: drive a car alone along a route in SUMO and list its events"
+    )
+    drive.add_argument("testcase", type=Path, metavar="TESTCASE", help="a test-case JSON file")
+    drive.add_argument(
+        "--route", metavar="FORK_LANE:EXIT_LANE", help="route to drive (default: the ego's)"
+    )
+    drive.add_argument(
+        "--start-distance",
+        type=float,
+        metavar="M",
+        help="front bumper before the stop line (default: the ego's start)",
+    )
+    drive.add_argument("--speed", type=float, default=8.0, help="cruise speed (default 8 m/s)")
+    drive.add_argument("--json", action="store_true", help="print samples and events as JSON")
+    drive.add_argument("--plot", type=Path, metavar="FILE", help="draw the drive to FILE")
+    drive.set_defaults(run=_run_drive)
+    return parser
+
+
+def _network_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "network",
+        metavar="NET",
+        help=f"bundled network ({', '.join(bundled_networks())}) or a .net.xml",
+    )
+    parser.add_argument(
+        "--junction",
+        metavar="J",
+        help="junction id (default: the only junction of a supported type)",
+    )
+    parser.add_argument(
+        "--control",
+        choices=CONTROLS,
+        metavar="TYPE",
+        help=f"override the control type, rebuilt with netconvert: {', '.join(CONTROLS)}",
+    )
+
+
+def _run_networks(args: argparse.Namespace) -> int:
+    for name, path in bundled_networks().items():
+        print(f"{name}\t{path}")
+    return EXIT_OK
+
+
+def _run_intersection(args: argparse.Namespace) -> int:
+    intersection = load_intersection(args.network, args.junction, args.control)
+    description = describe_intersection(intersection)
+    if args.plot:
+        from service.plot import plot_intersection
+
+        plot_intersection(intersection, args.plot)
+    if args.json:
+        print(json.dumps(description, indent=2))
+    else:
+        _print_intersection(description)
+    return EXIT_OK
+
+
+def _print_intersection(d: dict[str, Any]) -> None:
+    overridden = " (overridden)" if d["control_overridden"] else ""
+    print(f"junction {d['junction']}  control {d['control']}{overridden}  network {d['network']}")
+    print()
+    rows = [["fork", "heading", "stop", "to its right", "opposite"]]
+    for f in d["forks"]:
+        rows.append(
+            [
+                f["lane"],
+                f"{f['heading']:.1f}",
+                "yes" if f["stop_sign"] else "no",
+                " ".join(f["to_its_right"]) or "-",
+                " ".join(f["opposite"]) or "-",
+            ]
+        )
+    _print_table(rows)
+    print()
+    rows = [["route", "turn", "conflicts"]]
+    for r in d["routes"]:
+        rows.append([r["id"], r["turn"], " ".join(r["conflicts"]) or "-"])
+    _print_table(rows)
+
+
+def _print_table(rows: Sequence[Sequence[str]]) -> None:
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    for row in rows:
+        print(
+            "  ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)).rstrip()
+        )
+
+
+def _run_new(args: argparse.Namespace) -> int:
+    testcase = new_testcase(
+        args.network,
+        args.ego,
+        args.junction,
+        args.control,
+        args.start_distance,
+        args.start_speed,
+        args.duration,
+        args.timestep,
+        name=args.name,
+    )
+    text = dump_testcase(testcase)
+    if args.output:
+        args.output.write_text(text)
+        print(f"wrote {args.output}", file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    return EXIT_OK
+
+
+def _run_drive(args: argparse.Namespace) -> int:
+    testcase = read_testcase(args.testcase)
+    intersection = load_testcase_intersection(testcase)
+    route = intersection.route(args.route or testcase.ego.route.id)
+    start = testcase.ego.start.distance if args.start_distance is None else args.start_distance
+    track = generate_poses(
+        intersection,
+        [(route, start)],
+        args.speed,
+        testcase.duration,
+        testcase.timestep,
+        testcase.ego.length,
+        testcase.ego.width,
+    )[0]
+    events = compute_events(
+        track.samples,
+        track.length,
+        track.width,
+        intersection,
+        route.fork,
+        testcase.params.arrival_distance,
+        testcase.params.v_stop,
+    )
+    if args.plot:
+        from service.plot import plot_intersection
+
+        plot_intersection(intersection, args.plot, [route.id], track.samples)
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "route": route.id,
+                    "samples": [vars(s) for s in track.samples],
+                    "events": [
+                        {"kind": e.kind.value, "lane": e.lane, "t": e.time, "distance": e.distance}
+                        for e in events
+                    ],
+                },
+                indent=2,
+            )
+        )
+        return EXIT_OK
+    print(
+        f"route {route.id} ({route.turn.value}), {len(track.samples)} samples, "
+        f"{track.samples[-1].distance:.1f} m in {track.samples[-1].t:.1f} s"
+    )
+    rows = [["t (s)", "distance (m)", "event", "lane"]]
+    for e in events:
+        rows.append([f"{e.time:.3f}", f"{e.distance:.3f}", e.kind.value, e.lane])
+    _print_table(rows)
+    return EXIT_OK
+
+
+def exit_code(error: ScengenError) -> int:
+    """The exit code for a domain error: the one place where errors become exit codes."""
+    if isinstance(error, InvalidInput | UnsupportedIntersection):
+        return EXIT_BAD_INPUT
+    return EXIT_FAILED
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = _parser()
+    args = parser.parse_args(argv)
+    try:
+        code: int = args.run(args)
+        return code
+    except ScengenError as exc:
+        code = exit_code(exc)
+        label = "error" if code == EXIT_BAD_INPUT else "failed"
+        print(f"scengen: {label}: {exc}", file=sys.stderr)
+        return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

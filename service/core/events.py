@@ -1,0 +1,221 @@
+"""Lane events of a car from its sampled poses and its rectangle.
+
+Events (design section 1), each with a time and a distance travelled:
+
+- ``arrived``: the front bumper comes within the arrival distance of the fork's stop line
+  (measured along the fork's approach heading);
+- ``stopped``: the speed first falls to ``v_stop`` or below between arriving and entering;
+- ``entered``: the rectangle first overlaps the junction polygon;
+- ``entered_lane`` / ``left_lane``: the rectangle starts / stops overlapping a connecting
+  lane, for every connecting lane of the junction it touches, not only its own;
+- ``exited``: the rectangle stops overlapping the junction for good.
+
+"Overlap" means the interiors intersect; touching edges do not count. Between two samples
+the pose is interpolated linearly in distance and the time linearly in distance (constant
+speed within a step), and each event is placed by bisection to within ``TOLERANCE`` metres,
+so event distances are not truncated to a time step. The same function serves Step 1
+(constant speed) and the checker (any trajectory, stops included).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+import shapely
+from shapely.geometry import Polygon
+
+from service.core.network import Fork, Intersection
+from service.core.poses import PoseSample, interpolate_heading
+
+TOLERANCE = 1e-4  # metres
+
+
+class EventKind(StrEnum):
+    ARRIVED = "arrived"
+    STOPPED = "stopped"
+    ENTERED = "entered"
+    ENTERED_LANE = "entered_lane"
+    LEFT_LANE = "left_lane"
+    EXITED = "exited"
+
+
+@dataclass(frozen=True)
+class LaneEvent:
+    """One event of a car: kind, the lane it concerns, time (s) and distance travelled (m).
+
+    ``lane`` is the fork for arrived, stopped and entered, the connecting lane for
+    entered_lane and left_lane, and the junction id for exited.
+    """
+
+    kind: EventKind
+    lane: str
+    time: float
+    distance: float
+
+
+def rectangles(
+    xs: np.ndarray, ys: np.ndarray, headings: np.ndarray, length: float, width: float
+) -> np.ndarray:
+    """Car rectangles (shapely polygons) for arrays of centre poses."""
+    rad = np.radians(headings)
+    fx, fy = np.sin(rad) * length / 2.0, np.cos(rad) * length / 2.0
+    rx, ry = np.cos(rad) * width / 2.0, -np.sin(rad) * width / 2.0
+    corners = np.stack(
+        [
+            np.stack([xs + fx + rx, ys + fy + ry], axis=-1),
+            np.stack([xs + fx - rx, ys + fy - ry], axis=-1),
+            np.stack([xs - fx - rx, ys - fy - ry], axis=-1),
+            np.stack([xs - fx + rx, ys - fy + ry], axis=-1),
+        ],
+        axis=1,
+    )
+    return shapely.polygons(corners)  # type: ignore[no-any-return]
+
+
+def overlapping(rects: np.ndarray, region: Polygon) -> np.ndarray:
+    """Whether each rectangle's interior meets the region's interior."""
+    return shapely.intersects(rects, region) & ~shapely.touches(rects, region)  # type: ignore[no-any-return]
+
+
+class _Track:
+    """Samples as arrays, with the pose anywhere between two samples."""
+
+    def __init__(self, samples: Sequence[PoseSample], length: float, width: float) -> None:
+        self.samples = samples
+        self.length = length
+        self.width = width
+        self.t = np.array([s.t for s in samples])
+        self.x = np.array([s.x for s in samples])
+        self.y = np.array([s.y for s in samples])
+        self.heading = np.array([s.heading for s in samples])
+        self.distance = np.array([s.distance for s in samples])
+        self.rects = rectangles(self.x, self.y, self.heading, length, width)
+
+    def between(self, k: int, share: float) -> tuple[float, float, float, float, float]:
+        """(time, distance, x, y, heading) at ``share`` of the way from sample k to k+1."""
+        a, b = self.samples[k], self.samples[k + 1]
+        return (
+            a.t + share * (b.t - a.t),
+            a.distance + share * (b.distance - a.distance),
+            a.x + share * (b.x - a.x),
+            a.y + share * (b.y - a.y),
+            interpolate_heading(a.heading, b.heading, share),
+        )
+
+    def rect_between(self, k: int, share: float) -> Polygon:
+        _, _, x, y, heading = self.between(k, share)
+        return rectangles(
+            np.array([x]), np.array([y]), np.array([heading]), self.length, self.width
+        )[0]
+
+    def refine(self, k: int, flips: Callable[[float], bool]) -> tuple[float, float]:
+        """(time, distance) where the state flips between samples k and k+1 (bisection)."""
+        low, high = 0.0, 1.0
+        span = max(abs(self.distance[k + 1] - self.distance[k]), TOLERANCE)
+        for _ in range(max(1, math.ceil(math.log2(span / TOLERANCE)))):
+            middle = (low + high) / 2.0
+            if flips(middle):
+                high = middle
+            else:
+                low = middle
+        time, distance, *_ = self.between(k, high)
+        return time, distance
+
+
+def _region_events(
+    track: _Track, region: Polygon, lane: str, enter: EventKind, leave: EventKind
+) -> list[LaneEvent]:
+    shapely.prepare(region)
+    inside = overlapping(track.rects, region)
+    events = []
+    if inside[0]:
+        events.append(LaneEvent(enter, lane, float(track.t[0]), float(track.distance[0])))
+    for k in np.flatnonzero(inside[1:] != inside[:-1]):
+        was_inside = bool(inside[k])
+
+        def flips(share: float, k: int = int(k), was: bool = was_inside) -> bool:
+            rect = track.rect_between(k, share)
+            return bool(overlapping(np.array([rect]), region)[0]) != was
+
+        time, distance = track.refine(int(k), flips)
+        events.append(LaneEvent(leave if was_inside else enter, lane, time, distance))
+    return events
+
+
+def _arrival(track: _Track, fork: Fork, arrival_distance: float) -> LaneEvent | None:
+    rad = math.radians(fork.heading)
+    ux, uy = math.sin(rad), math.cos(rad)
+    fx = track.x + np.sin(np.radians(track.heading)) * track.length / 2.0
+    fy = track.y + np.cos(np.radians(track.heading)) * track.length / 2.0
+    to_line = (fork.stop_line[0] - fx) * ux + (fork.stop_line[1] - fy) * uy
+    near = np.flatnonzero(to_line <= arrival_distance)
+    if near.size == 0:
+        return None
+    k = int(near[0])
+    if k == 0:
+        return LaneEvent(EventKind.ARRIVED, fork.lane, float(track.t[0]), float(track.distance[0]))
+    share = (to_line[k - 1] - arrival_distance) / (to_line[k - 1] - to_line[k])
+    time, distance, *_ = track.between(k - 1, float(share))
+    return LaneEvent(EventKind.ARRIVED, fork.lane, time, distance)
+
+
+def _stop(
+    track: _Track, fork: Fork, arrived: LaneEvent, entered_at: float, v_stop: float
+) -> LaneEvent | None:
+    speeds = [s.speed for s in track.samples]
+    for k, sample in enumerate(track.samples):
+        if sample.t < arrived.time or sample.t >= entered_at or sample.speed > v_stop:
+            continue
+        time, distance = sample.t, sample.distance
+        if k > 0 and speeds[k - 1] > v_stop:
+            share = (speeds[k - 1] - v_stop) / (speeds[k - 1] - speeds[k])
+            time, distance, *_ = track.between(k - 1, share)
+            if time < arrived.time:
+                time, distance = arrived.time, arrived.distance
+        return LaneEvent(EventKind.STOPPED, fork.lane, time, distance)
+    return None
+
+
+def compute_events(
+    samples: Sequence[PoseSample],
+    length: float,
+    width: float,
+    intersection: Intersection,
+    fork: str,
+    arrival_distance: float,
+    v_stop: float,
+) -> list[LaneEvent]:
+    """All events of a car on a route from ``fork``, ordered by distance then kind."""
+    if len(samples) < 2:
+        return []
+    track = _Track(samples, length, width)
+    events: list[LaneEvent] = []
+    junction = _region_events(
+        track, intersection.polygon, intersection.junction, EventKind.ENTERED, EventKind.EXITED
+    )
+    entries = [e for e in junction if e.kind is EventKind.ENTERED]
+    exits = [e for e in junction if e.kind is EventKind.EXITED]
+    entered = entries[0] if entries else None
+    if entered is not None:
+        events.append(LaneEvent(EventKind.ENTERED, fork, entered.time, entered.distance))
+    if exits and exits[-1].time >= entries[-1].time:
+        events.append(exits[-1])
+    arrived = _arrival(track, intersection.fork(fork), arrival_distance)
+    if arrived is not None and (entered is None or arrived.time <= entered.time):
+        events.append(arrived)
+        limit = entered.time if entered is not None else math.inf
+        stopped = _stop(track, intersection.fork(fork), arrived, limit, v_stop)
+        if stopped is not None:
+            events.append(stopped)
+    for lane in intersection.connecting_lanes.values():
+        events.extend(
+            _region_events(
+                track, lane.polygon, lane.id, EventKind.ENTERED_LANE, EventKind.LEFT_LANE
+            )
+        )
+    order = list(EventKind)
+    return sorted(events, key=lambda e: (e.distance, e.time, order.index(e.kind), e.lane))

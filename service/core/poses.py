@@ -1,0 +1,287 @@
+"""Step 1: drive one car alone along a route with libsumo and record its poses.
+
+The car drives at a constant cruise speed, ignoring every rule (speed mode 0, no lane
+changes), from a start given as the front bumper's distance before the stop line. Poses are
+rectangle centres: SUMO reports the front-bumper centre and the heading (degrees clockwise
+from north), so the centre lies half a car length behind along the heading. Where the fork
+or the exit lane is short, the drive continues along the straightest upstream and
+downstream lanes; it never re-enters the junction.
+"""
+
+from __future__ import annotations
+
+import bisect
+import functools
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from service.core.budget import run_with_budget
+from service.core.errors import InvalidInput, SimulationFailed
+from service.core.network import Intersection, Route, read_network
+from service.core.network.lanes import (
+    is_internal,
+    straightest_predecessor,
+    straightest_successor,
+    via_chain,
+)
+
+DRIVE_BUDGET = 60.0  # seconds for one batch of drives
+CLEARANCE = 1.0  # metres the back must be past the exit lane's start to count as left
+
+
+@dataclass(frozen=True)
+class PoseSample:
+    """One time step of a car: rectangle centre, heading, speed and distance travelled."""
+
+    t: float
+    x: float
+    y: float
+    heading: float
+    speed: float
+    distance: float
+
+
+@dataclass(frozen=True)
+class DrivePlan:
+    """Everything the SUMO process needs to drive one car; plain data, picklable."""
+
+    network_file: str
+    edges: tuple[str, ...]
+    depart_lane: int
+    depart_pos: float
+    speed: float
+    length: float
+    width: float
+    timestep: float
+    steps: int  # at least this many SUMO steps after the first sample (covers the duration)
+    leave_distance: float  # SUMO odometer reading at which the back has left the junction
+    connecting_lanes: tuple[str, ...]  # internal lanes the car must drive through
+    skip: float = 0.0  # metres driven before the start (the start lies on internal lanes)
+
+
+@dataclass(frozen=True)
+class PoseTrack:
+    """Poses of one car along one route, with a lookup of the pose at a distance."""
+
+    route: str
+    length: float
+    width: float
+    start_distance: float  # front bumper before the stop line at the first sample
+    samples: tuple[PoseSample, ...]
+
+    def pose_at(self, distance: float) -> tuple[float, float, float]:
+        """(x, y, heading) at ``distance`` travelled, interpolated between samples."""
+        distances = [s.distance for s in self.samples]
+        if distance <= distances[0]:
+            first = self.samples[0]
+            return first.x, first.y, first.heading
+        if distance >= distances[-1]:
+            last = self.samples[-1]
+            return last.x, last.y, last.heading
+        k = bisect.bisect_right(distances, distance) - 1
+        a, b = self.samples[k], self.samples[k + 1]
+        share = (distance - a.distance) / (b.distance - a.distance)
+        return (
+            a.x + share * (b.x - a.x),
+            a.y + share * (b.y - a.y),
+            interpolate_heading(a.heading, b.heading, share),
+        )
+
+
+def interpolate_heading(a: float, b: float, share: float) -> float:
+    """Heading between ``a`` and ``b`` (degrees) the short way round."""
+    delta = (b - a + 180.0) % 360.0 - 180.0
+    return (a + share * delta) % 360.0
+
+
+def front_to_centre(x: float, y: float, heading: float, length: float) -> tuple[float, float]:
+    """The rectangle centre from SUMO's front-bumper position and heading."""
+    rad = math.radians(heading)
+    return x - math.sin(rad) * length / 2.0, y - math.cos(rad) * length / 2.0
+
+
+def centre_to_front(x: float, y: float, heading: float, length: float) -> tuple[float, float]:
+    """The front-bumper centre from the rectangle centre and heading."""
+    rad = math.radians(heading)
+    return x + math.sin(rad) * length / 2.0, y + math.cos(rad) * length / 2.0
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_network(path: str, mtime: float) -> Any:
+    return read_network(Path(path))
+
+
+def plan_drive(
+    intersection: Intersection,
+    route: Route,
+    start_distance: float,
+    speed: float,
+    duration: float,
+    timestep: float,
+    length: float = 5.0,
+    width: float = 1.8,
+) -> DrivePlan:
+    """The lanes, start and stop condition of a drive; InvalidInput if the start is off-map."""
+    if start_distance < 0:
+        raise InvalidInput(f"start distance must be >= 0 m, got {start_distance:g}")
+    if speed <= 0:
+        raise InvalidInput(f"cruise speed must be > 0 m/s, got {speed:g}")
+    path = intersection.network_file
+    net = _cached_network(str(path), path.stat().st_mtime)
+    junction = intersection.junction
+    fork_lane = net.getLane(route.fork)
+    connection = next(c for c in fork_lane.getOutgoing() if c.getToLane().getID() == route.exit)
+    lanes = [fork_lane]
+    behind = fork_lane.getLength()  # metres from the first lane's start to the stop line
+    while behind < start_distance:
+        incoming = straightest_predecessor(net, lanes[0], junction)
+        if incoming is None:
+            raise InvalidInput(
+                f"start distance {start_distance:g} m is longer than the road before fork "
+                f"{route.fork!r} ({behind:.1f} m)",
+                route=route.id,
+            )
+        behind += sum(net.getLane(v).getLength() for v in via_chain(net, incoming))
+        lanes.insert(0, incoming.getFromLane())
+        behind += lanes[0].getLength()
+    chain = via_chain(net, connection)
+    to_exit = start_distance + sum(net.getLane(v).getLength() for v in chain)
+    ahead = to_exit + connection.getToLane().getLength()
+    lanes.append(connection.getToLane())
+    needed = speed * (duration + timestep) + 2 * length
+    while ahead < needed:
+        outgoing = straightest_successor(net, lanes[-1], junction)
+        if outgoing is None:
+            break
+        ahead += sum(net.getLane(v).getLength() for v in via_chain(net, outgoing))
+        lanes.append(outgoing.getToLane())
+        ahead += lanes[-1].getLength()
+    leave = to_exit + length + CLEARANCE
+    depart_pos = behind - start_distance
+    # SUMO cannot insert a car on an internal lane: when the start lies inside a junction
+    # upstream, depart just before it and drop the extra metres afterwards.
+    skip = max(0.0, depart_pos - (lanes[0].getLength() - 0.01))
+    depart_pos -= skip
+    if ahead < leave:
+        raise InvalidInput(
+            f"the road after exit {route.exit!r} ends {ahead - to_exit:.1f} m after the junction, "
+            f"too short for a {length:g} m car to leave it",
+            route=route.id,
+        )
+    return DrivePlan(
+        network_file=str(path),
+        edges=tuple(lane.getEdge().getID() for lane in lanes),
+        depart_lane=lanes[0].getIndex(),
+        depart_pos=depart_pos,
+        speed=speed,
+        length=length,
+        width=width,
+        timestep=timestep,
+        steps=math.ceil(duration / timestep - 1e-9) + math.ceil(skip / (speed * timestep)),
+        leave_distance=leave + skip,
+        connecting_lanes=tuple(chain),
+        skip=skip,
+    )
+
+
+def drive(plans: list[DrivePlan]) -> list[list[PoseSample]]:
+    """Drive each plan in libsumo, one simulation after another, in this process."""
+    import libsumo  # only here: libsumo is a per-process singleton
+
+    return [_drive_one(libsumo, plan) for plan in plans]
+
+
+def _drive_one(traci: Any, plan: DrivePlan) -> list[PoseSample]:
+    traci.start([
+        "sumo", "-n", plan.network_file, "--step-length", repr(plan.timestep),
+        "--no-step-log", "true", "--no-warnings", "true", "--time-to-teleport", "-1",
+        "--collision.action", "none", "--ignore-route-errors", "false",
+    ])  # fmt: skip
+    try:
+        traci.vehicletype.copy("DEFAULT_VEHTYPE", "car")
+        traci.vehicletype.setLength("car", plan.length)
+        traci.vehicletype.setWidth("car", plan.width)
+        traci.vehicletype.setMinGap("car", 0.0)
+        traci.route.add("route", list(plan.edges))
+        traci.vehicle.add(
+            "car", "route", typeID="car", depart="0", departLane=str(plan.depart_lane),
+            departPos=repr(plan.depart_pos), departSpeed="0",
+        )  # fmt: skip
+        traci.vehicle.setSpeedMode("car", 0)
+        traci.vehicle.setLaneChangeMode("car", 0)
+        return _record(traci, plan)
+    except traci.TraCIException as exc:
+        raise SimulationFailed(f"SUMO refused the drive: {exc}") from exc
+    finally:
+        traci.close()
+
+
+def _record(traci: Any, plan: DrivePlan) -> list[PoseSample]:
+    samples: list[PoseSample] = []
+    visited: list[str] = []
+    step = 0
+    while True:
+        traci.simulationStep()
+        if "car" not in traci.vehicle.getIDList():
+            break
+        if step == 0:
+            # Departing at speed would fail SUMO's insertion checks before slow curves; the
+            # speed set here holds from the first step on (speed mode 0 has no acceleration
+            # limit), so the car covers speed * timestep in every step.
+            traci.vehicle.setSpeed("car", plan.speed)
+        lane = traci.vehicle.getLaneID("car")
+        if is_internal(lane) and (not visited or visited[-1] != lane):
+            visited.append(lane)
+        heading = traci.vehicle.getAngle("car") % 360.0
+        fx, fy = traci.vehicle.getPosition("car")
+        x, y = front_to_centre(fx, fy, heading, plan.length)
+        distance = traci.vehicle.getDistance("car")
+        speed = plan.speed if step == 0 else traci.vehicle.getSpeed("car")
+        samples.append(PoseSample(step * plan.timestep, x, y, heading, speed, distance))
+        if step >= plan.steps and distance >= plan.leave_distance:
+            break
+        step += 1
+    if not samples or samples[-1].distance < plan.leave_distance:
+        raise SimulationFailed("the car left the simulation before it left the junction")
+    if not set(plan.connecting_lanes) <= set(visited):
+        raise SimulationFailed(
+            f"SUMO drove through {visited} instead of the connecting lane "
+            f"{list(plan.connecting_lanes)}"
+        )
+    return _drop_skipped(samples, plan) if plan.skip > 0 else samples
+
+
+def _drop_skipped(raw: list[PoseSample], plan: DrivePlan) -> list[PoseSample]:
+    """Resample a drive that started ``plan.skip`` metres early so that it starts on time."""
+    shifted = PoseTrack("", plan.length, plan.width, 0.0, tuple(raw))
+    samples = []
+    step = plan.speed * plan.timestep
+    for k in range(math.floor((raw[-1].distance - plan.skip) / step + 1e-9) + 1):
+        distance = k * step
+        x, y, heading = shifted.pose_at(distance + plan.skip)
+        samples.append(PoseSample(k * plan.timestep, x, y, heading, plan.speed, distance))
+    return samples
+
+
+def generate_poses(
+    intersection: Intersection,
+    requests: list[tuple[Route, float]],
+    speed: float,
+    duration: float,
+    timestep: float,
+    length: float = 5.0,
+    width: float = 1.8,
+    budget: float = DRIVE_BUDGET,
+) -> list[PoseTrack]:
+    """Step 1 for (route, start distance) pairs, in one killable SUMO process."""
+    plans = [
+        plan_drive(intersection, route, start, speed, duration, timestep, length, width)
+        for route, start in requests
+    ]
+    driven = run_with_budget(drive, (plans,), budget, "the SUMO drive (Step 1)")
+    return [
+        PoseTrack(route.id, length, width, start, tuple(samples))
+        for (route, start), samples in zip(requests, driven, strict=True)
+    ]

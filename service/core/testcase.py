@@ -1,0 +1,294 @@
+"""The test-case document (design section 8): a versioned JSON contract with validation.
+
+Conventions: coordinates are SUMO network coordinates (m); ``x``, ``y`` of a sample are the
+centre of the car's rectangle; ``heading`` is in degrees clockwise from north (+y), as in
+SUMO; ``distance`` is metres travelled along the route since t = 0; the ego's start is the
+front bumper's distance before the stop line of its fork.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
+
+from service.core.errors import InvalidTestCase
+from service.core.events import EventKind
+from service.core.network import (
+    Intersection,
+    bundled_networks,
+    file_sha256,
+    load_intersection,
+    resolve_network,
+)
+from service.core.poses import plan_drive
+
+SCHEMA = "scengen/testcase/1"
+RESERVED_IDS = frozenset({"ego", "illegal"})
+
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Params(_Model):
+    """Parameters of the rules and of the speed profiles."""
+
+    m: Positive = Field(1.0, description="minimum perceptible time difference (s)")
+    a_min: float = Field(-4.0, lt=0, description="strongest deceleration (m/s^2, negative)")
+    a_max: Positive = Field(3.0, description="strongest acceleration (m/s^2)")
+    v_stop: NonNegative = Field(0.1, description="at or below this speed a car is stopped (m/s)")
+    v_run: Positive = Field(2.0, description="at or above this speed a car runs a sign (m/s)")
+    v_max: Positive = Field(15.0, description="speed limit of every car (m/s)")
+    arrival_distance: Positive = Field(
+        10.0, description="a car has arrived at its fork when its front is this close (m)"
+    )
+
+    @model_validator(mode="after")
+    def _speeds_ordered(self) -> Params:
+        if not self.v_stop < self.v_run < self.v_max:
+            raise ValueError(
+                f"speeds must satisfy v_stop < v_run < v_max, got {self.v_stop:g}, "
+                f"{self.v_run:g}, {self.v_max:g}"
+            )
+        return self
+
+
+class NetworkRef(_Model):
+    """The network: a bundled name, a path, or an uploaded id; with its content hash."""
+
+    ref: str = Field(min_length=1)
+    sha256: str = Field(pattern=r"^[0-9a-f]{64}$")
+
+
+class RouteRef(_Model):
+    fork: str = Field(min_length=1, description="incoming lane id")
+    exit: str = Field(min_length=1, description="outgoing lane id")
+
+    @property
+    def id(self) -> str:
+        return f"{self.fork}:{self.exit}"
+
+
+class Start(_Model):
+    distance: NonNegative = Field(description="front bumper before the stop line (m)")
+    speed: NonNegative = Field(description="speed at t = 0 (m/s)")
+
+
+class Ego(_Model):
+    route: RouteRef
+    start: Start
+    length: Positive = 5.0
+    width: Positive = 1.8
+
+
+class Sample(_Model):
+    t: NonNegative
+    x: float
+    y: float
+    heading: float = Field(ge=0, lt=360)
+    speed: NonNegative
+    distance: NonNegative
+
+
+class EventRecord(_Model):
+    kind: EventKind
+    lane: str
+    t: NonNegative
+    distance: NonNegative
+
+
+class NonEgo(_Model):
+    id: str = Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")
+    route: RouteRef
+    length: Positive = 5.0
+    width: Positive = 1.8
+    trajectory: list[Sample] = Field(min_length=2)
+    events: list[EventRecord] = []
+    added_in: int = Field(ge=1, description="extension level that added this car")
+
+    @field_validator("id")
+    @classmethod
+    def _not_reserved(cls, value: str) -> str:
+        if value in RESERVED_IDS:
+            raise ValueError(f"{value!r} is reserved for the ego certificates")
+        return value
+
+    @field_validator("trajectory")
+    @classmethod
+    def _monotone(cls, samples: list[Sample]) -> list[Sample]:
+        for k in range(1, len(samples)):
+            if samples[k].t <= samples[k - 1].t:
+                raise ValueError(f"sample {k}: times must increase")
+            if samples[k].distance < samples[k - 1].distance:
+                raise ValueError(f"sample {k}: distance must not decrease (cars never back up)")
+        return samples
+
+
+class Certificates(_Model):
+    complexity: list[Sample] = Field(min_length=2)
+    solvability: list[Sample] = Field(min_length=2)
+
+
+class TestCase(_Model):
+    """A test-case: intersection, rules, ego, non-egos, timing and parameters."""
+
+    __test__ = False  # not a pytest class
+
+    schema_: Literal["scengen/testcase/1"] = Field("scengen/testcase/1", alias="schema")
+    name: str = ""
+    network: NetworkRef
+    junction: str = Field(min_length=1)
+    control: Literal["allway_stop", "priority_stop", "right_before_left"]
+    rules: str
+    timestep: Positive = 0.1
+    duration: Positive = 20.0
+    params: Params = Params()
+    ego: Ego
+    nonegos: list[NonEgo] = []
+    certificates: Certificates | None = None
+    provenance: dict[str, Any] | None = None
+
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> TestCase:
+        if self.rules != self.control:
+            raise ValueError(
+                f"rules {self.rules!r} do not match the control type {self.control!r}; the "
+                "rule set is chosen by the control type"
+            )
+        if self.duration < self.timestep:
+            raise ValueError("duration must be at least one time step")
+        ids = [n.id for n in self.nonegos]
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        if duplicates:
+            raise ValueError(f"non-ego ids must be unique; repeated: {', '.join(duplicates)}")
+        for index, nonego in enumerate(self.nonegos):
+            _check_timing(nonego.trajectory, self.timestep, f"nonegos.{index}.trajectory")
+        return self
+
+
+def _check_timing(samples: list[Sample], timestep: float, where: str) -> None:
+    for k, sample in enumerate(samples):
+        if abs(sample.t - k * timestep) > 1e-6:
+            raise ValueError(
+                f"{where}.{k}.t is {sample.t:g}; samples must be at every time step "
+                f"({timestep:g} s) from 0"
+            )
+
+
+def _describe(error: ValidationError) -> str:
+    parts = []
+    for item in error.errors()[:5]:
+        where = ".".join(str(p) for p in item["loc"]) or "document"
+        message = re.sub(r"^Value error, ", "", item["msg"])
+        parts.append(f"{where}: {message}")
+    more = len(error.errors()) - 5
+    return "; ".join(parts) + (f" (and {more} more)" if more > 0 else "")
+
+
+def parse_testcase(document: str | bytes | dict[str, Any]) -> TestCase:
+    """A validated test-case; InvalidTestCase naming the first bad fields otherwise."""
+    try:
+        if isinstance(document, dict):
+            return TestCase.model_validate(document)
+        return TestCase.model_validate_json(document)
+    except ValidationError as exc:
+        raise InvalidTestCase(f"invalid test-case: {_describe(exc)}") from None
+
+
+def read_testcase(path: Path) -> TestCase:
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise InvalidTestCase(f"cannot read test-case {path}: {exc.strerror}") from None
+    try:
+        json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InvalidTestCase(f"{path} is not JSON: {exc}") from None
+    return parse_testcase(text)
+
+
+def dump_testcase(testcase: TestCase) -> str:
+    """The JSON text of a test-case (stable key order, two-space indent, newline at end)."""
+    return (
+        json.dumps(testcase.model_dump(mode="json", by_alias=True, exclude_none=True), indent=2)
+        + "\n"
+    )
+
+
+def network_ref(network: str | Path) -> NetworkRef:
+    """How a test-case names a network: bundled short name, else the absolute path."""
+    path = resolve_network(network)
+    name = str(network)
+    ref = name if bundled_networks().get(name) == path else str(path)
+    return NetworkRef(ref=ref, sha256=file_sha256(path))
+
+
+def new_testcase(
+    network: str | Path,
+    ego_route: str,
+    junction: str | None = None,
+    control: str | None = None,
+    start_distance: float = 30.0,
+    start_speed: float = 8.0,
+    duration: float = 20.0,
+    timestep: float = 0.1,
+    params: Params | None = None,
+    cache_dir: Path | None = None,
+    name: str = "",
+) -> TestCase:
+    """An ego-only test-case; checks that the route exists and the start lies on the map."""
+    intersection = load_intersection(network, junction, control, cache_dir)
+    route = intersection.route(ego_route)
+    chosen = params or Params()
+    if start_speed > chosen.v_max:
+        raise InvalidTestCase(
+            f"ego start speed {start_speed:g} m/s exceeds v_max {chosen.v_max:g} m/s"
+        )
+    testcase = parse_testcase(
+        {
+            "schema": SCHEMA,
+            "name": name,
+            "network": network_ref(network).model_dump(),
+            "junction": intersection.junction,
+            "control": intersection.control.value,
+            "rules": intersection.control.value,
+            "timestep": timestep,
+            "duration": duration,
+            "params": chosen.model_dump(),
+            "ego": {
+                "route": {"fork": route.fork, "exit": route.exit},
+                "start": {"distance": start_distance, "speed": start_speed},
+            },
+        }
+    )
+    # Fails with a clear message when the start lies beyond the mapped road.
+    plan_drive(intersection, route, start_distance, max(start_speed, 1.0), duration, timestep)
+    return testcase
+
+
+def load_testcase_intersection(testcase: TestCase, cache_dir: Path | None = None) -> Intersection:
+    """The intersection of a test-case, after checking that its network is unchanged."""
+    path = resolve_network(testcase.network.ref)
+    actual = file_sha256(path)
+    if actual != testcase.network.sha256:
+        raise InvalidTestCase(
+            f"network.sha256: {testcase.network.ref} has changed since the test-case was made "
+            f"(expected {testcase.network.sha256[:12]}..., found {actual[:12]}...)"
+        )
+    return load_intersection(path, testcase.junction, testcase.control, cache_dir)

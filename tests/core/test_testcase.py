@@ -1,0 +1,172 @@
+"""The test-case document: creation, validation messages, JSON round trip."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from service.core.errors import InvalidInput, InvalidTestCase, UnknownRoute
+from service.core.testcase import (
+    SCHEMA,
+    TestCase,
+    dump_testcase,
+    load_testcase_intersection,
+    new_testcase,
+    parse_testcase,
+    read_testcase,
+)
+from tests.conftest import TOWN05
+
+
+@pytest.fixture(scope="module")
+def ego_only() -> TestCase:
+    return new_testcase("4way-stop", "S2C_1:C2W_1", name="left turn")
+
+
+def _document(testcase: TestCase) -> dict[str, Any]:
+    return json.loads(dump_testcase(testcase))  # type: ignore[no-any-return]
+
+
+def _nonego(samples: int = 3, **changes: Any) -> dict[str, Any]:
+    car = {
+        "id": "car1",
+        "route": {"fork": "W2C_0", "exit": "C2E_0"},
+        "trajectory": [
+            {
+                "t": k * 0.1,
+                "x": 100.0 + k,
+                "y": 148.4,
+                "heading": 90.0,
+                "speed": 10.0,
+                "distance": float(k),
+            }
+            for k in range(samples)
+        ],
+        "added_in": 1,
+    }
+    car.update(changes)
+    return car
+
+
+def test_new_testcase_fields(ego_only: TestCase) -> None:
+    document = _document(ego_only)
+    assert document["schema"] == SCHEMA
+    assert document["network"]["ref"] == "4way-stop"
+    assert len(document["network"]["sha256"]) == 64
+    assert (document["junction"], document["control"], document["rules"]) == (
+        "C",
+        "allway_stop",
+        "allway_stop",
+    )
+    assert document["ego"]["route"] == {"fork": "S2C_1", "exit": "C2W_1"}
+    assert document["ego"]["start"] == {"distance": 30.0, "speed": 8.0}
+    assert document["nonegos"] == []
+    assert set(document["params"]) == {
+        "m",
+        "a_min",
+        "a_max",
+        "v_stop",
+        "v_run",
+        "v_max",
+        "arrival_distance",
+    }
+
+
+def test_round_trip_is_byte_identical(ego_only: TestCase) -> None:
+    text = dump_testcase(ego_only)
+    assert dump_testcase(parse_testcase(text)) == text
+
+
+def test_new_testcase_on_real_map_with_override(cache_dir: Path) -> None:
+    testcase = new_testcase(TOWN05, "-44_1:-9_1", "396", "allway_stop", cache_dir=cache_dir)
+    assert testcase.network.ref == str(TOWN05.resolve())
+    assert testcase.control == "allway_stop"
+    intersection = load_testcase_intersection(testcase, cache_dir)
+    assert intersection.overridden
+    assert intersection.route(testcase.ego.route.id).turn.value == "left"
+
+
+def test_new_testcase_rejects_unknown_route() -> None:
+    with pytest.raises(UnknownRoute, match="valid routes"):
+        new_testcase("4way-stop", "S2C_1:C2E_1")
+
+
+def test_new_testcase_rejects_start_off_the_map() -> None:
+    with pytest.raises(InvalidInput, match="longer than the road"):
+        new_testcase("4way-stop", "S2C_1:C2W_1", start_distance=400.0)
+
+
+def test_new_testcase_rejects_start_faster_than_the_limit() -> None:
+    with pytest.raises(InvalidTestCase, match="exceeds v_max"):
+        new_testcase("4way-stop", "S2C_1:C2W_1", start_speed=30.0)
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (
+            lambda d: d["ego"]["start"].update(speed=-1),
+            r"ego\.start\.speed: .*greater than or equal to 0",
+        ),
+        (lambda d: d.update(control="traffic_light"), r"control: Input should be 'allway_stop'"),
+        (lambda d: d.update(rules="right_before_left"), r"rules 'right_before_left' do not match"),
+        (lambda d: d.update(schema="other/1"), r"schema: Input should be 'scengen/testcase/1'"),
+        (lambda d: d["params"].update(v_run=0.05), r"params: .*v_stop < v_run < v_max"),
+        (lambda d: d.update(colour="red"), r"colour: Extra inputs are not permitted"),
+        (lambda d: d.pop("ego"), r"ego: Field required"),
+        (lambda d: d["nonegos"].append(_nonego(id="ego")), r"nonegos\.0\.id: .*reserved"),
+        (lambda d: d["nonegos"].extend([_nonego(), _nonego()]), r"repeated: car1"),
+        (
+            lambda d: d["nonegos"].append(_nonego(samples=1)),
+            r"nonegos\.0\.trajectory: .*at least 2",
+        ),
+    ],
+)
+def test_validation_names_the_bad_field(ego_only: TestCase, change: Any, message: str) -> None:
+    document = _document(ego_only)
+    change(document)
+    with pytest.raises(InvalidTestCase, match=message):
+        parse_testcase(document)
+
+
+def test_trajectory_must_not_back_up(ego_only: TestCase) -> None:
+    document = _document(ego_only)
+    car = _nonego()
+    car["trajectory"][2]["distance"] = 0.5
+    document["nonegos"].append(car)
+    with pytest.raises(InvalidTestCase, match=r"nonegos\.0\.trajectory: .*sample 2.*back up"):
+        parse_testcase(document)
+
+
+def test_trajectory_must_sample_every_step(ego_only: TestCase) -> None:
+    document = _document(ego_only)
+    car = _nonego()
+    car["trajectory"][2]["t"] = 0.25
+    document["nonegos"].append(car)
+    with pytest.raises(InvalidTestCase, match=r"nonegos\.0\.trajectory\.2\.t is 0\.25"):
+        parse_testcase(document)
+
+
+def test_valid_nonego_is_accepted(ego_only: TestCase) -> None:
+    document = _document(ego_only)
+    document["nonegos"].append(_nonego())
+    assert parse_testcase(document).nonegos[0].id == "car1"
+
+
+def test_read_testcase_reports_unreadable_and_non_json(tmp_path: Path) -> None:
+    with pytest.raises(InvalidTestCase, match="cannot read test-case"):
+        read_testcase(tmp_path / "missing.json")
+    broken = tmp_path / "broken.json"
+    broken.write_text("{not json")
+    with pytest.raises(InvalidTestCase, match="is not JSON"):
+        read_testcase(broken)
+
+
+def test_changed_network_is_detected(ego_only: TestCase, tmp_path: Path) -> None:
+    document = _document(ego_only)
+    document["network"]["sha256"] = "0" * 64
+    with pytest.raises(InvalidTestCase, match="has changed since the test-case was made"):
+        load_testcase_intersection(parse_testcase(document))

@@ -1,0 +1,132 @@
+"""The command line contract: output shapes, exit codes, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from service import cli
+from service.core import errors
+from tests.conftest import TOWN05, TOWN07
+
+
+def run(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "service", *args], capture_output=True, text=True, check=False
+    )
+
+
+def test_intersection_json_contract() -> None:
+    result = run("intersection", "t-stop", "--json")
+    assert result.returncode == 0, result.stderr
+    data = json.loads(result.stdout)
+    assert data["junction"] == "C"
+    assert data["control"] == "priority_stop"
+    fork = next(f for f in data["forks"] if f["lane"] == "S2C_0")
+    assert fork == fork | {"stop_sign": True, "to_its_right": ["E2C_0"], "opposite": []}
+    assert isinstance(fork["heading"], float)
+    route = next(r for r in data["routes"] if r["id"] == "E2C_0:C2S_0")
+    assert route["fork"] == "E2C_0" and route["exit"] == "C2S_0" and route["turn"] == "left"
+    assert route["conflicts"] == ["S2C_0:C2W_0", "W2C_0:C2E_0", "W2C_0:C2S_0"]
+
+
+def test_intersection_table_is_readable(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["intersection", "y-uncontrolled"]) == 0
+    out = capsys.readouterr().out
+    assert "junction C  control right_before_left" in out
+    assert re.search(r"^N2C_0:C2SE_0 +left +SE2C_0:C2SW_0", out, re.MULTILINE)
+
+
+def test_intersection_on_carla_with_override(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    code = cli.main(
+        [
+            "intersection",
+            str(TOWN07),
+            "--junction",
+            "358",
+            "--control",
+            "right_before_left",
+            "--json",
+            "--plot",
+            str(tmp_path / "y.png"),
+        ]
+    )
+    assert code == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["control"] == "right_before_left" and data["control_overridden"]
+    assert (tmp_path / "y.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_new_writes_an_ego_only_testcase(tmp_path: Path) -> None:
+    target = tmp_path / "tc.json"
+    result = run("new", "4way-stop", "--junction", "C", "--ego", "S2C_1:C2W_1", "-o", str(target))
+    assert result.returncode == 0, result.stderr
+    data = json.loads(target.read_text())
+    assert data["ego"]["route"] == {"fork": "S2C_1", "exit": "C2W_1"}
+    assert data["nonegos"] == []
+
+
+def test_new_prints_to_stdout_without_output(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["new", "y-uncontrolled", "--ego", "N2C_0:C2SE_0"]) == 0
+    assert json.loads(capsys.readouterr().out)["control"] == "right_before_left"
+
+
+def test_drive_lists_events(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    target = tmp_path / "tc.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(target)]) == 0
+    assert cli.main(["drive", str(target), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    kinds = [e["kind"] for e in data["events"]]
+    assert kinds[0] == "arrived" and "entered" in kinds and "exited" in kinds
+    assert len(data["samples"]) == 201
+    assert cli.main(["drive", str(target), "--route", "E2C_1:C2S_1"]) == 0
+    assert "route E2C_1:C2S_1 (left)" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["intersection", "nowhere"], "is neither a bundled network"),
+        (["intersection", str(TOWN07), "--junction", "358"], "has control type 'priority'"),
+        (["intersection", str(TOWN05), "--junction", "1126"], "'traffic_light'"),
+        (["intersection", str(TOWN07)], "name one with --junction"),
+        (["new", "4way-stop", "--ego", "S2C_1:C2E_1"], "no connection from fork 'S2C_1'"),
+        (["new", "4way-stop", "--ego", "Q_0:C2E_1"], "valid forks"),
+        (["drive", "missing.json"], "cannot read test-case"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(args: list[str], message: str) -> None:
+    result = run(*args)
+    assert result.returncode == 2
+    assert result.stdout == ""
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0], result.stderr
+
+
+def test_unknown_control_choice_exits_2() -> None:
+    result = run("intersection", "4way-stop", "--control", "traffic_light")
+    assert result.returncode == 2
+    assert "invalid choice: 'traffic_light'" in result.stderr
+    assert "'allway_stop', 'priority_stop', 'right_before_left'" in result.stderr
+
+
+def _subclasses(root: type[errors.ScengenError]) -> list[type[errors.ScengenError]]:
+    found = []
+    for sub in root.__subclasses__():
+        found += [sub, *_subclasses(sub)]
+    return found
+
+
+@pytest.mark.parametrize("error", _subclasses(errors.ScengenError), ids=lambda e: e.__name__)
+def test_every_domain_error_has_an_exit_code(error: type[errors.ScengenError]) -> None:
+    expected = 2 if issubclass(error, errors.InvalidInput | errors.UnsupportedIntersection) else 3
+    assert cli.exit_code(error("x")) == expected
+    assert error.__name__ in (errors.__doc__ or "")  # the tree in the docstring is complete
