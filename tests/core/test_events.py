@@ -40,6 +40,7 @@ def test_left_turn_events_in_order(four_way: Intersection, tracks: dict[str, Pos
     into_own = next(e for e in events if e.kind is EventKind.ENTERED_LANE and e.lane == own)
     out_of_own = next(e for e in events if e.kind is EventKind.LEFT_LANE and e.lane == own)
     assert into_own.time < out_of_own.time
+    assert into_own.distance == pytest.approx(entered.distance, abs=1e-3)  # square-cut lane
     assert out_of_own.time >= exited.time - 0.05
     times = [e.time for e in events]
     assert times == sorted(times)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
@@ -189,7 +190,7 @@ def _build(
                         "--no-internal-links); rebuild it with internal links",
                         junction=junction,
                     )
-                lanes[chain[0]] = _connecting_lane(net, chain)
+                lanes[chain[0]] = _connecting_lane(net, chain, lane, to_lane)
                 route = Route(
                     fork=lane.getID(),
                     exit=to_lane.getID(),
@@ -224,20 +225,61 @@ def _build(
     )
 
 
-def _connecting_lane(net: Any, chain: list[str]) -> ConnectingLane:
+def _connecting_lane(net: Any, chain: list[str], fork: Any, exit_lane: Any) -> ConnectingLane:
+    """One centreline and one polygon for a chain of internal lanes.
+
+    The polygon ends square to the fork at the stop line and square to the exit where the
+    exit lane starts; a flat buffer cap would end square to the curve instead and poke out
+    of the junction by a few centimetres on turns.
+    """
     points: list[tuple[float, float]] = []
-    pieces = []
     width = net.getLane(chain[0]).getWidth()
     for lane_id in chain:
         shape = shape_2d(net.getLane(lane_id))
-        pieces.append(LineString(shape).buffer(width / 2.0, cap_style="flat", join_style="round"))
         points.extend(p for p in shape if not points or p != points[-1])
+    fork_shape, exit_shape = shape_2d(fork), shape_2d(exit_lane)
+    into = _unit(fork_shape[-2], fork_shape[-1])
+    out = _unit(exit_shape[0], exit_shape[1])
+    start, end = points[0], points[-1]
+    extended = [
+        (start[0] - EXTENSION * into[0], start[1] - EXTENSION * into[1]),
+        *points,
+        (end[0] + EXTENSION * out[0], end[1] + EXTENSION * out[1]),
+    ]
+    body = LineString(extended).buffer(width / 2.0, cap_style="flat", join_style="round")
+    behind_stop_line = _box_behind(start, into, width)
+    beyond_exit = _box_behind(end, (-out[0], -out[1]), width)
     return ConnectingLane(
         id=chain[0],
         internal_lanes=tuple(chain),
         centreline=LineString(points),
-        polygon=unary_union(pieces),
+        polygon=body.difference(unary_union([behind_stop_line, beyond_exit])),
         width=width,
+    )
+
+
+EXTENSION = 3.0  # metres the centreline is extended before cutting its ends square
+
+
+def _unit(a: tuple[float, float], b: tuple[float, float]) -> tuple[float, float]:
+    length = math.dist(a, b)
+    return (b[0] - a[0]) / length, (b[1] - a[1]) / length
+
+
+def _box_behind(
+    point: tuple[float, float], direction: tuple[float, float], width: float
+) -> Polygon:
+    """The strip of road just behind a line through ``point`` square to ``direction``."""
+    (x, y), (ux, uy) = point, direction
+    nx, ny = -uy * width, ux * width
+    depth = EXTENSION + 1.0
+    return Polygon(
+        [
+            (x + nx, y + ny),
+            (x + nx - ux * depth, y + ny - uy * depth),
+            (x - nx - ux * depth, y - ny - uy * depth),
+            (x - nx, y - ny),
+        ]
     )
 
 

@@ -11,8 +11,10 @@ Decisions (tested in tests/core/network):
   crossing or merge holds a disc of radius 1.4 m or more, every sliver less than 0.2 m.
 - Routes that share a fork never conflict: their cars queue in the same lane, which is
   car-following, not right-of-way. (SUMO's conflict matrix has no link between them either.)
-- Merges (two forks into the same exit edge) conflict when their polygons overlap: both cars
-  want the same space. SUMO counts them as foes too.
+- Merges into the same exit lane conflict: both cars want the same space. Links that end in
+  different lanes of one exit edge do not: the cars end side by side. SUMO's conflict matrix
+  makes every two links into one edge foes; otherwise it and this rule agree on the bundled
+  and CARLA junctions (tests/core/network/test_relations.py).
 - Fork relations use approach headings (the chord over the last ``APPROACH_WINDOW`` metres
   before the stop line, walking upstream when the fork lane is short), so they hold for skewed
   and Y-shaped junctions: forks of one edge are the same road (``same_direction``); forks on
