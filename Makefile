@@ -5,13 +5,14 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled
 
-.PHONY: help install test lint format nets run clean
+.PHONY: help install test lint format nets run bench clean
 
 help:
 	@echo "make run      describe the bundled 4-way stop and drive an ego through it"
 	@echo "make test     install into .venv and run the whole test suite"
 	@echo "make lint     ruff and mypy --strict"
 	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
+	@echo "make bench    time the checker and Step 1 (see bench/RESULTS.md)"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,13 +26,13 @@ test: $(STAMP)
 	$(BIN)/pytest
 
 lint: $(STAMP)
-	$(BIN)/ruff check service tests
-	$(BIN)/ruff format --check service tests
+	$(BIN)/ruff check service tests bench
+	$(BIN)/ruff format --check service tests bench
 	$(BIN)/mypy
 
 format: $(STAMP)
-	$(BIN)/ruff check --fix service tests
-	$(BIN)/ruff format service tests
+	$(BIN)/ruff check --fix service tests bench
+	$(BIN)/ruff format service tests bench
 
 nets: $(STAMP)
 	cd sumo_nets && for net in $(NETS); do ../$(BIN)/netconvert -c $$net.netccfg || exit 1; done
@@ -40,6 +41,9 @@ run: $(STAMP)
 	$(BIN)/scengen intersection 4way-stop
 	$(BIN)/scengen new 4way-stop --ego S2C_1:C2W_1 -o /tmp/scengen-demo.json
 	$(BIN)/scengen drive /tmp/scengen-demo.json
+
+bench: $(STAMP)
+	$(BIN)/python -m bench.bench_check
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

@@ -1,7 +1,8 @@
 """The ``scengen`` command line: a thin adapter over ``service.core``.
 
-Exit codes: 0 success, 2 bad input (one line on stderr), 3 the work could not be done
-(SUMO, netconvert or a budget failed).
+Exit codes: 0 success (for ``check``: the ego passed), 1 the ego failed (``check``), 2 bad
+input (one line on stderr), 3 the work could not be done (SUMO, netconvert or a budget
+failed).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from service.core.check import check_testcase
 from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
 from service.core.events import compute_events
 from service.core.network import ControlType, bundled_networks, load_intersection
@@ -25,8 +27,9 @@ from service.core.testcase import (
     new_testcase,
     read_testcase,
 )
+from service.core.trajectory import read_trajectory
 
-EXIT_OK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 2, 3
+EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
 CONTROLS = [c.value for c in ControlType]
 
 
@@ -88,6 +91,27 @@ def _parser() -> argparse.ArgumentParser:
     drive.add_argument("--json", action="store_true", help="print samples and events as JSON")
     drive.add_argument("--plot", type=Path, metavar="FILE", help="draw the drive to FILE")
     drive.set_defaults(run=_run_drive)
+
+    check = commands.add_parser(
+        "check", help="judge an ego trajectory against a test-case (exit 0 pass, 1 fail)"
+    )
+    check.add_argument("testcase", type=Path, metavar="TESTCASE", help="a test-case JSON file")
+    check.add_argument(
+        "--ego",
+        required=True,
+        type=Path,
+        metavar="TRAJECTORY",
+        help="the ego's trajectory: JSON samples or a SUMO FCD file (sumo --fcd-output)",
+    )
+    check.add_argument(
+        "--vehicle", default="ego", metavar="ID", help="the ego's id in an FCD file (default ego)"
+    )
+    check.add_argument(
+        "--controller", metavar="NAME", help="name of what drove the ego (default: file name)"
+    )
+    check.add_argument("--junit", type=Path, metavar="FILE", help="also write JUnit XML here")
+    check.add_argument("--json", action="store_true", help="print the verdict as JSON")
+    check.set_defaults(run=_run_check)
     return parser
 
 
@@ -233,6 +257,24 @@ def _run_drive(args: argparse.Namespace) -> int:
         rows.append([f"{e.time:.3f}", f"{e.distance:.3f}", e.kind.value, e.lane])
     _print_table(rows)
     return EXIT_OK
+
+
+def _run_check(args: argparse.Namespace) -> int:
+    testcase = read_testcase(args.testcase)
+    ego = read_trajectory(args.ego, args.vehicle, testcase.ego.length)
+    verdict = check_testcase(testcase, ego, args.controller or args.ego.stem)
+    if args.junit:
+        args.junit.write_text(verdict.to_junit())
+    if args.json:
+        sys.stdout.write(verdict.to_json())
+    else:
+        status = "PASS" if verdict.passed else "FAIL"
+        print(f"{status}  {verdict.testcase} / {verdict.controller}")
+        if verdict.goal_time is not None:
+            print(f"  reached its exit at {verdict.goal_time:.2f} s")
+        for reason in verdict.reasons:
+            print(f"  {reason}")
+    return EXIT_OK if verdict.passed else EXIT_FAILED_CHECK
 
 
 def exit_code(error: ScengenError) -> int:

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+import json
 from collections.abc import Callable
 
 from service.core.poses import PoseSample, PoseTrack
+from service.core.testcase import TestCase, dump_testcase, parse_testcase
 
 
 def retime(
@@ -49,3 +52,69 @@ def stop_and_go(
         return stop_at + cruise * cruise / (2 * accelerate) + cruise * s, cruise
 
     return profile
+
+
+def drive_with_stops(
+    stops: list[tuple[float, float]],
+    cruise: float = 8.0,
+    accelerate: float = 2.0,
+    brake: float = 3.0,
+    start_speed: float | None = None,
+    crawl: float | None = None,
+    step: float = 0.001,
+) -> Callable[[float], tuple[float, float]]:
+    """A driver that cruises, brakes to stand at each (distance, wait) of ``stops`` and
+    waits there, then goes on (at ``crawl`` at most once it has stopped, if given);
+    returns its (distance, speed) at any time."""
+    times, distances, speeds = [0.0], [0.0], [cruise if start_speed is None else start_speed]
+    limit = cruise
+    pending = sorted(stops)
+    held = 0.0
+    t, d, v = 0.0, 0.0, speeds[0]
+    while t < 120.0:
+        if pending and d >= pending[0][0] - 1e-3 and v <= 1e-6:
+            held += step
+            if held >= pending[0][1]:
+                pending.pop(0)
+                held = 0.0
+                limit = crawl or cruise
+            v = 0.0
+        elif pending and v * v / (2 * brake) >= pending[0][0] - d:
+            v = max(0.0, v - brake * step)
+        elif v > limit:
+            v = max(limit, v - brake * step)
+        else:
+            v = min(limit, v + accelerate * step)
+        if pending:
+            d = min(d + v * step, pending[0][0])
+        else:
+            d += v * step
+        t += step
+        times.append(t)
+        distances.append(d)
+        speeds.append(v)
+
+    def profile(at: float) -> tuple[float, float]:
+        k = min(round(at / step), len(times) - 1)
+        return distances[k], speeds[k]
+
+    return profile
+
+
+def with_nonegos(
+    testcase: TestCase, nonegos: list[tuple[str, str, list[PoseSample]]], **changes: object
+) -> TestCase:
+    """``testcase`` with non-egos (id, route id, samples) added and fields changed."""
+    document = json.loads(dump_testcase(testcase))
+    document.update(changes)
+    for car_id, route, samples in nonegos:
+        fork, exit_lane = route.split(":")
+        document["nonegos"].append(
+            {
+                "id": car_id,
+                "route": {"fork": fork, "exit": exit_lane},
+                "added_in": 1,
+                "trajectory": [dataclasses.asdict(s) for s in samples],
+            }
+        )
+    return parse_testcase(document)

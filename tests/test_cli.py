@@ -130,3 +130,53 @@ def test_every_domain_error_has_an_exit_code(error: type[errors.ScengenError]) -
     expected = 2 if issubclass(error, errors.InvalidInput | errors.UnsupportedIntersection) else 3
     assert cli.exit_code(error("x")) == expected
     assert error.__name__ in (errors.__doc__ or "")  # the tree in the docstring is complete
+
+
+@pytest.fixture(scope="module")
+def left_turn_files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """An ego-only test-case and the constant-speed Step 1 drive of its ego (no stop)."""
+    folder = tmp_path_factory.mktemp("check")
+    testcase = folder / "tc.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0
+    drive = run("drive", str(testcase), "--json")
+    trajectory = folder / "drive.json"
+    trajectory.write_text(drive.stdout)
+    return testcase, trajectory
+
+
+def test_check_fails_a_drive_through_the_stop_sign(
+    left_turn_files: tuple[Path, Path], tmp_path: Path
+) -> None:
+    testcase, trajectory = left_turn_files
+    junit = tmp_path / "verdict.xml"
+    result = run("check", str(testcase), "--ego", str(trajectory), "--junit", str(junit))
+    assert result.returncode == 1, result.stderr
+    assert result.stdout.startswith("FAIL  4way-stop C S2C_1:C2W_1 / drive")
+    assert "violated CVC 22450(a) (stopAtSign)" in result.stdout
+    xml = junit.read_text()
+    assert 'failures="1"' in xml and "22450(a)" in xml
+    assert 'name="4way-stop C S2C_1:C2W_1 / drive"' in xml
+
+
+def test_check_json_verdict(left_turn_files: tuple[Path, Path]) -> None:
+    testcase, trajectory = left_turn_files
+    result = run(
+        "check", str(testcase), "--ego", str(trajectory), "--json", "--controller", "cruise"
+    )
+    assert result.returncode == 1
+    verdict = json.loads(result.stdout)
+    assert verdict["schema"] == "scengen/verdict/1"
+    assert verdict["passed"] is False
+    assert verdict["controller"] == "cruise"
+    assert verdict["goal"]["reached"] is True
+    assert [v["law"] for v in verdict["violations"]] == ["22450(a)"]
+    assert verdict["violations"][0]["events"][0]["kind"] == "arrived"
+
+
+def test_check_bad_trajectory_exits_2(left_turn_files: tuple[Path, Path], tmp_path: Path) -> None:
+    testcase, _ = left_turn_files
+    bad = tmp_path / "bad.json"
+    bad.write_text("[]")
+    result = run("check", str(testcase), "--ego", str(bad))
+    assert result.returncode == 2
+    assert "expected a list of at least 2 samples" in result.stderr

@@ -1,33 +1,24 @@
-"""Run a call in a child process that is killed when its time budget runs out.
+"""Run a call in a child Python process that is killed when its time budget runs out.
 
 Solver and simulator libraries do not always honour their own timeouts, and libsumo is a
-per-process singleton, so every long call runs here, never in the caller's process.
+per-process singleton, so every long call runs here, never in the caller's process. The
+child is a fresh interpreter (``python -m service.core.budget``) fed the call by pickle on
+stdin: no fork of a threaded server, and no re-import of the caller's ``__main__``.
 """
 
 from __future__ import annotations
 
-import multiprocessing
+import importlib
+import pickle
+import subprocess
+import sys
 import traceback
 from collections.abc import Callable
-from multiprocessing.connection import Connection
 from typing import Any, TypeVar
 
 from service.core.errors import BudgetExceeded, ScengenError
 
 T = TypeVar("T")
-
-_CONTEXT = multiprocessing.get_context("forkserver")
-
-
-def _child(conn: Connection, function: Callable[..., Any], args: tuple[Any, ...]) -> None:
-    try:
-        conn.send(("ok", function(*args)))
-    except ScengenError as exc:
-        conn.send(("error", exc))
-    except BaseException as exc:  # report anything, the parent decides
-        conn.send(("crash", f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"))
-    finally:
-        conn.close()
 
 
 def run_with_budget(
@@ -38,24 +29,48 @@ def run_with_budget(
     ``function`` must be a module-level function and its arguments and result picklable.
     Domain errors raised in the child are re-raised here as they were.
     """
-    receiver, sender = _CONTEXT.Pipe(duplex=False)
-    process = _CONTEXT.Process(target=_child, args=(sender, function, args), daemon=True)
-    process.start()
-    sender.close()
+    request = pickle.dumps((function.__module__, function.__qualname__, args))
     try:
-        if not receiver.poll(budget):
-            raise BudgetExceeded(f"{what} did not finish within its budget of {budget:g} s")
-        try:
-            status, payload = receiver.recv()
-        except EOFError:
-            raise ScengenError(f"{what} died without an answer") from None
-    finally:
-        if process.is_alive():
-            process.kill()
-        process.join()
-        receiver.close()
+        result = subprocess.run(
+            [sys.executable, "-m", "service.core.budget"],
+            input=request,
+            capture_output=True,
+            timeout=budget,
+            check=False,
+        )
+    except subprocess.TimeoutExpired:
+        raise BudgetExceeded(
+            f"{what} did not finish within its budget of {budget:g} s and was stopped"
+        ) from None
+    try:
+        status, payload = pickle.loads(result.stdout)
+    except Exception:
+        detail = result.stderr.decode(errors="replace").strip().splitlines()[-1:] or ["no output"]
+        raise ScengenError(f"{what} died without an answer: {detail[0]}") from None
     if status == "error":
         raise payload
     if status == "crash":
         raise ScengenError(f"{what} crashed: {payload}")
     return payload  # type: ignore[no-any-return]
+
+
+def _serve() -> None:
+    """Child side: read one pickled call from stdin, write the pickled outcome to stdout."""
+    module, name, args = pickle.loads(sys.stdin.buffer.read())
+    out = sys.stdout.buffer
+    sys.stdout = sys.stderr  # anything the call prints must not corrupt the answer
+    try:
+        target: Any = importlib.import_module(module)
+        for part in name.split("."):
+            target = getattr(target, part)
+        answer: tuple[str, Any] = ("ok", target(*args))
+    except ScengenError as exc:
+        answer = ("error", exc)
+    except BaseException as exc:  # report anything, the parent decides
+        answer = ("crash", f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}")
+    out.write(pickle.dumps(answer))
+    out.flush()
+
+
+if __name__ == "__main__":
+    _serve()

@@ -6,7 +6,8 @@
     │   ├── UnknownJunction         a junction id that is not in the network, or none was named
     │   ├── UnknownLane             a lane id that is not a fork or an exit of the intersection
     │   ├── UnknownRoute            a (fork, exit) pair that no connection links
-    │   └── InvalidTestCase         a test-case document that fails validation
+    │   ├── InvalidTestCase         a test-case document that fails validation
+    │   └── InvalidTrajectory       an ego trajectory (JSON or SUMO FCD) that cannot be used
     ├── UnsupportedIntersection     the junction's control type has no rule set
     ├── NetworkBuildFailed          netconvert could not rebuild a network
     ├── SimulationFailed            SUMO refused or broke off a drive
@@ -64,6 +65,10 @@ class UnknownRoute(InvalidInput):
 
 class InvalidTestCase(InvalidInput):
     """Raised when a test-case document fails validation; names the bad field."""
+
+
+class InvalidTrajectory(InvalidInput):
+    """Raised when an ego trajectory file cannot be read or does not fit the test-case."""
 
 
 class UnsupportedIntersection(ScengenError):

@@ -17,15 +17,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from shapely.geometry import LineString
+
 from service.core.budget import run_with_budget
 from service.core.errors import InvalidInput, SimulationFailed
 from service.core.network import Intersection, Route, read_network
 from service.core.network.lanes import (
+    approach_polyline,
     is_internal,
     straightest_predecessor,
     straightest_successor,
     via_chain,
 )
+
+Point = tuple[float, float]
 
 DRIVE_BUDGET = 60.0  # seconds for one batch of drives
 CLEARANCE = 1.0  # metres the back must be past the exit lane's start to count as left
@@ -184,6 +189,24 @@ def plan_drive(
         connecting_lanes=tuple(chain),
         skip=skip,
     )
+
+
+def start_front(intersection: Intersection, route: Route, start_distance: float) -> Point:
+    """Where the front bumper stands at the start: ``start_distance`` before the stop line."""
+    path = intersection.network_file
+    net = _cached_network(str(path), path.stat().st_mtime)
+    points = approach_polyline(
+        net, net.getLane(route.fork), intersection.junction, start_distance + 1.0
+    )
+    line = LineString(points)
+    if line.length < start_distance:
+        raise InvalidInput(
+            f"start distance {start_distance:g} m is longer than the road before fork "
+            f"{route.fork!r} ({line.length:.1f} m)",
+            route=route.id,
+        )
+    front = line.interpolate(line.length - start_distance)
+    return float(front.x), float(front.y)
 
 
 def drive(plans: list[DrivePlan]) -> list[list[PoseSample]]:

@@ -8,31 +8,15 @@ from __future__ import annotations
 
 import hashlib
 import os
-import shutil
 import subprocess
 import tempfile
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from service.core.errors import NetworkBuildFailed
+from service.core.sumo_binaries import sumo_binary
 
 NETCONVERT_BUDGET = 120.0  # seconds
-
-
-def netconvert_binary() -> str:
-    """The netconvert of the installed SUMO wheel, else the one on PATH."""
-    try:
-        import sumo  # the eclipse-sumo wheel
-
-        candidate = Path(sumo.SUMO_HOME) / "bin" / "netconvert"
-        if candidate.exists():
-            return str(candidate)
-    except ImportError:
-        pass
-    found = shutil.which("netconvert")
-    if found is None:
-        raise NetworkBuildFailed("netconvert not found: install eclipse-sumo")
-    return found
 
 
 def file_sha256(path: Path) -> str:
@@ -65,7 +49,7 @@ def rebuild_with_control(
         )
         output = Path(work) / "rebuilt.net.xml"
         command = [
-            netconvert_binary(),
+            sumo_binary("netconvert"),
             "--sumo-net-file", str(network_file),
             "--node-files", str(patch),
             "--output-file", str(output),

@@ -1,0 +1,208 @@
+"""The pass-fail checker: judge an ego trajectory against a test-case.
+
+The ego passes when it reaches its exit lane, fully out of the junction, within the
+duration; collides with no non-ego; and violates no traffic rule and no non-ego's
+right-of-way under the rule set of the junction's control type. Events of every car are
+computed from its trajectory (service.core.events), their perceptible order from the numbers
+with one m (service.core.rules), and the rules decide. With all orders given, the rule
+program is stratified, so the check is bounded: it runs in the caller's process.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from shapely.geometry import Point
+
+from service.core.collisions import Motion, first_collision
+from service.core.errors import InvalidTrajectory
+from service.core.events import EventKind, LaneEvent, compute_events
+from service.core.network import Intersection
+from service.core.poses import PoseSample, centre_to_front, start_front
+from service.core.rules import (
+    REQUESTED_LANE,
+    TimedEvent,
+    event_facts,
+    geometry_facts,
+    perceptible_order,
+    solve_rules,
+    time_symbol,
+)
+from service.core.testcase import TestCase, load_testcase_intersection
+from service.core.verdict import CollisionRecord, EventRef, Verdict, Violation
+
+EGO = "ego"
+START_TOLERANCE = 2.0  # metres between the trajectory's first front bumper and the start
+
+
+@dataclass(frozen=True)
+class Car:
+    """A car as the checker sees it: id, route, size, samples and events."""
+
+    id: str
+    fork: str
+    lane: str  # the connecting lane of its route
+    length: float
+    width: float
+    samples: Sequence[PoseSample]
+    events: tuple[LaneEvent, ...]
+
+
+def testcase_label(testcase: TestCase) -> str:
+    route = testcase.ego.route.id
+    return testcase.name or f"{testcase.network.ref} {testcase.junction} {route}"
+
+
+def check_testcase(
+    testcase: TestCase,
+    ego: Sequence[PoseSample],
+    controller: str = "ego",
+    intersection: Intersection | None = None,
+) -> Verdict:
+    """The verdict on ``ego`` (samples of the ego's rectangle centre) in ``testcase``."""
+    junction = intersection or load_testcase_intersection(testcase)
+    _check_start(testcase, junction, ego)
+    cars = [_ego_car(testcase, junction, ego), *_nonego_cars(testcase, junction)]
+    violations = _violations(junction, cars, testcase.params.m)
+    collisions = _collisions(cars)
+    goal_time = _goal_time(testcase, junction, cars[0])
+    return Verdict(
+        testcase=testcase_label(testcase),
+        controller=controller,
+        goal_reached=goal_time is not None,
+        goal_time=goal_time,
+        collisions=tuple(collisions),
+        violations=tuple(violations),
+        ego_events=tuple(_refs(cars[0])),
+        duration=testcase.duration,
+    )
+
+
+def _car(
+    car_id: str, fork: str, lane: str, length: float, width: float,
+    samples: Sequence[PoseSample], testcase: TestCase, junction: Intersection,
+) -> Car:  # fmt: skip
+    events = compute_events(
+        samples, length, width, junction, fork,
+        testcase.params.arrival_distance, testcase.params.v_stop,
+    )  # fmt: skip
+    return Car(car_id, fork, lane, length, width, samples, tuple(events))
+
+
+def _ego_car(testcase: TestCase, junction: Intersection, samples: Sequence[PoseSample]) -> Car:
+    route = junction.route(testcase.ego.route.id)
+    ego = testcase.ego
+    return _car(EGO, route.fork, route.connecting_lane, ego.length, ego.width, samples,
+                testcase, junction)  # fmt: skip
+
+
+def _nonego_cars(testcase: TestCase, junction: Intersection) -> list[Car]:
+    cars = []
+    for nonego in testcase.nonegos:
+        route = junction.route(nonego.route.id)
+        samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
+        cars.append(_car(nonego.id, route.fork, route.connecting_lane, nonego.length,
+                         nonego.width, samples, testcase, junction))  # fmt: skip
+    return cars
+
+
+def _check_start(testcase: TestCase, junction: Intersection, ego: Sequence[PoseSample]) -> None:
+    if len(ego) < 2:
+        raise InvalidTrajectory("the ego trajectory needs at least 2 samples")
+    route = junction.route(testcase.ego.route.id)
+    expected = start_front(junction, route, testcase.ego.start.distance)
+    first = ego[0]
+    actual = centre_to_front(first.x, first.y, first.heading, testcase.ego.length)
+    miss = math.dist(expected, actual)
+    if miss > START_TOLERANCE:
+        raise InvalidTrajectory(
+            f"the ego trajectory starts with its front at ({actual[0]:.1f}, {actual[1]:.1f}), "
+            f"{miss:.1f} m from the test-case's start ({expected[0]:.1f}, {expected[1]:.1f}), "
+            f"{testcase.ego.start.distance:g} m before the stop line of {route.fork!r}"
+        )
+
+
+def _timed(cars: Sequence[Car]) -> list[TimedEvent]:
+    """Events the rules can use: those on the requested lanes, each with a time symbol."""
+    relevant = {car.lane for car in cars}
+    timed = []
+    for car in cars:
+        lane_kinds = (EventKind.ENTERED_LANE, EventKind.LEFT_LANE)
+        chosen = [
+            e
+            for e in car.events
+            if e.kind is not EventKind.EXITED and (e.kind not in lane_kinds or e.lane in relevant)
+        ]
+        timed += [TimedEvent(car.id, time_symbol(car.id, k), e) for k, e in enumerate(chosen)]
+    return timed
+
+
+def _violations(junction: Intersection, cars: Sequence[Car], m: float) -> list[Violation]:
+    timed = _timed(cars)
+    facts = geometry_facts(junction) + perceptible_order(timed, m)
+    for car in cars:
+        facts.append(REQUESTED_LANE(car.id, car.lane))
+        facts += event_facts(car.id, car.fork, [t for t in timed if t.car == car.id])
+    atoms = solve_rules(junction.control, facts)
+    by_symbol = {t.symbol: t for t in timed}
+    laws = {str(a.arguments[0]): a.arguments[1].string for a in atoms if a.match("law", 2)}
+    found: dict[tuple[str, str | None], Violation] = {}
+    for atom in atoms:
+        if atom.match("violatesRightOfForRuleAt", 4) and atom.arguments[0].string == EGO:
+            other: str | None = atom.arguments[1].string
+            rule, times = atom.arguments[2], atom.arguments[3]
+        elif atom.match("violatesRuleAt", 3) and atom.arguments[0].string == EGO:
+            other, rule, times = None, atom.arguments[1], atom.arguments[2]
+        else:
+            continue
+        events = tuple(_ref(by_symbol[s]) for s in times.arguments)
+        candidate = Violation(str(rule), laws[str(rule)], other, events)
+        key = (candidate.rule, other)
+        if key not in found or _earlier(candidate, found[key]):
+            found[key] = candidate
+    return sorted(found.values(), key=lambda v: (v.events[0].t, v.rule, v.other or ""))
+
+
+def _earlier(first: Violation, second: Violation) -> bool:
+    return [e.t for e in first.events] < [e.t for e in second.events]
+
+
+def _ref(timed: TimedEvent) -> EventRef:
+    event = timed.event
+    return EventRef(timed.car, event.kind.value, event.lane, round(event.time, 6))
+
+
+def _refs(car: Car) -> list[EventRef]:
+    return [EventRef(car.id, e.kind.value, e.lane, round(e.time, 6)) for e in car.events]
+
+
+def _collisions(cars: Sequence[Car]) -> list[CollisionRecord]:
+    ego, others = cars[0], cars[1:]
+    ego_motion = Motion(ego.samples, ego.length, ego.width)
+    found = []
+    for other in others:
+        hit = first_collision(ego_motion, Motion(other.samples, other.length, other.width))
+        if hit is not None:
+            found.append(CollisionRecord(other.id, round(hit.time, 6), hit.x, hit.y))
+    return found
+
+
+def _goal_time(testcase: TestCase, junction: Intersection, ego: Car) -> float | None:
+    """When the ego is on its exit lane and fully out of the junction, if within the duration."""
+    exited = [e for e in ego.events if e.kind is EventKind.EXITED]
+    if not exited or exited[-1].time > testcase.duration + 1e-9:
+        return None
+    exit_lane = junction.exits[testcase.ego.route.exit]
+    lane_area = exit_lane.departure.buffer(exit_lane.width / 2.0, cap_style="flat")
+    motion = Motion(ego.samples, ego.length, ego.width)
+    x, y, _ = motion.poses(_array(exited[-1].time))
+    if not lane_area.contains(Point(float(x[0]), float(y[0]))):
+        return None
+    return round(exited[-1].time, 6)
+
+
+def _array(value: float) -> np.ndarray:
+    return np.array([value])

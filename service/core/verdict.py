@@ -1,0 +1,108 @@
+"""The checker's verdict as data: JSON and a JUnit XML test case."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from typing import Any
+from xml.etree import ElementTree as ET
+
+VERDICT_SCHEMA = "scengen/verdict/1"
+
+
+@dataclass(frozen=True)
+class EventRef:
+    """An event a violation rests on: whose, which, where and when."""
+
+    car: str
+    kind: str
+    lane: str
+    t: float
+
+
+@dataclass(frozen=True)
+class Violation:
+    """A rule the ego broke; ``other`` is the car whose right-of-way it violated, if any."""
+
+    rule: str
+    law: str  # California Vehicle Code section, e.g. "21800(a)"
+    other: str | None
+    events: tuple[EventRef, ...]
+
+    def describe(self) -> str:
+        times = ", ".join(f"{e.car} {e.kind} {e.lane} at {e.t:.2f} s" for e in self.events)
+        against = f" of {self.other}" if self.other else ""
+        return f"violated CVC {self.law} ({self.rule}){against}: {times}"
+
+
+@dataclass(frozen=True)
+class CollisionRecord:
+    other: str
+    t: float
+    x: float
+    y: float
+
+    def describe(self) -> str:
+        return f"collided with {self.other} at {self.t:.2f} s at ({self.x:.1f}, {self.y:.1f})"
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Pass or fail, and every reason: goal, collisions, violations."""
+
+    testcase: str
+    controller: str
+    goal_reached: bool
+    goal_time: float | None
+    collisions: tuple[CollisionRecord, ...] = ()
+    violations: tuple[Violation, ...] = ()
+    ego_events: tuple[EventRef, ...] = field(default=(), repr=False)
+    duration: float = 0.0
+
+    @property
+    def passed(self) -> bool:
+        return self.goal_reached and not self.collisions and not self.violations
+
+    @property
+    def reasons(self) -> list[str]:
+        found = []
+        if not self.goal_reached:
+            found.append(
+                f"did not reach its exit lane, out of the junction, within {self.duration:g} s"
+            )
+        found += [c.describe() for c in self.collisions]
+        found += [v.describe() for v in self.violations]
+        return found
+
+    def to_dict(self) -> dict[str, Any]:
+        data = asdict(self)
+        data = {"schema": VERDICT_SCHEMA, "passed": self.passed, **data}
+        data["goal"] = {"reached": data.pop("goal_reached"), "time": data.pop("goal_time")}
+        data["reasons"] = self.reasons
+        return data
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2) + "\n"
+
+    def to_junit(self) -> str:
+        """One JUnit test case: name = test-case / controller, failure = the reasons."""
+        suite = ET.Element(
+            "testsuite",
+            name="scengen",
+            tests="1",
+            failures="0" if self.passed else "1",
+            errors="0",
+        )
+        case = ET.SubElement(
+            suite,
+            "testcase",
+            classname="scengen.check",
+            name=f"{self.testcase} / {self.controller}",
+        )
+        if not self.passed:
+            failure = ET.SubElement(case, "failure", message="; ".join(self.reasons))
+            failure.text = "\n".join(self.reasons)
+        root = ET.Element("testsuites")
+        root.append(suite)
+        ET.indent(root)
+        return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, "unicode") + "\n"
