@@ -40,7 +40,10 @@ nets: $(STAMP)
 run: $(STAMP)
 	$(BIN)/scengen intersection 4way-stop
 	$(BIN)/scengen new 4way-stop --ego S2C_1:C2W_1 -o /tmp/scengen-demo.json
+	$(BIN)/scengen drive /tmp/scengen-demo.json --json > /tmp/scengen-demo-cruise.json
 	$(BIN)/scengen drive /tmp/scengen-demo.json
+	$(BIN)/scengen check /tmp/scengen-demo.json --ego /tmp/scengen-demo-cruise.json \
+		--controller cruise; echo "scengen check exited with $$? (1: the ego failed)"
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.bench_check
