@@ -11,13 +11,15 @@ import argparse
 import json
 import os
 import sys
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 from service.core.check import check_testcase
 from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
 from service.core.events import compute_events
+from service.core.generate import extend_testcase
 from service.core.network import ControlType, bundled_networks, load_intersection
 from service.core.network.describe import describe_intersection
 from service.core.poses import generate_poses
@@ -28,6 +30,7 @@ from service.core.testcase import (
     read_testcase,
 )
 from service.core.trajectory import read_trajectory
+from service.examples import EXAMPLES, run_example, write_chain
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
 CONTROLS = [c.value for c in ControlType]
@@ -112,6 +115,61 @@ def _parser() -> argparse.ArgumentParser:
     check.add_argument("--junit", type=Path, metavar="FILE", help="also write JUnit XML here")
     check.add_argument("--json", action="store_true", help="print the verdict as JSON")
     check.set_defaults(run=_run_check)
+
+    extend = commands.add_parser(
+        "extend", help="add new non-egos so that the test-case becomes strictly more complex"
+    )
+    extend.add_argument("testcase", type=Path, metavar="OLD", help="the test-case to extend")
+    extend.add_argument(
+        "--add",
+        action="append",
+        required=True,
+        metavar="FORK_LANE:EXIT_LANE",
+        help="route of a new non-ego (repeat to add several in one extension)",
+    )
+    extend.add_argument("--seed", type=int, default=0, help="seed of the search (default 0)")
+    extend.add_argument(
+        "--budget",
+        type=float,
+        default=60.0,
+        metavar="SECONDS",
+        help="total time for the extension (default 60 s)",
+    )
+    extend.add_argument(
+        "--start-distance",
+        type=float,
+        metavar="M",
+        help="new cars' front before their stop line at t = 0 (default: the ego's)",
+    )
+    extend.add_argument("-o", "--output", type=Path, metavar="FILE", help="write here")
+    extend.set_defaults(run=_run_extend)
+
+    example = commands.add_parser(
+        "example", help="run one of the paper's experiments: a chain of extensions"
+    )
+    example.add_argument(
+        "name",
+        choices=sorted(EXAMPLES),
+        metavar="NAME",
+        help=f"one of {', '.join(sorted(EXAMPLES))}",
+    )
+    example.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        default=Path("examples-out"),
+        metavar="DIR",
+        help="folder for the test-cases (default examples-out)",
+    )
+    example.add_argument("--seed", type=int, default=0)
+    example.add_argument(
+        "--budget",
+        type=float,
+        default=120.0,
+        metavar="SECONDS",
+        help="budget of each extension (default 120 s)",
+    )
+    example.set_defaults(run=_run_example)
     return parser
 
 
@@ -275,6 +333,48 @@ def _run_check(args: argparse.Namespace) -> int:
         for reason in verdict.reasons:
             print(f"  {reason}")
     return EXIT_OK if verdict.passed else EXIT_FAILED_CHECK
+
+
+def _progress(started: float) -> Callable[[str], None]:
+    def say(message: str) -> None:
+        print(f"[{time.monotonic() - started:6.2f} s] {message}", file=sys.stderr)
+
+    return say
+
+
+def _run_extend(args: argparse.Namespace) -> int:
+    old = read_testcase(args.testcase)
+    started = time.monotonic()
+    extension = extend_testcase(
+        old, args.add, args.seed, args.budget, args.start_distance, _progress(started)
+    )
+    new = extension.testcase
+    provenance = new.provenance or {}
+    violated = ", ".join(
+        f"{v['car']} ({v['rule']})" for v in provenance.get("complexity_certificate_violates", [])
+    )
+    print(
+        f"extended in {time.monotonic() - started:.1f} s after {len(extension.attempts)} "
+        f"answer sets: added {', '.join(provenance.get('new_nonegos', []))}; the complexity "
+        f"certificate violates the right-of-way of {violated}",
+        file=sys.stderr,
+    )
+    text = dump_testcase(new)
+    if args.output:
+        args.output.write_text(text)
+        print(f"wrote {args.output}", file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    return EXIT_OK
+
+
+def _run_example(args: argparse.Namespace) -> int:
+    example = EXAMPLES[args.name]
+    print(f"{example.name}: {example.about}", file=sys.stderr)
+    chain = run_example(example, args.seed, args.budget, _progress(time.monotonic()))
+    for path in write_chain(chain, args.output):
+        print(path)
+    return EXIT_OK
 
 
 def exit_code(error: ScengenError) -> int:

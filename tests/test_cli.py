@@ -180,3 +180,44 @@ def test_check_bad_trajectory_exits_2(left_turn_files: tuple[Path, Path], tmp_pa
     result = run("check", str(testcase), "--ego", str(bad))
     assert result.returncode == 2
     assert "expected a list of at least 2 samples" in result.stderr
+
+
+def test_extend_writes_a_more_complex_testcase(tmp_path: Path) -> None:
+    old = tmp_path / "old.json"
+    assert cli.main(["new", "y-uncontrolled", "--ego", "N2C_0:C2SE_0", "-o", str(old)]) == 0
+    new = tmp_path / "new.json"
+    result = run("extend", str(old), "--add", "SW2C_0:C2N_0", "--add", "SE2C_0:C2N_0",
+                 "--seed", "0", "--budget", "120", "-o", str(new))  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "step 1 poses" in result.stderr and "verified" in result.stderr
+    assert "the complexity certificate violates the right-of-way of car1" in result.stderr
+    document = json.loads(new.read_text())
+    assert [n["id"] for n in document["nonegos"]] == ["car1", "car2"]
+    assert set(document["certificates"]) == {"complexity", "solvability"}
+
+
+def test_extend_without_a_conflict_exits_3(tmp_path: Path) -> None:
+    old = tmp_path / "old.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(old)]) == 0
+    result = run("extend", str(old), "--add", "E2C_0:C2N_0")
+    assert result.returncode == 3
+    assert "no more complex test-case exists" in result.stderr
+
+
+def test_extend_unknown_route_exits_2(tmp_path: Path) -> None:
+    old = tmp_path / "old.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(old)]) == 0
+    result = run("extend", str(old), "--add", "S2C_1:C2E_1")
+    assert result.returncode == 2
+    assert "valid routes" in result.stderr
+
+
+@pytest.mark.parametrize("name", ["t-junction", "y-junction"])
+def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
+    result = run("example", name, "-o", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    files = sorted(tmp_path.glob("*.json"))
+    assert [f.name for f in files] == [f"{name}-0.json", f"{name}-1.json"]
+    first = json.loads(files[1].read_text())
+    assert first["name"] == f"{name}-1"
+    assert len(first["nonegos"]) == 2

@@ -9,6 +9,8 @@
     │   ├── InvalidTestCase         a test-case document that fails validation
     │   └── InvalidTrajectory       an ego trajectory (JSON or SUMO FCD) that cannot be used
     ├── UnsupportedIntersection     the junction's control type has no rule set
+    ├── NoMoreComplexTestCase       an expected outcome: no extension exists for these routes
+    ├── NoneFound                   an expected outcome: orderings existed, none was realised
     ├── NetworkBuildFailed          netconvert could not rebuild a network
     ├── SimulationFailed            SUMO refused or broke off a drive
     └── BudgetExceeded              a solver or simulator call ran out of its time budget
@@ -73,6 +75,16 @@ class InvalidTrajectory(InvalidInput):
 
 class UnsupportedIntersection(ScengenError):
     """Raised when a junction's control type has no traffic-rule set."""
+
+
+class NoMoreComplexTestCase(ScengenError):
+    """Raised when no more complex test-case exists for the new routes (Step 2 is UNSAT or
+    no new route meets the ego's); the message says which requirement could not be met."""
+
+
+class NoneFound(ScengenError):
+    """Raised when orderings existed but none became a verified test-case, within the budget
+    or at all; the message says how many were tried and how far each got."""
 
 
 class NetworkBuildFailed(ScengenError):

@@ -1,0 +1,152 @@
+"""The generator end to end: real SUMO, clingo and z3; every result checked independently."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from service.core.check import check_testcase
+from service.core.errors import (
+    InvalidInput,
+    InvalidTestCase,
+    NoMoreComplexTestCase,
+    NoneFound,
+    UnknownRoute,
+)
+from service.core.generate import Extension, extend_testcase
+from service.core.poses import PoseSample
+from service.core.testcase import TestCase, dump_testcase, new_testcase, parse_testcase
+
+
+def samples(rows: list) -> list[PoseSample]:  # type: ignore[type-arg]
+    return [PoseSample(**row.model_dump()) for row in rows]
+
+
+def assert_strictly_more_complex(old: TestCase, new: TestCase) -> None:
+    """The certificates do what they claim, judged by the checker alone."""
+    assert new.certificates is not None
+    solvability = check_testcase(new, samples(new.certificates.solvability), "solvability")
+    assert solvability.passed, solvability.reasons
+    complexity = samples(new.certificates.complexity)
+    on_old = check_testcase(old, complexity, "complexity")
+    assert on_old.passed, on_old.reasons
+    on_new = check_testcase(new, complexity, "complexity")
+    assert not on_new.passed
+    assert on_new.goal_reached and not on_new.collisions
+    added = {n.id for n in new.nonegos} - {n.id for n in old.nonegos}
+    assert on_new.violations and all(v.other in added for v in on_new.violations)
+    # Old non-egos are kept exactly: that is what makes the solutions a subset.
+    assert new.nonegos[: len(old.nonegos)] == old.nonegos
+
+
+@pytest.fixture(scope="module")
+def y_start() -> TestCase:
+    return new_testcase("y-uncontrolled", "N2C_0:C2SE_0", duration=25.0, name="y")
+
+
+@pytest.fixture(scope="module")
+def y_extension(y_start: TestCase) -> Extension:
+    return extend_testcase(y_start, ["SW2C_0:C2N_0", "SE2C_0:C2N_0"], seed=0, budget=120)
+
+
+def test_y_junction_adds_a_conflicting_and_a_free_car(
+    y_start: TestCase, y_extension: Extension
+) -> None:
+    new = y_extension.testcase
+    assert [(n.id, n.route.id, n.added_in) for n in new.nonegos] == [
+        ("car1", "SW2C_0:C2N_0", 1),
+        ("car2", "SE2C_0:C2N_0", 1),
+    ]
+    assert_strictly_more_complex(y_start, new)
+    provenance = new.provenance or {}
+    assert provenance["new_nonegos"] == ["car1", "car2"]
+    assert provenance["parent"] and provenance["seed"] == 0
+    assert provenance["complexity_certificate_violates"]
+
+
+def test_new_cars_keep_the_bounds(y_extension: Extension) -> None:
+    params = y_extension.testcase.params
+    for car in y_extension.testcase.nonegos:
+        trajectory = car.trajectory
+        assert len(trajectory) == round(y_extension.testcase.duration / 0.1) + 1
+        for a, b in itertools.pairwise(trajectory):
+            assert b.distance >= a.distance - 1e-6  # never backs up
+            assert (b.speed - a.speed) / 0.1 <= params.a_max + 0.05
+            assert (b.speed - a.speed) / 0.1 >= params.a_min - 0.05
+        assert max(s.speed for s in trajectory) <= params.v_max + 1e-6
+
+
+def test_same_seed_gives_the_same_bytes(y_start: TestCase, y_extension: Extension) -> None:
+    again = extend_testcase(y_start, ["SW2C_0:C2N_0", "SE2C_0:C2N_0"], seed=0, budget=120)
+    assert dump_testcase(again.testcase) == dump_testcase(y_extension.testcase)
+
+
+def test_certificates_pass_scengen_check_as_a_separate_process(
+    y_start: TestCase, y_extension: Extension, tmp_path: Path
+) -> None:
+    old_file, new_file = tmp_path / "old.json", tmp_path / "new.json"
+    old_file.write_text(dump_testcase(y_start))
+    new_file.write_text(dump_testcase(y_extension.testcase))
+    certificates = y_extension.testcase.certificates
+    assert certificates is not None
+    for name, rows in (("solvability", certificates.solvability),
+                       ("complexity", certificates.complexity)):  # fmt: skip
+        (tmp_path / f"{name}.json").write_text(json.dumps([r.model_dump() for r in rows]))
+
+    def check(testcase: Path, certificate: str) -> int:
+        command = [sys.executable, "-m", "service", "check", str(testcase), "--ego",
+                   str(tmp_path / f"{certificate}.json")]  # fmt: skip
+        return subprocess.run(command, capture_output=True, check=False).returncode
+
+    assert check(new_file, "solvability") == 0
+    assert check(old_file, "complexity") == 0
+    assert check(new_file, "complexity") == 1
+
+
+def test_four_way_car_from_the_left(tmp_path: Path) -> None:
+    start = new_testcase("4way-stop", "S2C_1:C2W_1", duration=25.0)
+    new = extend_testcase(start, ["W2C_0:C2E_0"], seed=0, budget=120).testcase
+    assert_strictly_more_complex(start, new)
+
+
+def test_routes_that_never_meet_the_ego_have_no_extension() -> None:
+    start = new_testcase("4way-stop", "S2C_1:C2W_1")
+    with pytest.raises(NoMoreComplexTestCase, match="none of them crosses or merges"):
+        extend_testcase(start, ["E2C_0:C2N_0"], budget=30)
+
+
+@pytest.mark.parametrize(
+    ("routes", "error", "message"),
+    [
+        (["S2C_1:C2E_1"], UnknownRoute, "no connection from fork 'S2C_1'"),
+        (["S2C_1:C2N_1"], InvalidInput, "starts on the ego's fork"),
+        ([], InvalidInput, "at least one new route"),
+    ],
+)
+def test_bad_routes_are_refused(routes: list[str], error: type[Exception], message: str) -> None:
+    start = new_testcase("4way-stop", "S2C_1:C2W_1")
+    with pytest.raises(error, match=message):
+        extend_testcase(start, routes, budget=30)
+
+
+def test_old_testcase_that_fails_its_own_checks_is_refused(y_extension: Extension) -> None:
+    document = json.loads(dump_testcase(y_extension.testcase))
+    document["certificates"]["solvability"] = document["certificates"]["complexity"]
+    broken = parse_testcase(document)
+    with pytest.raises(InvalidTestCase, match="fails its own checks"):
+        extend_testcase(broken, ["SE2C_0:C2SW_0"], budget=30)
+
+
+def test_a_one_second_budget_is_honoured() -> None:
+    start = new_testcase("4way-stop", "S2C_1:C2W_1", duration=25.0)
+    started = time.monotonic()
+    with pytest.raises(NoneFound, match="within the budget of 1 s"):
+        extend_testcase(start, ["W2C_0:C2E_0", "N2C_0:C2S_0", "E2C_1:C2S_1"], budget=1.0)
+    # Step 1 alone starts a SUMO process; the rest stops at the budget.
+    assert time.monotonic() - started < 1.0 + 2.5
