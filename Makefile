@@ -12,7 +12,7 @@ help:
 	@echo "make test     install into .venv and run the whole test suite"
 	@echo "make lint     ruff and mypy --strict"
 	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
-	@echo "make bench    time the checker and Step 1 (see bench/RESULTS.md)"
+	@echo "make bench    time the checker and Step 1 (see docs/benchmarks.md)"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +47,7 @@ run: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.bench_check
+	$(BIN)/python -m bench.bench_generate
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

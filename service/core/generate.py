@@ -76,6 +76,7 @@ class Extension:
     testcase: TestCase
     attempts: list[Attempt]
     seconds: dict[str, float] = field(default_factory=dict)
+    timing_problem: TimingProblem | None = None  # the Step 3 problem that was solved
 
 
 def extend_testcase(
@@ -113,6 +114,12 @@ def extend_testcase(
     seconds["poses"] = time.monotonic() - clock
     say(f"step 1 poses: {len(tracks)} drives in {seconds['poses']:.2f} s")
 
+    if time.monotonic() >= deadline:
+        raise NoneFound(
+            f"none found within the budget of {budget:g} s: Step 1 used all of it",
+            routes=list(routes),
+            seed=seed,
+        )
     cars = _ordering_cars(old, junction, ego_track, new_tracks, new_routes, ids)
     clock = time.monotonic()
     limits = Limits(old.duration, old.params.a_min, old.params.a_max, old.params.v_max)
@@ -128,7 +135,7 @@ def extend_testcase(
         if ordering is None:
             break
         clock = time.monotonic()
-        result = _solve_variants(
+        result, problem = _solve_variants(
             old, junction, cars, ordering, {**new_tracks, "ego": ego_track}, deadline
         )
         seconds["timing"] += time.monotonic() - clock
@@ -165,7 +172,7 @@ def extend_testcase(
         if problem_found is None:
             attempts.append(Attempt(ordering.index, f"verified ({result.method} timing)"))
             say(f"step 2/3 answer set {ordering.index + 1}: verified ({result.method} timing)")
-            return Extension(candidate, attempts, seconds)
+            return Extension(candidate, attempts, seconds, problem)
         proven = False
         attempts.append(Attempt(ordering.index, f"verification: {problem_found}"))
         say(f"step 2/3 answer set {ordering.index + 1}: {problem_found}")
@@ -199,12 +206,13 @@ def _solve_variants(
     ordering: Ordering,
     tracks: dict[str, PoseTrack],
     deadline: float,
-) -> TimingSolution | TimingFailure:
+) -> tuple[TimingSolution | TimingFailure, TimingProblem]:
     """Step 3 for one answer set: as it stands, then with the solvability certificate, then
     every symbolic car without a sign, standing before the line; the nonlinear step last."""
     free = frozenset(c.car for c in cars if c.kind is not CarKind.OLD)
     variants = [frozenset(), frozenset({"ego"}), free]
     result: TimingSolution | TimingFailure = TimingFailure("no time left")
+    problem = _timing_problem(old, junction, cars, ordering, tracks)
     for k, waiting in enumerate(variants):
         problem = _timing_problem(old, junction, cars, ordering, tracks, waiting)
         left = deadline - time.monotonic()
@@ -213,8 +221,8 @@ def _solve_variants(
         nonlinear = min(NONLINEAR_SHARE, left) if k == len(variants) - 1 else 0.0
         result = solve_timing(problem, left, nonlinear)
         if isinstance(result, TimingSolution) or result.core:
-            return result
-    return result
+            return result, problem
+    return result, problem
 
 
 def _validate(old: TestCase, junction: Intersection, routes: Sequence[str]) -> list[Route]:

@@ -148,5 +148,6 @@ def test_a_one_second_budget_is_honoured() -> None:
     started = time.monotonic()
     with pytest.raises(NoneFound, match="within the budget of 1 s"):
         extend_testcase(start, ["W2C_0:C2E_0", "N2C_0:C2S_0", "E2C_1:C2S_1"], budget=1.0)
-    # Step 1 alone starts a SUMO process; the rest stops at the budget.
-    assert time.monotonic() - started < 1.0 + 2.5
+    # Step 1 starts a SUMO process and Step 2 grounds its program; both take well under a
+    # second alone, more on a loaded machine. Without the budget this search runs minutes.
+    assert time.monotonic() - started < 1.0 + 4.0
