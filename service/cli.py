@@ -24,6 +24,7 @@ from service.core.network import ControlType, bundled_networks, load_intersectio
 from service.core.network.describe import describe_intersection
 from service.core.poses import generate_poses
 from service.core.testcase import (
+    TestCase,
     dump_testcase,
     load_testcase_intersection,
     new_testcase,
@@ -255,10 +256,15 @@ def _run_new(args: argparse.Namespace) -> int:
         args.timestep,
         name=args.name,
     )
+    return _emit(testcase, args.output)
+
+
+def _emit(testcase: TestCase, output: Path | None) -> int:
+    """Write a test-case to ``output``, or to stdout without one."""
     text = dump_testcase(testcase)
-    if args.output:
-        args.output.write_text(text)
-        print(f"wrote {args.output}", file=sys.stderr)
+    if output:
+        output.write_text(text)
+        print(f"wrote {output}", file=sys.stderr)
     else:
         sys.stdout.write(text)
     return EXIT_OK
@@ -359,13 +365,7 @@ def _run_extend(args: argparse.Namespace) -> int:
         f"certificate violates the right-of-way of {violated}",
         file=sys.stderr,
     )
-    text = dump_testcase(new)
-    if args.output:
-        args.output.write_text(text)
-        print(f"wrote {args.output}", file=sys.stderr)
-    else:
-        sys.stdout.write(text)
-    return EXIT_OK
+    return _emit(new, args.output)
 
 
 def _run_example(args: argparse.Namespace) -> int:
