@@ -212,17 +212,17 @@ def _solve_variants(
     free = frozenset(c.car for c in cars if c.kind is not CarKind.OLD)
     variants = [frozenset(), frozenset({"ego"}), free]
     result: TimingSolution | TimingFailure = TimingFailure("no time left")
-    problem = _timing_problem(old, junction, cars, ordering, tracks)
+    problem = None
     for k, waiting in enumerate(variants):
-        problem = _timing_problem(old, junction, cars, ordering, tracks, waiting)
         left = deadline - time.monotonic()
         if left <= 0:
             break
+        problem = _timing_problem(old, junction, cars, ordering, tracks, waiting)
         nonlinear = min(NONLINEAR_SHARE, left) if k == len(variants) - 1 else 0.0
         result = solve_timing(problem, left, nonlinear)
         if isinstance(result, TimingSolution) or result.core:
             return result, problem
-    return result, problem
+    return result, problem or _timing_problem(old, junction, cars, ordering, tracks)
 
 
 def _validate(old: TestCase, junction: Intersection, routes: Sequence[str]) -> list[Route]:
@@ -376,14 +376,16 @@ def _plan(
             knots.append(Knot(symbol, timed.event.distance))
         elif timed.event.kind is EventKind.LEFT_LANE and timed.event.lane == car.lane:
             knots.append(Knot(symbol, timed.event.distance))  # leaving its own lane: exit
-    runs = stop_sign and car.car not in ordering.stops and arrival is not None and entry is not None
+    runs = None
+    if stop_sign and car.car not in ordering.stops and arrival is not None and entry is not None:
+        runs = (arrival, entry)
     start_speed = old.ego.start.speed if car.kind is CarKind.CERTIFICATE else None
     return CarPlan(
         car.car,
         tuple(knots),
         track.samples[-1].distance,
         start_speed,
-        (arrival, entry) if runs and arrival is not None and entry is not None else None,
+        runs,
     )
 
 
@@ -465,9 +467,7 @@ def _candidate(
     method: str,
     tried: int,
 ) -> TestCase:
-    document: dict[str, Any] = parse_testcase(dump_testcase(old)).model_dump(
-        mode="json", by_alias=True, exclude_none=True
-    )
+    document: dict[str, Any] = old.model_dump(mode="json", by_alias=True, exclude_none=True)
     level = 1 + max((n.added_in for n in old.nonegos), default=0)
     for car_id, route in zip(ids, routes, strict=True):
         trajectory = samples[car_id]

@@ -76,9 +76,13 @@ class PoseTrack:
     start_distance: float  # front bumper before the stop line at the first sample
     samples: tuple[PoseSample, ...]
 
+    @functools.cached_property
+    def _distances(self) -> list[float]:
+        return [s.distance for s in self.samples]
+
     def pose_at(self, distance: float) -> tuple[float, float, float]:
         """(x, y, heading) at ``distance`` travelled, interpolated between samples."""
-        distances = [s.distance for s in self.samples]
+        distances = self._distances
         if distance <= distances[0]:
             first = self.samples[0]
             return first.x, first.y, first.heading
