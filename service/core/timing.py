@@ -409,6 +409,111 @@ def _segment_window(
     return low, high
 
 
+SPEED_GRID = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.85, 1.0)  # shares of v_max
+
+
+def _durations(
+    gap: float, v0: float, v1: float, problem: TimingProblem, runs: bool
+) -> list[tuple[float, float]]:
+    """Every duration h (as closed intervals) for which the segment with end speeds v0, v1
+    (controls at d0 + v0 h/3 and d1 - v1 h/3) keeps every bound of design section 4."""
+    if gap <= 1e-9:
+        return [(DWELL, math.inf)] if v0 == 0 and v1 == 0 else []
+    low, high = 1e-3, math.inf
+    if v0 + v1 > 0:
+        high = 3 * gap / (v0 + v1)  # controls in order: the car never backs up
+    low = max(low, 3 * gap / (problem.v_max + v0 + v1))  # middle speed at most v_max
+    if runs:
+        high = min(high, 3 * gap / (v0 + v1 + problem.v_run))
+    brake, push = -problem.a_min, problem.a_max
+    # start acceleration 6 gap / h^2 - 2 (2 v0 + v1) / h, end 2 (v0 + 2 v1) / h - 6 gap / h^2
+    for size, b in ((push, 2 * (2 * v0 + v1)), (brake, 2 * (v0 + 2 * v1))):
+        roots = _roots(size, b, -6 * gap)  # size h^2 + b h - 6 gap >= 0
+        if roots is not None:
+            low = max(low, roots[1])
+    if low > high:
+        return []
+    intervals = [(low, high)]
+    for size, b in ((brake, 2 * (2 * v0 + v1)), (push, 2 * (v0 + 2 * v1))):
+        roots = _roots(size, -b, 6 * gap)  # size h^2 - b h + 6 gap >= 0: not between roots
+        if roots is None or roots[0] >= roots[1]:
+            continue
+        kept = []
+        for a, z in intervals:
+            if a <= roots[0]:
+                kept.append((a, min(z, roots[0])))
+            if z >= roots[1]:
+                kept.append((max(a, roots[1]), z))
+        intervals = kept
+    return intervals
+
+
+def _speed_options(car: CarPlan, problem: TimingProblem) -> list[list[float]]:
+    """The speeds each knot (the start first) may take: the grid under what it can reach,
+    zero at a stand, the start speed where fixed, at least v_run while running a sign."""
+    caps = _speed_caps(car, problem, 1.0)
+    options = []
+    for j, cap in enumerate(caps):
+        if j == 0 and car.start_speed is not None:
+            options.append([car.start_speed])
+        elif j > 0 and car.knots[j - 1].stop:
+            options.append([0.0])
+        else:
+            speeds = sorted({share * problem.v_max for share in SPEED_GRID} | {cap})
+            least = problem.v_run if car.run and car.run[0] <= j - 1 <= car.run[1] else 0.0
+            options.append([v for v in speeds if least <= v <= cap + 1e-9])
+    return options
+
+
+def _fit_on_speed_grid(problem: TimingProblem, timeout_ms: int) -> dict[str, Curve] | None:
+    """Curves whose knot speeds come from a grid: for each pair of end speeds, every bound
+    is an exact set of segment durations, so one linear problem with a choice of speed per
+    knot (z3, linear arithmetic and Booleans) finds knot times and speeds together."""
+    times = _Times(problem)
+    solver = z3.Solver()
+    solver.set("timeout", max(timeout_ms, 1))
+    solver.add(*times.order())
+    chosen: dict[str, list[list[tuple[float, z3.BoolRef | bool]]]] = {}
+    for car in problem.cars:
+        terms = [_real(0.0), *times.knots[car.car]]
+        distances = [0.0] + [k.distance for k in car.knots]
+        picks: list[list[tuple[float, z3.BoolRef | bool]]] = []
+        for j, speeds in enumerate(_speed_options(car, problem)):
+            if len(speeds) == 1:
+                picks.append([(speeds[0], True)])
+                continue
+            flags = [z3.Bool(f"v_{car.car}_{j}_{i}") for i in range(len(speeds))]
+            solver.add(z3.PbEq([(f, 1) for f in flags], 1))
+            picks.append(list(zip(speeds, flags, strict=True)))
+        if any(not p for p in picks):
+            return None
+        for j in range(1, len(terms)):
+            h = terms[j] - terms[j - 1]
+            solver.add(terms[j] <= problem.duration - problem.margin)
+            runs = bool(car.run and car.run[0] < j <= car.run[1])
+            for v0, f0 in picks[j - 1]:
+                for v1, f1 in picks[j]:
+                    spans = _durations(distances[j] - distances[j - 1], v0, v1, problem, runs)
+                    inside = z3.Or([z3.And(h >= lo, h <= hi) if hi < math.inf else h >= lo for lo, hi in spans])
+                    solver.add(z3.Implies(z3.And(f0, f1), inside))
+        chosen[car.car] = picks
+    if solver.check() != z3.sat:
+        return None
+    model = solver.model()
+    curves = {}
+    for car in problem.cars:
+        knot_times = [_value(model, t) for t in times.knots[car.car]]
+        speeds = [
+            next(v for v, f in pick if f is True or z3.is_true(model.eval(f, model_completion=True)))
+            for pick in chosen[car.car]
+        ]
+        curve = _close_curve(problem, car, knot_times, speeds, timeout_ms)
+        if curve is None:
+            return None
+        curves[car.car] = curve
+    return curves
+
+
 def _fit_with_speeds(
     problem: TimingProblem, planned: dict[str, list[float]], timeout_ms: int
 ) -> dict[str, Curve] | None:
@@ -558,7 +663,7 @@ def solve_timing(
         if core:
             return TimingFailure("no event times can realise this order", tuple(core))
         return TimingFailure("the linear timing step gave up")
-    direct = _fit_with_speeds(problem, planned, int((budget - (time.monotonic() - started)) * 1000))
+    direct = _fit_on_speed_grid(problem, int((budget - (time.monotonic() - started)) * 1000))
     if direct is not None:
         return TimingSolution(direct, "linear")
     curves = {}
