@@ -49,6 +49,7 @@ from service.core.timing import (
     TimingFailure,
     TimingProblem,
     TimingSolution,
+    solve_complete,
     solve_timing,
 )
 
@@ -142,7 +143,7 @@ def extend_testcase(
         if isinstance(result, TimingFailure):
             if result.core:
                 search.forbid([ordering.relations[i] for i in result.core])
-            proven = proven and (bool(result.core) or "proved" in result.reason)
+            proven = proven and result.proved
             attempts.append(Attempt(ordering.index, f"timing: {result.reason}"))
             say(f"step 2/3 answer set {ordering.index + 1}: {result.reason}")
             continue
@@ -207,22 +208,32 @@ def _solve_variants(
     tracks: dict[str, PoseTrack],
     deadline: float,
 ) -> tuple[TimingSolution | TimingFailure, TimingProblem]:
-    """Step 3 for one answer set: as it stands, then with the solvability certificate, then
-    every symbolic car without a sign, standing before the line; the nonlinear step last."""
+    """Step 3 for one answer set: the linear steps on the problem as it stands, then with
+    the solvability certificate, then every symbolic car without a sign standing before
+    the line; last the nonlinear step on the problem as it stands.
+
+    Only the problem as it stands may rule the order out: the linear timing step's core
+    rests on necessary conditions that hold for any motion (the stands of the variants
+    only tighten them), and the nonlinear step's on the paper's formulation. The variants
+    with stands only add chances."""
+    base = _timing_problem(old, junction, cars, ordering, tracks)
+    result = solve_timing(base, deadline - time.monotonic(), 0.0)
+    if isinstance(result, TimingSolution) or result.proved or result.core:
+        return result, base
     free = frozenset(c.car for c in cars if c.kind is not CarKind.OLD)
-    variants = [frozenset(), frozenset({"ego"}), free]
-    result: TimingSolution | TimingFailure = TimingFailure("no time left")
-    problem = None
-    for k, waiting in enumerate(variants):
+    for waiting in (frozenset({"ego"}), free):
         left = deadline - time.monotonic()
         if left <= 0:
-            break
+            return result, base
         problem = _timing_problem(old, junction, cars, ordering, tracks, waiting)
-        nonlinear = min(NONLINEAR_SHARE, left) if k == len(variants) - 1 else 0.0
-        result = solve_timing(problem, left, nonlinear)
-        if isinstance(result, TimingSolution) or result.core:
-            return result, problem
-    return result, problem or _timing_problem(old, junction, cars, ordering, tracks)
+        attempt = solve_timing(problem, left, 0.0)
+        if isinstance(attempt, TimingSolution):
+            return attempt, problem
+    complete = solve_complete(base, min(NONLINEAR_SHARE, deadline - time.monotonic()))
+    if isinstance(complete, TimingFailure):
+        reason = f"{result.reason}; {complete.reason}"
+        return TimingFailure(reason, complete.core, complete.proved), base
+    return complete, base
 
 
 def _validate(old: TestCase, junction: Intersection, routes: Sequence[str]) -> list[Route]:

@@ -107,6 +107,7 @@ class TimingFailure:
 
     reason: str
     core: tuple[int, ...] = ()
+    proved: bool = False  # shown impossible (the core may be empty), not merely not found
 
 
 def _value(model: z3.ModelRef, term: z3.ArithRef) -> float:
@@ -116,19 +117,20 @@ def _value(model: z3.ModelRef, term: z3.ArithRef) -> float:
     return float(value.approx(20).as_fraction())  # algebraic numbers from nlsat
 
 
-def _real(x: float) -> z3.RatNumRef:
-    return z3.RealVal(Fraction(x).limit_denominator(10**9))
+def _real(x: float, ctx: z3.Context) -> z3.RatNumRef:
+    return z3.RealVal(Fraction(x).limit_denominator(10**9), ctx)
 
 
 class _Times:
     """z3 variables for knot times, and the relations between them."""
 
-    def __init__(self, problem: TimingProblem) -> None:
+    def __init__(self, problem: TimingProblem, ctx: z3.Context) -> None:
         self.problem = problem
+        self.ctx = ctx
         self.var: dict[str, z3.ArithRef] = {}
         self.knots: dict[str, list[z3.ArithRef]] = {}
         for car in problem.cars:
-            self.knots[car.car] = [z3.Real(f"T_{car.car}_{k}") for k in range(len(car.knots))]
+            self.knots[car.car] = [z3.Real(f"T_{car.car}_{k}", ctx) for k in range(len(car.knots))]
             for knot, term in zip(car.knots, self.knots[car.car], strict=True):
                 if knot.symbol is not None:
                     self.var[knot.symbol] = term
@@ -137,7 +139,7 @@ class _Times:
     def term(self, symbol: str) -> z3.ArithRef:
         if symbol in self.var:
             return self.var[symbol]
-        return _real(self.fixed[symbol])
+        return _real(self.fixed[symbol], self.ctx)
 
     def order(self) -> list[z3.BoolRef]:
         return [constraint for constraint, _ in self.labelled_order()]
@@ -161,6 +163,7 @@ class _Times:
 
 
 COMFORT = 0.7  # share of the speed and acceleration bounds the first timing plan uses
+EDGE = 0.9  # orders that need more than this share are left alone
 
 
 def _speed_caps(car: CarPlan, problem: TimingProblem, share: float) -> list[float]:
@@ -196,7 +199,7 @@ def _kinematics(
     cost: list[z3.ArithRef] = []
     top, speed_up, slow_down = share * problem.v_max, share * problem.a_max, -share * problem.a_min
     for car in problem.cars:
-        terms = [_real(0.0), *times.knots[car.car]]
+        terms = [_real(0.0, times.ctx), *times.knots[car.car]]
         distances = [0.0] + [k.distance for k in car.knots]
         caps = _speed_caps(car, problem, share)
         found += [t <= problem.duration - problem.margin for t in terms[1:]]
@@ -217,28 +220,31 @@ def _kinematics(
             if distances[j] - distances[j - 1] > 1e-9
         ]
         if car.start_speed is not None and car.start_speed > 0.5 and paces:
-            deviation = z3.Real(f"start_{car.car}")
+            deviation = z3.Real(f"start_{car.car}", times.ctx)
             found += [
                 deviation >= paces[0] - 1.0 / car.start_speed,
                 deviation >= 1.0 / car.start_speed - paces[0],
             ]
             cost.append(deviation * 4)
         for k in range(1, len(paces)):
-            change = z3.Real(f"change_{car.car}_{k}")
+            change = z3.Real(f"change_{car.car}_{k}", times.ctx)
             found += [change >= paces[k] - paces[k - 1], change >= paces[k - 1] - paces[k]]
             cost.append(change)
     return found, cost
 
 
 def _plan_times(
-    problem: TimingProblem, timeout_ms: int
-) -> tuple[dict[str, list[float]] | None, list[int]]:
-    """The linear timing step: knot times, smoothest first; or None and the indices of the
-    relations in an unsatisfiable core."""
-    times = _Times(problem)
-    for share in (COMFORT, 1.0):
+    problem: TimingProblem, timeout_ms: int, ctx: z3.Context
+) -> tuple[dict[str, list[float]] | None, list[int], bool]:
+    """The linear timing step: knot times, smoothest first, within a share of the bounds
+    (COMFORT, then EDGE). Else None, the indices of the relations in an unsatisfiable
+    core, and whether that is a proof: the order is impossible with the full bounds (the
+    conditions are necessary), or it is possible only at their very edge, where no curve
+    with a margin exists in practice (a core of the EDGE conditions, not a proof)."""
+    times = _Times(problem, ctx)
+    for share in (COMFORT, EDGE):
         kinematics, cost = _kinematics(problem, times, share)
-        optimizer = z3.Optimize()
+        optimizer = z3.Optimize(ctx=ctx)
         optimizer.set("timeout", max(timeout_ms, 1))
         optimizer.add(*times.order(), *kinematics)
         if cost:
@@ -246,19 +252,29 @@ def _plan_times(
         if optimizer.check() == z3.sat:
             model = optimizer.model()
             planned = {c: [_value(model, t) for t in terms] for c, terms in times.knots.items()}
-            return planned, []
-    solver = z3.Solver()
+            return planned, [], False
+    for share, proof in ((1.0, True), (EDGE, False)):
+        core = _order_core(times, _kinematics(problem, times, share)[0], timeout_ms)
+        if core is not None:
+            return None, core, proof
+    return None, [], False
+
+
+def _order_core(times: _Times, kinematics: list[z3.BoolRef], timeout_ms: int) -> list[int] | None:
+    """Indices of order relations that cannot hold together with ``kinematics``; None when
+    they can (or z3 cannot tell)."""
+    solver = z3.Solver(ctx=times.ctx)
     solver.set("timeout", max(timeout_ms, 1))
     solver.add(*kinematics)
     labels = {}
     for k, (constraint, label) in enumerate(times.labelled_order()):
-        flag = z3.Bool(f"track_{k}")
+        flag = z3.Bool(f"track_{k}", times.ctx)
         labels[str(flag)] = label
         solver.assert_and_track(constraint, flag)
     if solver.check() != z3.unsat:
-        return None, []
+        return None
     core = {labels[str(flag)] for flag in solver.unsat_core()}
-    return None, sorted(int(label[4:]) for label in core if label.startswith("rel:"))
+    return sorted(int(label[4:]) for label in core if label.startswith("rel:"))
 
 
 def fastest(distance: float, start_speed: float, accel: float, top: float) -> float:
@@ -316,13 +332,13 @@ def _segment_constraints(
 
 
 def _fit_curve(
-    problem: TimingProblem, car: CarPlan, knot_times: list[float], timeout_ms: int
+    problem: TimingProblem, car: CarPlan, knot_times: list[float], timeout_ms: int, ctx: z3.Context
 ) -> Curve | None:
     """The linear step for one car: control points with the knot times fixed."""
     times = [0.0, *knot_times, problem.duration]
-    controls = [(z3.Real(f"c1_{j}"), z3.Real(f"c2_{j}")) for j in range(len(times) - 1)]
-    end = z3.Real("end")
-    optimizer = z3.Optimize()
+    controls = [(z3.Real(f"c1_{j}", ctx), z3.Real(f"c2_{j}", ctx)) for j in range(len(times) - 1)]
+    end = z3.Real("end", ctx)
+    optimizer = z3.Optimize(ctx=ctx)
     optimizer.set("timeout", max(timeout_ms, 1))
     optimizer.add(*_segment_constraints(problem, car, times, controls, end))
     distances: list[z3.ArithRef | float] = [0.0] + [k.distance for k in car.knots] + [end]
@@ -330,7 +346,7 @@ def _fit_curve(
     for j, (c1, c2) in enumerate(controls):
         h2 = (times[j + 1] - times[j]) ** 2
         for acc in (distances[j] - 2 * c1 + c2, c1 - 2 * c2 + distances[j + 1]):
-            size = z3.Real(f"effort_{j}_{len(effort)}")
+            size = z3.Real(f"effort_{j}_{len(effort)}", ctx)
             optimizer.add(size >= acc * (1.0 / h2), size >= -acc * (1.0 / h2))
             effort.append(size)
     optimizer.minimize(z3.Sum(effort))
@@ -344,31 +360,6 @@ def _fit_curve(
     )
 
 
-def _knot_speeds(car: CarPlan, problem: TimingProblem, times: list[float]) -> list[float]:
-    """Speeds at the start and at each knot, from the planned times: the mean of the
-    neighbouring segments' average speeds, zero at a stand, the start speed where fixed,
-    at least v_run where the car runs a sign, never above what it can reach."""
-    distances = [0.0] + [k.distance for k in car.knots]
-    moments = [0.0, *times]
-    averages = [
-        (distances[j] - distances[j - 1]) / (moments[j] - moments[j - 1])
-        for j in range(1, len(moments))
-    ]
-    caps = _speed_caps(car, problem, 1.0)
-    speeds = []
-    for j in range(len(distances)):
-        around = averages[max(j - 1, 0) : j + 1]
-        speed = sum(around) / len(around)
-        if j == 0 and car.start_speed is not None:
-            speed = car.start_speed
-        elif j > 0 and car.knots[j - 1].stop:
-            speed = 0.0
-        elif car.run and car.run[0] <= j - 1 <= car.run[1]:
-            speed = max(speed, problem.v_run)
-        speeds.append(min(speed, caps[j]))
-    return speeds
-
-
 def _roots(a: float, b: float, c: float) -> tuple[float, float] | None:
     """Real roots of a h^2 + b h + c (a != 0), smaller first."""
     disc = b * b - 4 * a * c
@@ -376,37 +367,6 @@ def _roots(a: float, b: float, c: float) -> tuple[float, float] | None:
         return None
     low, high = (-b - math.sqrt(disc)) / (2 * a), (-b + math.sqrt(disc)) / (2 * a)
     return (low, high) if low <= high else (high, low)
-
-
-def _segment_window(
-    gap: float, v0: float, v1: float, planned: float, problem: TimingProblem, runs: bool
-) -> tuple[float, float]:
-    """The durations h for which the segment with end speeds v0, v1 (controls at
-    d0 + v0 h/3 and d1 - v1 h/3) keeps every bound; the branch nearest the plan."""
-    if gap <= 1e-9:
-        return (DWELL, math.inf) if v0 == 0 and v1 == 0 else (math.inf, 0.0)
-    low, high = 1e-3, math.inf
-    if v0 + v1 > 0:
-        high = min(high, 3 * gap / (v0 + v1))  # controls in order: the car never backs up
-    low = max(low, 3 * gap / (problem.v_max + v0 + v1))  # middle speed at most v_max
-    if runs:
-        high = min(high, 3 * gap / (v0 + v1 + problem.v_run))
-    brake, push = -problem.a_min, problem.a_max
-    # start: a_min h^2 <= 6 gap - 2 (2 v0 + v1) h <= a_max h^2
-    # end:   a_min h^2 <= 2 (v0 + 2 v1) h - 6 gap <= a_max h^2
-    for b in (2 * (2 * v0 + v1), 2 * (v0 + 2 * v1)):
-        for size in (push, brake):
-            roots = _roots(size, b, -6 * gap)  # size h^2 + b h - 6 gap >= 0
-            if roots is not None:
-                low = max(low, roots[1])
-    for size, b in ((brake, 2 * (2 * v0 + v1)), (push, 2 * (v0 + 2 * v1))):
-        roots = _roots(size, -b, 6 * gap)  # size h^2 - b h + 6 gap >= 0: outside the roots
-        if roots is not None and roots[0] < roots[1]:
-            if planned <= (roots[0] + roots[1]) / 2:
-                high = min(high, roots[0])
-            else:
-                low = max(low, roots[1])
-    return low, high
 
 
 SPEED_GRID = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.85, 1.0)  # shares of v_max
@@ -465,28 +425,30 @@ def _speed_options(car: CarPlan, problem: TimingProblem) -> list[list[float]]:
     return options
 
 
-def _fit_on_speed_grid(problem: TimingProblem, timeout_ms: int) -> dict[str, Curve] | None:
+def _fit_on_speed_grid(
+    problem: TimingProblem, timeout_ms: int, ctx: z3.Context
+) -> dict[str, Curve] | None:
     """Curves whose knot speeds come from a grid: for each pair of end speeds, every bound
     is an exact set of segment durations, so one linear problem with a choice of speed per
     knot (z3, linear arithmetic and Booleans) finds knot times and speeds together."""
-    times = _Times(problem)
-    solver = z3.Solver()
+    times = _Times(problem, ctx)
+    solver = z3.Solver(ctx=ctx)
     solver.set("timeout", max(timeout_ms, 1))
     solver.add(*times.order())
-    chosen: dict[str, list[list[tuple[float, z3.BoolRef | bool]]]] = {}
+    chosen: dict[str, list[list[tuple[float, z3.BoolRef]]]] = {}
     for car in problem.cars:
-        terms = [_real(0.0), *times.knots[car.car]]
+        terms = [_real(0.0, ctx), *times.knots[car.car]]
         distances = [0.0] + [k.distance for k in car.knots]
-        picks: list[list[tuple[float, z3.BoolRef | bool]]] = []
+        picks: list[list[tuple[float, z3.BoolRef]]] = []
         for j, speeds in enumerate(_speed_options(car, problem)):
+            if not speeds:
+                return None
             if len(speeds) == 1:
-                picks.append([(speeds[0], True)])
+                picks.append([(speeds[0], z3.BoolVal(True, ctx))])
                 continue
-            flags = [z3.Bool(f"v_{car.car}_{j}_{i}") for i in range(len(speeds))]
+            flags = [z3.Bool(f"v_{car.car}_{j}_{i}", ctx) for i in range(len(speeds))]
             solver.add(z3.PbEq([(f, 1) for f in flags], 1))
             picks.append(list(zip(speeds, flags, strict=True)))
-        if any(not p for p in picks):
-            return None
         for j in range(1, len(terms)):
             h = terms[j] - terms[j - 1]
             solver.add(terms[j] <= problem.duration - problem.margin)
@@ -494,8 +456,14 @@ def _fit_on_speed_grid(problem: TimingProblem, timeout_ms: int) -> dict[str, Cur
             for v0, f0 in picks[j - 1]:
                 for v1, f1 in picks[j]:
                     spans = _durations(distances[j] - distances[j - 1], v0, v1, problem, runs)
-                    inside = z3.Or([z3.And(h >= lo, h <= hi) if hi < math.inf else h >= lo for lo, hi in spans])
-                    solver.add(z3.Implies(z3.And(f0, f1), inside))
+                    inside = [
+                        z3.And(h >= lo, h <= hi) if hi < math.inf else h >= lo for lo, hi in spans
+                    ]
+                    solver.add(
+                        z3.Implies(
+                            z3.And(f0, f1), z3.Or(inside) if inside else z3.BoolVal(False, ctx)
+                        )
+                    )
         chosen[car.car] = picks
     if solver.check() != z3.sat:
         return None
@@ -504,61 +472,10 @@ def _fit_on_speed_grid(problem: TimingProblem, timeout_ms: int) -> dict[str, Cur
     for car in problem.cars:
         knot_times = [_value(model, t) for t in times.knots[car.car]]
         speeds = [
-            next(v for v, f in pick if f is True or z3.is_true(model.eval(f, model_completion=True)))
+            next(v for v, f in pick if z3.is_true(model.eval(f, model_completion=True)))
             for pick in chosen[car.car]
         ]
-        curve = _close_curve(problem, car, knot_times, speeds, timeout_ms)
-        if curve is None:
-            return None
-        curves[car.car] = curve
-    return curves
-
-
-def _fit_with_speeds(
-    problem: TimingProblem, planned: dict[str, list[float]], timeout_ms: int
-) -> dict[str, Curve] | None:
-    """Curves with speeds fixed at the knots: every bound becomes a window on each segment's
-    duration, and one linear program over the knot times, near the plan, settles them."""
-    times = _Times(problem)
-    optimizer = z3.Optimize()
-    optimizer.set("timeout", max(timeout_ms, 1))
-    optimizer.add(*times.order())
-    speeds: dict[str, list[float]] = {}
-    drift = []
-    for car in problem.cars:
-        v = _knot_speeds(car, problem, planned[car.car])
-        speeds[car.car] = v
-        terms = [_real(0.0), *times.knots[car.car]]
-        moments = [0.0, *planned[car.car]]
-        distances = [0.0] + [k.distance for k in car.knots]
-        for j in range(1, len(terms)):
-            runs = bool(car.run and car.run[0] < j <= car.run[1])
-            low, high = _segment_window(
-                distances[j] - distances[j - 1],
-                v[j - 1],
-                v[j],
-                moments[j] - moments[j - 1],
-                problem,
-                runs,
-            )
-            if low > high:
-                return None
-            optimizer.add(terms[j] - terms[j - 1] >= low)
-            if high < math.inf:
-                optimizer.add(terms[j] - terms[j - 1] <= high)
-            optimizer.add(terms[j] <= problem.duration - problem.margin)
-            away = z3.Real(f"drift_{car.car}_{j}")
-            optimizer.add(away >= terms[j] - moments[j], away >= moments[j] - terms[j])
-            drift.append(away)
-    if drift:
-        optimizer.minimize(z3.Sum(drift))
-    if optimizer.check() != z3.sat:
-        return None
-    model = optimizer.model()
-    curves = {}
-    for car in problem.cars:
-        knot_times = [_value(model, t) for t in times.knots[car.car]]
-        curve = _close_curve(problem, car, knot_times, speeds[car.car], timeout_ms)
+        curve = _close_curve(problem, car, knot_times, speeds, timeout_ms, ctx)
         if curve is None:
             return None
         curves[car.car] = curve
@@ -571,6 +488,7 @@ def _close_curve(
     knot_times: list[float],
     speeds: list[float],
     timeout_ms: int,
+    ctx: z3.Context,
 ) -> Curve | None:
     """The curve through the knots with the given speeds, and a last segment to the end of
     the duration (its end distance and second control found by a small linear program)."""
@@ -585,8 +503,8 @@ def _close_curve(
     h = problem.duration - moments[-1]
     last, v = distances[-1], speeds[-1]
     c1 = last + v * h / 3
-    c2, end = z3.Real("c2"), z3.Real("end")
-    solver = z3.Optimize()
+    c2, end = z3.Real("c2", ctx), z3.Real("end", ctx)
+    solver = z3.Optimize(ctx=ctx)
     solver.set("timeout", max(timeout_ms, 1))
     hh = h * h
     solver.add(c1 <= c2, c2 <= end, end <= car.reach, c1 <= car.reach)
@@ -598,7 +516,7 @@ def _close_curve(
         problem.a_min * hh <= 6 * (c1 - 2 * c2 + end), 6 * (c1 - 2 * c2 + end) <= problem.a_max * hh
     )
     solver.add(3 * (c2 - c1) <= problem.v_max * h, 3 * (end - c2) <= problem.v_max * h)
-    effort = z3.Real("effort")
+    effort = z3.Real("effort", ctx)
     solver.add(effort >= 6 * (c1 - 2 * c2 + end) - 6 * (last - 2 * c1 + c2))
     solver.add(effort >= 6 * (last - 2 * c1 + c2) - 6 * (c1 - 2 * c2 + end))
     solver.minimize(effort)
@@ -613,21 +531,28 @@ def _close_curve(
     )
 
 
-def solve_nonlinear(problem: TimingProblem) -> dict[str, Curve] | None:
-    """The complete formulation (times and controls together); run it under a budget."""
-    times = _Times(problem)
-    solver = z3.SolverFor("QF_NRA")
-    solver.add(*times.order())
+def solve_nonlinear(problem: TimingProblem) -> dict[str, Curve] | tuple[int, ...] | None:
+    """The complete formulation (times and controls together); run it under a budget.
+    Curves; when it is infeasible, the indices of relations in an unsatisfiable core;
+    None when z3 gives up."""
+    ctx = z3.Context()
+    times = _Times(problem, ctx)
+    solver = z3.SolverFor("QF_NRA", ctx=ctx)
+    labels = {}
+    for k, (constraint, label) in enumerate(times.labelled_order()):
+        flag = z3.Bool(f"track_{k}", ctx)
+        labels[str(flag)] = label
+        solver.assert_and_track(constraint, flag)
     parts: dict[
         str, tuple[list[z3.ArithRef | float], list[tuple[z3.ArithRef, z3.ArithRef]], z3.ArithRef]
     ] = {}
     for car in problem.cars:
         knot_times: list[z3.ArithRef | float] = [0.0, *times.knots[car.car], problem.duration]
         controls = [
-            (z3.Real(f"c1_{car.car}_{j}"), z3.Real(f"c2_{car.car}_{j}"))
+            (z3.Real(f"c1_{car.car}_{j}", ctx), z3.Real(f"c2_{car.car}_{j}", ctx))
             for j in range(len(knot_times) - 1)
         ]
-        end = z3.Real(f"end_{car.car}")
+        end = z3.Real(f"end_{car.car}", ctx)
         for j in range(1, len(knot_times)):
             gap = knot_times[j] - knot_times[j - 1]
             solver.add(gap >= (DWELL if j < len(knot_times) - 1 and _dwell(car, j) else 0.01))
@@ -635,8 +560,12 @@ def solve_nonlinear(problem: TimingProblem) -> dict[str, Curve] | None:
             solver.add(term <= problem.duration - problem.margin)
         solver.add(*_segment_constraints(problem, car, knot_times, controls, end))
         parts[car.car] = (knot_times, controls, end)
-    if solver.check() != z3.sat:
+    verdict = solver.check()
+    if verdict == z3.unknown:
         return None
+    if verdict == z3.unsat:
+        core = {labels[str(flag)] for flag in solver.unsat_core()}
+        return tuple(sorted(int(label[4:]) for label in core if label.startswith("rel:")))
     model = solver.model()
     curves = {}
     for car in problem.cars:
@@ -658,18 +587,21 @@ def solve_timing(
 ) -> TimingSolution | TimingFailure:
     """Curves for every car, or what failed (with an unsatisfiable core when there is one)."""
     started = time.monotonic()
-    planned, core = _plan_times(problem, int(budget * 1000))
+    ctx = z3.Context()  # a fresh context per problem: z3's answers do not depend on history
+    planned, core, proof = _plan_times(problem, int(budget * 1000), ctx)
     if planned is None:
+        if proof:
+            return TimingFailure("no event times can realise this order", tuple(core), True)
         if core:
-            return TimingFailure("no event times can realise this order", tuple(core))
+            return TimingFailure("this order needs the very edge of the bounds", tuple(core))
         return TimingFailure("the linear timing step gave up")
-    direct = _fit_on_speed_grid(problem, int((budget - (time.monotonic() - started)) * 1000))
+    direct = _fit_on_speed_grid(problem, int((budget - (time.monotonic() - started)) * 1000), ctx)
     if direct is not None:
         return TimingSolution(direct, "linear")
     curves = {}
     for car in problem.cars:
         left = budget - (time.monotonic() - started)
-        curve = _fit_curve(problem, car, planned[car.car], int(left * 1000))
+        curve = _fit_curve(problem, car, planned[car.car], int(left * 1000), ctx)
         if curve is None:
             break
         curves[car.car] = curve
@@ -679,12 +611,22 @@ def solve_timing(
     if nonlinear_budget <= 0:
         return TimingFailure(why)
     left = min(nonlinear_budget, budget - (time.monotonic() - started))
-    if left <= 0.05:
-        return TimingFailure(why + "; no time left for the nonlinear step")
+    failure = solve_complete(problem, left)
+    if isinstance(failure, TimingFailure):
+        return TimingFailure(why + "; " + failure.reason, failure.core, failure.proved)
+    return failure
+
+
+def solve_complete(problem: TimingProblem, budget: float) -> TimingSolution | TimingFailure:
+    """The nonlinear formulation in a child process that is killed at ``budget``."""
+    if budget <= 0.05:
+        return TimingFailure("no time left for the nonlinear step")
     try:
-        solved = run_with_budget(solve_nonlinear, (problem,), left, "the nonlinear timing step")
+        solved = run_with_budget(solve_nonlinear, (problem,), budget, "the nonlinear timing step")
     except BudgetExceeded:
-        return TimingFailure(why + f"; the nonlinear step ran out of its {left:.1f} s")
+        return TimingFailure(f"the nonlinear step ran out of its {budget:.1f} s")
     if solved is None:
-        return TimingFailure(why + "; the nonlinear step proved it infeasible")
+        return TimingFailure("the nonlinear step gave up")
+    if isinstance(solved, tuple):
+        return TimingFailure("the nonlinear step proved it infeasible", solved, True)
     return TimingSolution(solved, "nonlinear")
