@@ -5,14 +5,15 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled
 
-.PHONY: help install test lint format nets run bench clean
+.PHONY: help install test lint format nets run bench coverage clean
 
 help:
 	@echo "make run      describe the bundled 4-way stop and drive an ego through it"
 	@echo "make test     install into .venv and run the whole test suite"
 	@echo "make lint     ruff and mypy --strict"
 	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
-	@echo "make bench    time the checker and Step 1 (see docs/benchmarks.md)"
+	@echo "make bench    time the checker and the generator (see docs/benchmarks.md)"
+	@echo "make coverage extend every conflicting route pair of the bundled intersections"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -48,6 +49,9 @@ run: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m bench.bench_check
 	$(BIN)/python -m bench.bench_generate
+
+coverage: $(STAMP)
+	$(BIN)/python -m bench.coverage
 
 clean:
 	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

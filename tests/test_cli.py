@@ -12,6 +12,7 @@ import pytest
 
 from service import cli
 from service.core import errors
+from service.examples import EXAMPLES
 from tests.conftest import TOWN05, TOWN07
 
 
@@ -212,12 +213,31 @@ def test_extend_unknown_route_exits_2(tmp_path: Path) -> None:
     assert "valid routes" in result.stderr
 
 
-@pytest.mark.parametrize("name", ["t-junction", "y-junction"])
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
 def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
+    """Each level's certificates, judged by `scengen check` as a separate process: the
+    solvability certificate passes the level, the complexity certificate passes the level
+    before and fails this one. So the complexity strictly increases along the chain."""
     result = run("example", name, "-o", str(tmp_path))
     assert result.returncode == 0, result.stderr
-    files = sorted(tmp_path.glob("*.json"))
-    assert [f.name for f in files] == [f"{name}-0.json", f"{name}-1.json"]
-    first = json.loads(files[1].read_text())
-    assert first["name"] == f"{name}-1"
-    assert len(first["nonegos"]) == 2
+    levels = len(EXAMPLES[name].steps)
+    files = [tmp_path / f"{name}-{level}.json" for level in range(levels + 1)]
+    assert sorted(tmp_path.glob("*.json")) == sorted(files)
+    for level in range(1, levels + 1):
+        document = json.loads(files[level].read_text())
+        assert document["name"] == f"{name}-{level}"
+        assert document["provenance"]["level"] == level
+        added = [n for n in document["nonegos"] if n["added_in"] == level]
+        assert len(added) == len(EXAMPLES[name].steps[level - 1])
+        for kind in ("solvability", "complexity"):
+            trajectory = tmp_path / f"{level}-{kind}.json"
+            trajectory.write_text(json.dumps(document["certificates"][kind]))
+        solvable = run(
+            "check", str(files[level]), "--ego", str(tmp_path / f"{level}-solvability.json")
+        )
+        assert solvable.returncode == 0, solvable.stdout
+        complexity = str(tmp_path / f"{level}-complexity.json")
+        assert run("check", str(files[level - 1]), "--ego", complexity).returncode == 0
+        harder = run("check", str(files[level]), "--ego", complexity)
+        assert harder.returncode == 1
+        assert any(n["id"] in harder.stdout for n in added), harder.stdout
