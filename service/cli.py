@@ -8,6 +8,7 @@ failed).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -17,12 +18,15 @@ from pathlib import Path
 from typing import Any
 
 from service.core.check import check_testcase
+from service.core.controllers import controller_names, resolve_driver
 from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
 from service.core.events import compute_events
+from service.core.export import export_bundle
 from service.core.generate import extend_testcase
 from service.core.network import ControlType, bundled_networks, load_intersection
 from service.core.network.describe import describe_intersection
 from service.core.poses import generate_poses
+from service.core.replay import evaluate as evaluate_controller
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -31,6 +35,7 @@ from service.core.testcase import (
     read_testcase,
 )
 from service.core.trajectory import read_trajectory
+from service.core.verdict import Verdict, junit_report
 from service.examples import EXAMPLES, run_example, write_chain
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
@@ -171,6 +176,51 @@ def _parser() -> argparse.ArgumentParser:
         help="budget of each extension (default 120 s)",
     )
     example.set_defaults(run=_run_example)
+
+    evaluate = commands.add_parser(
+        "evaluate",
+        help="replay test-cases in SUMO with ego controllers and judge them",
+        description="Replays each test-case in SUMO (non-egos exactly as recorded) with each "
+        "controller driving the ego, and judges the ego with the checker. Controllers: "
+        + ", ".join(controller_names())
+        + ", or a user controller as module:attribute.",
+    )
+    evaluate.add_argument(
+        "testcases",
+        type=Path,
+        nargs="+",
+        metavar="TESTCASE",
+        help="test-case JSON files, or folders of them",
+    )
+    evaluate.add_argument(
+        "--controller",
+        action="append",
+        metavar="NAME",
+        help="who drives the ego (repeatable; default sumo)",
+    )
+    evaluate.add_argument("--junit", type=Path, metavar="FILE", help="also write JUnit XML here")
+    evaluate.add_argument("--json", action="store_true", help="print the verdicts as JSON")
+    evaluate.add_argument(
+        "--budget",
+        type=float,
+        default=60.0,
+        metavar="SECONDS",
+        help="time budget of each replay (default 60 s)",
+    )
+    evaluate.set_defaults(run=_run_evaluate)
+
+    export = commands.add_parser(
+        "export",
+        help="write a test-case as a SUMO bundle that the plain sumo binary runs",
+        description="Writes the network, the route file, the non-egos' trajectories as FCD "
+        "(replayed by SUMO's fcd-replay device), a .sumocfg, the test-case JSON and a README "
+        "into DIR.",
+    )
+    export.add_argument("testcase", type=Path, metavar="TESTCASE", help="a test-case JSON file")
+    export.add_argument(
+        "-o", "--output", type=Path, required=True, metavar="DIR", help="folder to write"
+    )
+    export.set_defaults(run=_run_export)
     return parser
 
 
@@ -332,12 +382,7 @@ def _run_check(args: argparse.Namespace) -> int:
     if args.json:
         sys.stdout.write(verdict.to_json())
     else:
-        status = "PASS" if verdict.passed else "FAIL"
-        print(f"{status}  {verdict.testcase} / {verdict.controller}")
-        if verdict.goal_time is not None:
-            print(f"  reached its exit at {verdict.goal_time:.2f} s")
-        for reason in verdict.reasons:
-            print(f"  {reason}")
+        _print_verdict(verdict)
     return EXIT_OK if verdict.passed else EXIT_FAILED_CHECK
 
 
@@ -375,6 +420,77 @@ def _run_example(args: argparse.Namespace) -> int:
     for path in write_chain(chain, args.output):
         print(path)
     return EXIT_OK
+
+
+def _testcase_files(paths: Sequence[Path]) -> list[Path]:
+    files: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            found = sorted(path.glob("*.json"))
+            if not found:
+                raise InvalidInput(f"folder {path} holds no test-case (*.json)")
+            files += found
+        elif path.exists():
+            files.append(path)
+        else:
+            raise InvalidInput(f"no such test-case file or folder: {path}")
+    return files
+
+
+def _run_evaluate(args: argparse.Namespace) -> int:
+    controllers = args.controller or ["sumo"]
+    for name in controllers:
+        resolve_driver(name)  # bad names fail before any replay
+    testcases = [(path, read_testcase(path)) for path in _testcase_files(args.testcases)]
+    rows = [["test-case", *controllers]]
+    verdicts = []
+    for path, testcase in testcases:
+        row = [path.stem]
+        for name in controllers:
+            verdict = evaluate_controller(testcase, name, budget=args.budget).verdict
+            verdict = dataclasses.replace(verdict, testcase=path.stem)
+            verdicts.append(verdict)
+            row.append("pass" if verdict.passed else "FAIL: " + _short(verdict))
+        rows.append(row)
+    if args.junit:
+        args.junit.write_text(junit_report(verdicts))
+    if args.json:
+        json.dump([v.to_dict() for v in verdicts], sys.stdout, indent=2)
+        print()
+    elif len(verdicts) == 1:
+        _print_verdict(verdicts[0])
+    else:
+        _print_table(rows)
+    return EXIT_OK if all(v.passed for v in verdicts) else EXIT_FAILED_CHECK
+
+
+def _run_export(args: argparse.Namespace) -> int:
+    testcase = read_testcase(args.testcase)
+    for path in export_bundle(testcase, args.output):
+        print(path)
+    print(f"run it: cd {args.output} && sumo -c testcase.sumocfg", file=sys.stderr)
+    return EXIT_OK
+
+
+def _short(verdict: Verdict) -> str:
+    """The first reason of a failed verdict, in a few words."""
+    if verdict.errors:
+        return "controller error"
+    if verdict.collisions:
+        return f"collides with {verdict.collisions[0].other}"
+    if verdict.violations:
+        v = verdict.violations[0]
+        return f"{v.rule}" + (f" of {v.other}" if v.other else "")
+    return "did not reach its exit"
+
+
+def _print_verdict(verdict: Verdict) -> None:
+    status = "PASS" if verdict.passed else "FAIL"
+    print(f"{status}  {verdict.testcase} / {verdict.controller}")
+    if verdict.goal_time is not None:
+        print(f"  reached its exit at {verdict.goal_time:.2f} s")
+    for reason in verdict.reasons:
+        print(f"  {reason}")
 
 
 def exit_code(error: ScengenError) -> int:

@@ -241,3 +241,72 @@ def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
         harder = run("check", str(files[level]), "--ego", complexity)
         assert harder.returncode == 1
         assert any(n["id"] in harder.stdout for n in added), harder.stdout
+    # The certificate controllers, replayed in SUMO, do what their definition says.
+    certificates = ["--controller", "certificate:solvability", "--controller"]
+    result = run(
+        "evaluate", *map(str, files[1:]), *certificates, "certificate:complexity", "--json"
+    )
+    assert result.returncode == 1, result.stderr
+    verdicts = json.loads(result.stdout)
+    assert len(verdicts) == 2 * levels
+    for verdict in verdicts:
+        if verdict["controller"] == "certificate:solvability":
+            assert verdict["passed"], verdict["reasons"]
+        else:
+            level = int(verdict["testcase"].rsplit("-", 1)[1])
+            document = json.loads(files[level].read_text())
+            new_ids = {n["id"] for n in document["nonegos"] if n["added_in"] == level}
+            assert not verdict["passed"] and verdict["goal"]["reached"]
+            assert not verdict["collisions"]
+            assert {v["other"] for v in verdict["violations"]} <= new_ids
+
+
+def test_evaluate_prints_a_table_and_writes_junit(tmp_path: Path) -> None:
+    first = tmp_path / "a.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(first)]) == 0
+    (tmp_path / "b.json").write_text(first.read_text())
+    junit = tmp_path / "report.xml"
+    result = run(
+        "evaluate", str(tmp_path), "--controller", "sumo", "--controller", "sumo-aggressive",
+        "--junit", str(junit),
+    )  # fmt: skip
+    assert result.returncode == 1, result.stderr
+    lines = result.stdout.splitlines()
+    assert lines[0].split() == ["test-case", "sumo", "sumo-aggressive"]
+    assert lines[1].split() == ["a", "pass", "FAIL:", "stopAtSign"]
+    assert lines[2].split() == ["b", "pass", "FAIL:", "stopAtSign"]
+    report = junit.read_text()
+    assert 'tests="4"' in report and 'failures="2"' in report
+
+
+def test_evaluate_one_passing_controller_exits_0(tmp_path: Path) -> None:
+    testcase = tmp_path / "left.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0
+    result = run("evaluate", str(testcase), "--controller", "sumo-cautious")
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout.startswith("PASS  left / sumo-cautious")
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--controller", "autopilot"], "unknown controller 'autopilot'; valid: certificate"),
+        (["--controller", "certificate:complexity"], "has none"),
+    ],
+)
+def test_evaluate_bad_input_exits_2(args: list[str], message: str, tmp_path: Path) -> None:
+    testcase = tmp_path / "left.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0
+    result = run("evaluate", str(testcase), *args)
+    assert result.returncode == 2
+    assert message in result.stderr
+
+
+def test_export_writes_a_bundle(tmp_path: Path) -> None:
+    testcase = tmp_path / "left.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0
+    result = run("export", str(testcase), "-o", str(tmp_path / "bundle"))
+    assert result.returncode == 0, result.stderr
+    written = {Path(line).name for line in result.stdout.splitlines()}
+    assert "testcase.sumocfg" in written and "testcase.fcd.xml" in written
+    assert "sumo -c testcase.sumocfg" in result.stderr

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 from xml.etree import ElementTree as ET
@@ -58,14 +59,15 @@ class Verdict:
     violations: tuple[Violation, ...] = ()
     ego_events: tuple[EventRef, ...] = field(default=(), repr=False)
     duration: float = 0.0
+    errors: tuple[str, ...] = ()  # what stopped the ego's controller (an evaluation)
 
     @property
     def passed(self) -> bool:
-        return self.goal_reached and not self.collisions and not self.violations
+        return self.goal_reached and not self.collisions and not self.violations and not self.errors
 
     @property
     def reasons(self) -> list[str]:
-        found = []
+        found = list(self.errors)
         if not self.goal_reached:
             found.append(
                 f"did not reach its exit lane, out of the junction, within {self.duration:g} s"
@@ -86,23 +88,26 @@ class Verdict:
 
     def to_junit(self) -> str:
         """One JUnit test case: name = test-case / controller, failure = the reasons."""
-        suite = ET.Element(
-            "testsuite",
-            name="scengen",
-            tests="1",
-            failures="0" if self.passed else "1",
-            errors="0",
-        )
+        return junit_report([self])
+
+
+def junit_report(verdicts: Sequence[Verdict], suite_name: str = "scengen") -> str:
+    """One JUnit test suite with a test case per verdict (test-case / controller)."""
+    failed = sum(1 for v in verdicts if not v.passed)
+    suite = ET.Element(
+        "testsuite", name=suite_name, tests=str(len(verdicts)), failures=str(failed), errors="0"
+    )
+    for verdict in verdicts:
         case = ET.SubElement(
             suite,
             "testcase",
             classname="scengen.check",
-            name=f"{self.testcase} / {self.controller}",
+            name=f"{verdict.testcase} / {verdict.controller}",
         )
-        if not self.passed:
-            failure = ET.SubElement(case, "failure", message="; ".join(self.reasons))
-            failure.text = "\n".join(self.reasons)
-        root = ET.Element("testsuites")
-        root.append(suite)
-        ET.indent(root)
-        return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, "unicode") + "\n"
+        if not verdict.passed:
+            failure = ET.SubElement(case, "failure", message="; ".join(verdict.reasons))
+            failure.text = "\n".join(verdict.reasons)
+    root = ET.Element("testsuites")
+    root.append(suite)
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, "unicode") + "\n"
