@@ -221,6 +221,20 @@ def _parser() -> argparse.ArgumentParser:
         "-o", "--output", type=Path, required=True, metavar="DIR", help="folder to write"
     )
     export.set_defaults(run=_run_export)
+
+    plot = commands.add_parser(
+        "plot",
+        help="draw a test-case (and optionally an evaluation) to PNG or SVG",
+        description="Draws the intersection with every car's path, the certificates (green "
+        "solvability, red complexity) and a time-distance panel with the events. With "
+        "--controller, the ego's path from that evaluation and its verdict instead.",
+    )
+    plot.add_argument("testcase", type=Path, metavar="TESTCASE", help="a test-case JSON file")
+    plot.add_argument(
+        "-o", "--output", type=Path, required=True, metavar="FILE", help="a .png or .svg file"
+    )
+    plot.add_argument("--controller", metavar="NAME", help="evaluate this controller and draw it")
+    plot.set_defaults(run=_run_plot)
     return parser
 
 
@@ -469,6 +483,23 @@ def _run_export(args: argparse.Namespace) -> int:
     for path in export_bundle(testcase, args.output):
         print(path)
     print(f"run it: cd {args.output} && sumo -c testcase.sumocfg", file=sys.stderr)
+    return EXIT_OK
+
+
+def _run_plot(args: argparse.Namespace) -> int:
+    if args.output.suffix.lower() not in (".png", ".svg"):
+        raise InvalidInput(f"plot file must end in .png or .svg, got {args.output.name!r}")
+    from service.plot import plot_testcase  # matplotlib only when drawing
+
+    testcase = read_testcase(args.testcase)
+    junction = load_testcase_intersection(testcase)
+    if args.controller:
+        evaluation = evaluate_controller(testcase, args.controller, junction)
+        plot_testcase(testcase, junction, args.output, evaluation.trajectory,
+                      f"ego: {args.controller}", evaluation.verdict)  # fmt: skip
+    else:
+        plot_testcase(testcase, junction, args.output)
+    print(args.output)
     return EXIT_OK
 
 

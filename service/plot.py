@@ -17,6 +17,8 @@ from shapely.geometry import Polygon
 from service.core.events import rectangles
 from service.core.network import Intersection
 from service.core.poses import PoseSample
+from service.core.testcase import TestCase
+from service.core.verdict import Verdict
 
 TURN_COLOURS = {"left": "tab:red", "right": "tab:green", "straight": "tab:blue"}
 
@@ -25,6 +27,15 @@ def _fill(axes: Axes, polygon: Polygon, **style: Any) -> None:
     for part in getattr(polygon, "geoms", [polygon]):
         xs, ys = part.exterior.xy
         axes.fill(xs, ys, **style)
+
+
+def _draw_roads(axes: Axes, intersection: Intersection) -> None:
+    _fill(axes, intersection.polygon, color="0.85", zorder=0)
+    for fork in intersection.forks.values():
+        _fill(axes, fork.approach.buffer(fork.width / 2, cap_style="flat"), color="0.9", zorder=0)
+    for exit_lane in intersection.exits.values():
+        road = exit_lane.departure.buffer(exit_lane.width / 2, cap_style="flat")
+        _fill(axes, road, color="0.93", zorder=0)
 
 
 def plot_intersection(
@@ -37,12 +48,7 @@ def plot_intersection(
     """Draw the junction, every connecting lane (coloured by turn), forks with their names,
     the highlighted routes, and optionally a car's rectangles every second."""
     figure, axes = plt.subplots(figsize=(8, 8))
-    _fill(axes, intersection.polygon, color="0.85", zorder=0)
-    for fork in intersection.forks.values():
-        _fill(axes, fork.approach.buffer(fork.width / 2, cap_style="flat"), color="0.9", zorder=0)
-    for exit_lane in intersection.exits.values():
-        road = exit_lane.departure.buffer(exit_lane.width / 2, cap_style="flat")
-        _fill(axes, road, color="0.93", zorder=0)
+    _draw_roads(axes, intersection)
     for route in intersection.routes.values():
         lane = intersection.connecting_lanes[route.connecting_lane]
         chosen = route.id in highlight
@@ -80,3 +86,102 @@ def plot_intersection(
     )
     figure.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(figure)
+
+
+CAR_COLOURS = ["tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive",
+               "tab:cyan", "tab:gray"]  # fmt: skip
+CERTIFICATE_COLOURS = {"solvability": "tab:green", "complexity": "tab:red"}
+
+
+def plot_testcase(
+    testcase: TestCase,
+    intersection: Intersection,
+    path: Path,
+    ego: Sequence[PoseSample] = (),
+    ego_label: str = "",
+    verdict: Verdict | None = None,
+) -> None:
+    """The intersection with every car's path (coloured by car, rectangles every 2 s, the
+    car's id at its start), the certificates (green solvability, red complexity) or an
+    evaluated ego's path, stop lines; and a time-distance panel with each car's curve and
+    its events (arrived, entered, exited). PNG or SVG by the file's suffix."""
+    figure, (axes, panel) = plt.subplots(
+        1, 2, figsize=(15, 7.5), gridspec_kw={"width_ratios": [1, 1.1]}
+    )
+    _draw_roads(axes, intersection)
+    for fork in intersection.forks.values():
+        x, y = fork.stop_line
+        axes.plot([x], [y], marker="s" if fork.stop_sign else "o", color="black", ms=4, zorder=4)
+    paths: list[tuple[str, str, Sequence[PoseSample], float, float]] = []
+    for k, nonego in enumerate(testcase.nonegos):
+        samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
+        colour = CAR_COLOURS[k % len(CAR_COLOURS)]
+        paths.append((f"{nonego.id} (level {nonego.added_in})", colour, samples,
+                      nonego.length, nonego.width))  # fmt: skip
+    if ego:
+        paths.append((ego_label or "ego", "black", list(ego), testcase.ego.length,
+                       testcase.ego.width))  # fmt: skip
+    elif testcase.certificates is not None:
+        for kind, colour in CERTIFICATE_COLOURS.items():
+            certificate = [
+                PoseSample(**s.model_dump()) for s in getattr(testcase.certificates, kind)
+            ]
+            paths.append((f"ego: {kind} certificate", colour, certificate, testcase.ego.length,
+                          testcase.ego.width))  # fmt: skip
+    step = max(1, round(2.0 / testcase.timestep))
+    for label, colour, drawn, length, width in paths:
+        dashed = "--" if "complexity" in label else "-"
+        axes.plot([s.x for s in drawn], [s.y for s in drawn], dashed, color=colour,
+                  linewidth=1.6, label=label, zorder=3)  # fmt: skip
+        shown = list(drawn[::step])
+        for rect in rectangles(
+            np.array([s.x for s in shown]), np.array([s.y for s in shown]),
+            np.array([s.heading for s in shown]), length, width,
+        ):  # fmt: skip
+            xs, ys = rect.exterior.xy
+            axes.plot(xs, ys, color=colour, linewidth=0.6, alpha=0.7, zorder=3)
+        first = drawn[0]
+        axes.annotate(label.split(" ")[0].rstrip(":"), (first.x, first.y), fontsize=8,
+                      color=colour, zorder=5)  # fmt: skip
+        panel.plot([s.t for s in drawn], [s.distance for s in drawn], dashed, color=colour,
+                   label=label)  # fmt: skip
+    for k, nonego in enumerate(testcase.nonegos):
+        colour = CAR_COLOURS[k % len(CAR_COLOURS)]
+        for event in nonego.events:
+            if event.kind.value in EVENT_MARKERS:
+                panel.plot([event.t], [event.distance], EVENT_MARKERS[event.kind.value],
+                           color=colour, ms=6)  # fmt: skip
+    if verdict is not None:
+        for ref in verdict.ego_events:
+            if ref.kind in EVENT_MARKERS and ego:
+                at = min(ego, key=lambda s: abs(s.t - ref.t))
+                panel.plot([ref.t], [at.distance], EVENT_MARKERS[ref.kind], color="black", ms=6)
+    for kind, marker in EVENT_MARKERS.items():
+        panel.plot([], [], marker, color="0.3", label=kind)
+    minx, miny, maxx, maxy = intersection.polygon.bounds
+    margin = 25.0
+    axes.set_xlim(minx - margin, maxx + margin)
+    axes.set_ylim(miny - margin, maxy + margin)
+    axes.set_aspect("equal")
+    axes.set_xlabel("x (m)")
+    axes.set_ylabel("y (m)")
+    axes.legend(loc="upper left", fontsize=7)
+    title = testcase.name or f"{testcase.network.ref} {testcase.junction}"
+    axes.set_title(f"{title}: {intersection.control.value}, ego {testcase.ego.route.id}")
+    panel.set_xlabel("time (s)")
+    panel.set_ylabel("distance travelled (m)")
+    panel.grid(alpha=0.3)
+    panel.legend(loc="upper left", fontsize=7)
+    if verdict is not None:
+        status = "PASS" if verdict.passed else "FAIL"
+        reasons = "; ".join(verdict.reasons)[:160]
+        panel.set_title(f"{verdict.controller}: {status}" + (f"\n{reasons}" if reasons else ""),
+                        fontsize=9, color="tab:green" if verdict.passed else "tab:red")  # fmt: skip
+    else:
+        panel.set_title("distance over time; markers: events")
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+
+
+EVENT_MARKERS = {"arrived": "o", "entered": "^", "exited": "s"}

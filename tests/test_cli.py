@@ -310,3 +310,17 @@ def test_export_writes_a_bundle(tmp_path: Path) -> None:
     written = {Path(line).name for line in result.stdout.splitlines()}
     assert "testcase.sumocfg" in written and "testcase.fcd.xml" in written
     assert "sumo -c testcase.sumocfg" in result.stderr
+
+
+def test_plot_draws_a_testcase_and_an_evaluation(tmp_path: Path) -> None:
+    testcase = tmp_path / "left.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0
+    png, svg = tmp_path / "left.png", tmp_path / "left.svg"
+    assert run("plot", str(testcase), "-o", str(png)).returncode == 0
+    assert png.read_bytes().startswith(b"\x89PNG")
+    result = run("plot", str(testcase), "-o", str(svg), "--controller", "sumo-aggressive")
+    assert result.returncode == 0, result.stderr
+    text = svg.read_text()
+    assert text.lstrip().startswith("<?xml") and "<svg" in text
+    bad = run("plot", str(testcase), "-o", str(tmp_path / "left.gif"))
+    assert bad.returncode == 2 and ".png or .svg" in bad.stderr
