@@ -25,7 +25,7 @@ from service.core.export import export_bundle
 from service.core.generate import extend_testcase
 from service.core.network import ControlType, bundled_networks, load_intersection
 from service.core.network.describe import describe_intersection
-from service.core.poses import generate_poses
+from service.core.poses import PoseSample, generate_poses
 from service.core.replay import evaluate as evaluate_controller
 from service.core.testcase import (
     TestCase,
@@ -234,6 +234,11 @@ def _parser() -> argparse.ArgumentParser:
         "-o", "--output", type=Path, required=True, metavar="FILE", help="a .png or .svg file"
     )
     plot.add_argument("--controller", metavar="NAME", help="evaluate this controller and draw it")
+    plot.add_argument(
+        "--animate",
+        action="store_true",
+        help="write an animated GIF of the cars moving instead (FILE must end in .gif)",
+    )
     plot.set_defaults(run=_run_plot)
     return parser
 
@@ -487,13 +492,23 @@ def _run_export(args: argparse.Namespace) -> int:
 
 
 def _run_plot(args: argparse.Namespace) -> int:
-    if args.output.suffix.lower() not in (".png", ".svg"):
-        raise InvalidInput(f"plot file must end in .png or .svg, got {args.output.name!r}")
-    from service.plot import plot_testcase  # matplotlib only when drawing
+    suffixes = (".gif",) if args.animate else (".png", ".svg")
+    if args.output.suffix.lower() not in suffixes:
+        raise InvalidInput(
+            f"plot file must end in {' or '.join(suffixes)}, got {args.output.name!r}"
+        )
+    from service.plot import animate_testcase, plot_testcase  # matplotlib only when drawing
 
     testcase = read_testcase(args.testcase)
     junction = load_testcase_intersection(testcase)
-    if args.controller:
+    if args.animate:
+        trajectory: list[PoseSample] = []
+        label = ""
+        if args.controller:
+            trajectory = evaluate_controller(testcase, args.controller, junction).trajectory
+            label = f"ego: {args.controller}"
+        animate_testcase(testcase, junction, args.output, trajectory, label)
+    elif args.controller:
         evaluation = evaluate_controller(testcase, args.controller, junction)
         plot_testcase(testcase, junction, args.output, evaluation.trajectory,
                       f"ego: {args.controller}", evaluation.verdict)  # fmt: skip

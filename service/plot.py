@@ -185,3 +185,62 @@ def plot_testcase(
 
 
 EVENT_MARKERS = {"arrived": "o", "entered": "^", "exited": "s"}
+
+
+def animate_testcase(
+    testcase: TestCase,
+    intersection: Intersection,
+    path: Path,
+    ego: Sequence[PoseSample] = (),
+    ego_label: str = "",
+    every: float = 0.5,
+) -> None:
+    """A GIF of the cars moving (one frame every ``every`` seconds of the test-case): every
+    non-ego, and the ego (an evaluation's trajectory, else the solvability certificate)."""
+    from matplotlib.animation import FuncAnimation, PillowWriter
+
+    cars: list[tuple[str, str, Sequence[PoseSample], float, float]] = []
+    for k, nonego in enumerate(testcase.nonegos):
+        samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
+        cars.append((nonego.id, CAR_COLOURS[k % len(CAR_COLOURS)], samples, nonego.length,
+                     nonego.width))  # fmt: skip
+    if not ego and testcase.certificates is not None:
+        ego = [PoseSample(**s.model_dump()) for s in testcase.certificates.solvability]
+        ego_label = ego_label or "ego (solvability certificate)"
+    if ego:
+        cars.append((ego_label or "ego", "black", ego, testcase.ego.length, testcase.ego.width))
+    figure, axes = plt.subplots(figsize=(7, 7))
+    _draw_roads(axes, intersection)
+    minx, miny, maxx, maxy = intersection.polygon.bounds
+    axes.set_xlim(minx - 25, maxx + 25)
+    axes.set_ylim(miny - 25, maxy + 25)
+    axes.set_aspect("equal")
+    patches = []
+    for name, colour, _, _, _ in cars:
+        (outline,) = axes.fill([], [], color=colour, alpha=0.8, label=name, zorder=3)
+        label = axes.text(0, 0, "", fontsize=8, color=colour, zorder=4)
+        patches.append((outline, label))
+    axes.legend(loc="upper left", fontsize=7)
+    title = axes.set_title("")
+    step = max(1, round(every / testcase.timestep))
+    frames = list(range(0, round(testcase.duration / testcase.timestep) + 1, step))
+
+    def draw(frame: int) -> list[Any]:
+        t = frame * testcase.timestep
+        title.set_text(f"{testcase.name or testcase.ego.route.id}  t = {t:4.1f} s")
+        for (outline, label), (car, _, samples, length, width) in zip(patches, cars, strict=True):
+            if frame >= len(samples):
+                outline.set_xy(np.empty((0, 2)))
+                label.set_text("")
+                continue
+            s = samples[frame]
+            rect = rectangles(np.array([s.x]), np.array([s.y]), np.array([s.heading]),
+                              length, width)[0]  # fmt: skip
+            outline.set_xy(np.array(rect.exterior.coords))
+            label.set_text(car.split(" ")[0].rstrip(":"))
+            label.set_position((s.x + 2.0, s.y + 2.0))
+        return [title, *(p for pair in patches for p in pair)]
+
+    animation = FuncAnimation(figure, draw, frames=frames, blit=False)
+    animation.save(str(path), writer=PillowWriter(fps=round(1 / every)))
+    plt.close(figure)

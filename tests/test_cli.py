@@ -324,3 +324,17 @@ def test_plot_draws_a_testcase_and_an_evaluation(tmp_path: Path) -> None:
     assert text.lstrip().startswith("<?xml") and "<svg" in text
     bad = run("plot", str(testcase), "-o", str(tmp_path / "left.gif"))
     assert bad.returncode == 2 and ".png or .svg" in bad.stderr
+
+
+def test_plot_animates_a_replay(tmp_path: Path) -> None:
+    testcase = tmp_path / "left.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "--duration", "6", "-o",
+                     str(testcase)]) == 0  # fmt: skip
+    gif = tmp_path / "left.gif"
+    result = run("plot", str(testcase), "-o", str(gif), "--animate", "--controller", "sumo")
+    assert result.returncode == 0, result.stderr
+    from PIL import Image
+
+    with Image.open(gif) as image:
+        assert image.n_frames == 13  # one frame every 0.5 s of 6 s
+    assert run("plot", str(testcase), "-o", str(tmp_path / "x.png"), "--animate").returncode == 2
