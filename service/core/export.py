@@ -91,6 +91,10 @@ control vehicle `ego` through TraCI and feed the FCD output to `scengen check`.
 Files: {NAME}.json (the test-case), {NAME}.types.xml (vehicle types: the cars' sizes,
 the ego's driver settings), {NAME}.rou.xml (the ego's route and start),
 {NAME}.fcd.xml (the non-egos' trajectories), {NAME}.sumocfg, and the network.
+{NAME}.all.rou.xml defines every car (route, depart lane, position and speed) as an
+ordinary vehicle, for a TraCI client that replays the non-egos itself: speed mode 0 and,
+every step, setSpeed with the distance of the step (Euler steps); use it with
+`--additional-files {NAME}.types.xml` instead of the fcd-replay device.
 """
 
 
@@ -114,6 +118,10 @@ def export_bundle(
         # the non-egos' types) before the route files are loaded.
         f"{NAME}.types.xml": _xml("additional", vtype_lines(ego, others, driver, testcase)),
         f"{NAME}.rou.xml": _xml("routes", vehicle_lines([ego])),
+        # Every car as an ordinary vehicle, for a TraCI client that replays the non-egos
+        # itself (speed mode 0 and setSpeed, as scengen evaluate does); not used by the
+        # .sumocfg, where the fcd-replay device inserts the non-egos.
+        f"{NAME}.all.rou.xml": _xml("routes", vehicle_lines([ego, *others])),
         f"{NAME}.fcd.xml": fcd_text(testcase, junction),
         f"{NAME}.sumocfg": sumocfg_text(testcase, network),
         f"{NAME}.json": dump_testcase(testcase),

@@ -40,7 +40,10 @@ def bundle_run(four_way: TestCase, tmp_path_factory: pytest.TempPathFactory) -> 
 def test_the_bundle_is_self_contained(bundle_run: Path, four_way: TestCase) -> None:
     names = {p.name for p in bundle_run.iterdir()}
     assert {"testcase.json", "testcase.rou.xml", "testcase.types.xml", "testcase.fcd.xml",
-            "testcase.sumocfg", "README.md", "4way-stop.net.xml"} <= names  # fmt: skip
+            "testcase.sumocfg", "README.md", "4way-stop.net.xml",
+            "testcase.all.rou.xml"} <= names  # fmt: skip
+    everyone = ET.parse(bundle_run / "testcase.all.rou.xml").getroot()
+    assert [v.get("id") for v in everyone.iter("vehicle")] == ["ego", "car1", "car2"]
     assert read_testcase(bundle_run / "testcase.json") == four_way
     assert "sumo -c testcase.sumocfg" in (bundle_run / "README.md").read_text()
 
