@@ -127,3 +127,25 @@ def test_unknown_controller_names_the_choices(y_new: TestCase) -> None:
 def test_certificates_need_a_generated_testcase(y_start: TestCase) -> None:
     with pytest.raises(InvalidInput, match="has none"):
         evaluate(y_start, "certificate:solvability")
+
+
+def test_a_controller_registered_by_entry_point_is_found_by_name(
+    y_new: TestCase, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Registration through package metadata (faked here: installing a package is out of a
+    test's reach); the replay itself is real."""
+    from importlib.metadata import EntryPoint
+
+    import service.core.controllers as controllers
+
+    registered = [EntryPoint("steady", "steady:Steady", controllers.ENTRY_POINT_GROUP)]
+    monkeypatch.setattr(controllers, "entry_points", lambda group: registered)
+    _write(tmp_path, "steady", "class Steady:\n    def step(self, obs):\n        return 0.0\n")
+    monkeypatch.chdir(tmp_path)
+    assert "steady" in controllers.controller_names()
+    evaluation = evaluate(y_new, "steady")
+    assert evaluation.error is None
+    assert evaluation.verdict.controller == "steady"
+    # constant speed through the junction: it reaches its exit without stopping anywhere
+    assert evaluation.verdict.goal_reached
+    assert min(s.speed for s in evaluation.trajectory) > 7.9
