@@ -70,7 +70,7 @@ def main() -> None:
             if ok and extension.timing_problem is not None:
                 problem = extension.timing_problem
                 clock = time.perf_counter()
-                solve_timing(problem, BUDGET, 0.0)
+                solve_timing(problem, BUDGET)
                 linear = time.perf_counter() - clock
                 clock = time.perf_counter()
                 try:

@@ -217,7 +217,7 @@ def _solve_variants(
     only tighten them), and the nonlinear step's on the paper's formulation. The variants
     with stands only add chances."""
     base = _timing_problem(old, junction, cars, ordering, tracks)
-    result = solve_timing(base, deadline - time.monotonic(), 0.0)
+    result = solve_timing(base, deadline - time.monotonic())
     if isinstance(result, TimingSolution) or result.proved or result.core:
         return result, base
     free = frozenset(c.car for c in cars if c.kind is not CarKind.OLD)
@@ -226,7 +226,7 @@ def _solve_variants(
         if left <= 0:
             return result, base
         problem = _timing_problem(old, junction, cars, ordering, tracks, waiting)
-        attempt = solve_timing(problem, left, 0.0)
+        attempt = solve_timing(problem, left)
         if isinstance(attempt, TimingSolution):
             return attempt, problem
     complete = solve_complete(base, min(NONLINEAR_SHARE, deadline - time.monotonic()))

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from shapely.geometry import LineString
+from shapely.geometry import Point as ShapelyPoint
 
 from service.core.budget import run_with_budget
 from service.core.errors import InvalidInput, SimulationFailed
@@ -195,14 +196,17 @@ def plan_drive(
     )
 
 
-def start_front(intersection: Intersection, route: Route, start_distance: float) -> Point:
-    """Where the front bumper stands at the start: ``start_distance`` before the stop line."""
+def _approach_line(intersection: Intersection, route: Route, length: float) -> LineString:
     path = intersection.network_file
     net = _cached_network(str(path), path.stat().st_mtime)
-    points = approach_polyline(
-        net, net.getLane(route.fork), intersection.junction, start_distance + 1.0
+    return LineString(
+        approach_polyline(net, net.getLane(route.fork), intersection.junction, length)
     )
-    line = LineString(points)
+
+
+def start_front(intersection: Intersection, route: Route, start_distance: float) -> Point:
+    """Where the front bumper stands at the start: ``start_distance`` before the stop line."""
+    line = _approach_line(intersection, route, start_distance + 1.0)
     if line.length < start_distance:
         raise InvalidInput(
             f"start distance {start_distance:g} m is longer than the road before fork "
@@ -211,6 +215,12 @@ def start_front(intersection: Intersection, route: Route, start_distance: float)
         )
     front = line.interpolate(line.length - start_distance)
     return float(front.x), float(front.y)
+
+
+def start_distance_of(intersection: Intersection, route: Route, front: Point) -> float:
+    """The inverse of ``start_front``: how far before the stop line ``front`` is."""
+    line = _approach_line(intersection, route, 1000.0)
+    return max(0.0, float(line.length - line.project(ShapelyPoint(front))))
 
 
 def drive(plans: list[DrivePlan]) -> list[list[PoseSample]]:

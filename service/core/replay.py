@@ -19,10 +19,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from shapely.geometry import LineString, Point
-
 from service.core.budget import run_with_budget
-from service.core.check import check_testcase
+from service.core.check import check_testcase, testcase_label
 from service.core.controllers import (
     CertificateDriver,
     Driver,
@@ -35,15 +33,14 @@ from service.core.controllers import (
 )
 from service.core.errors import BudgetExceeded, InvalidInput, ScengenError, SimulationFailed
 from service.core.network import Intersection
-from service.core.network.lanes import approach_polyline
 from service.core.poses import (
     PoseSample,
-    _cached_network,
     centre_to_front,
     front_to_centre,
     plan_drive,
+    start_distance_of,
 )
-from service.core.testcase import Sample, TestCase, load_testcase_intersection
+from service.core.testcase import TestCase, load_testcase_intersection
 from service.core.verdict import Verdict
 
 REPLAY_BUDGET = 60.0  # seconds for one evaluation
@@ -90,18 +87,6 @@ class Evaluation:
     error: str | None = None  # what stopped the controller, when something did
 
 
-def start_distance(
-    intersection: Intersection, route_id: str, first: Sample | PoseSample, length: float
-) -> float:
-    """How far before its stop line a car's front bumper is at its first sample."""
-    route = intersection.route(route_id)
-    net = _cached_network(str(intersection.network_file), intersection.network_file.stat().st_mtime)
-    points = approach_polyline(net, net.getLane(route.fork), intersection.junction, 1000.0)
-    line = LineString(points)
-    front = Point(centre_to_front(first.x, first.y, first.heading, length))
-    return max(0.0, float(line.length - line.project(front)))
-
-
 def departures(testcase: TestCase, intersection: Intersection) -> tuple[Departure, list[Departure]]:
     """The ego's and every non-ego's departure (same order as ``testcase.nonegos``)."""
     ego = testcase.ego
@@ -118,9 +103,11 @@ def departures(testcase: TestCase, intersection: Intersection) -> tuple[Departur
     others = []
     for nonego in testcase.nonegos:
         first = nonego.trajectory[0]
-        start = start_distance(intersection, nonego.route.id, first, nonego.length)
+        route = intersection.route(nonego.route.id)
+        front = centre_to_front(first.x, first.y, first.heading, nonego.length)
+        start = start_distance_of(intersection, route, front)
         plan = plan_drive(
-            intersection, intersection.route(nonego.route.id), start, max(first.speed, 1.0),
+            intersection, route, start, max(first.speed, 1.0),
             testcase.duration, testcase.timestep, nonego.length, nonego.width,
         )  # fmt: skip
         if plan.skip > 0:
@@ -244,8 +231,6 @@ def evaluate(
 
 
 def _failed(testcase: TestCase, controller: str, error: str) -> Verdict:
-    from service.core.check import testcase_label
-
     return Verdict(
         testcase=testcase_label(testcase),
         controller=controller,

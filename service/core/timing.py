@@ -14,11 +14,13 @@ order relation with a safety margin.
 Fast method first: a linear program for the knot times (z3 over linear real arithmetic)
 with only necessary kinematic conditions (no segment faster than v_max on average, braking
 to a stand and pulling away no quicker than the acceleration bounds allow), smoothest
-schedule first; then, with the times fixed, a linear program per car for the control
-points. When the times are infeasible, the relations in z3's unsatisfiable core are
-returned: no curve can realise them, so Step 2 may rule them out for good. If the curve
-step fails, the complete nonlinear formulation (times and control points together, as in
-the paper) runs in a child process that is killed at its budget.
+schedule first. When the times are infeasible, the relations in z3's unsatisfiable core are
+returned: no curve can realise them, so Step 2 may rule them out for good. Then the curves:
+each knot's speed is chosen from a grid, which turns every bound of a segment into an exact
+set of durations, so knot times and speeds are found together (linear arithmetic and
+Booleans); failing that, control points by a linear program per car with the planned times
+fixed. The complete nonlinear formulation (times and control points together, as in the
+paper) is ``solve_complete``: a child process that is killed at its budget.
 """
 
 from __future__ import annotations
@@ -582,10 +584,9 @@ def _dwell(car: CarPlan, j: int) -> bool:
     return j >= 2 and car.knots[j - 1].distance - car.knots[j - 2].distance <= 1e-9
 
 
-def solve_timing(
-    problem: TimingProblem, budget: float, nonlinear_budget: float
-) -> TimingSolution | TimingFailure:
-    """Curves for every car, or what failed (with an unsatisfiable core when there is one)."""
+def solve_timing(problem: TimingProblem, budget: float) -> TimingSolution | TimingFailure:
+    """The linear steps: curves for every car, or what failed (with an unsatisfiable core
+    when there is one). The nonlinear formulation is ``solve_complete``."""
     started = time.monotonic()
     ctx = z3.Context()  # a fresh context per problem: z3's answers do not depend on history
     planned, core, proof = _plan_times(problem, int(budget * 1000), ctx)
@@ -607,14 +608,7 @@ def solve_timing(
         curves[car.car] = curve
     else:
         return TimingSolution(curves, "linear")
-    why = f"the linear curve step failed for {car.car}"
-    if nonlinear_budget <= 0:
-        return TimingFailure(why)
-    left = min(nonlinear_budget, budget - (time.monotonic() - started))
-    failure = solve_complete(problem, left)
-    if isinstance(failure, TimingFailure):
-        return TimingFailure(why + "; " + failure.reason, failure.core, failure.proved)
-    return failure
+    return TimingFailure(f"the linear curve step failed for {car.car}")
 
 
 def solve_complete(problem: TimingProblem, budget: float) -> TimingSolution | TimingFailure:
