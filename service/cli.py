@@ -240,6 +240,19 @@ def _parser() -> argparse.ArgumentParser:
         help="write an animated GIF of the cars moving instead (FILE must end in .gif)",
     )
     plot.set_defaults(run=_run_plot)
+
+    serve = commands.add_parser(
+        "serve",
+        help="run the HTTP API (OpenAPI UI at /docs); settings from SCENGEN_* variables",
+        description="Runs the HTTP API with uvicorn. With no settings it keeps its state in "
+        "./scengen-data (SQLite) and runs work in local worker processes; see the README for "
+        "SCENGEN_DATA_DIR, SCENGEN_DATABASE_URL, SCENGEN_WORKERS, SCENGEN_API_TOKEN and more.",
+    )
+    serve.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)")
+    serve.add_argument("--port", type=int, default=8000, help="port (default 8000)")
+    serve.add_argument("--data-dir", type=Path, metavar="DIR", help="sets SCENGEN_DATA_DIR")
+    serve.add_argument("--workers", type=int, metavar="N", help="sets SCENGEN_WORKERS")
+    serve.set_defaults(run=_run_serve)
     return parser
 
 
@@ -260,6 +273,33 @@ def _network_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="TYPE",
         help=f"override the control type, rebuilt with netconvert: {', '.join(CONTROLS)}",
     )
+
+
+def _run_serve(args: argparse.Namespace) -> int:
+    import uvicorn
+    from pydantic import ValidationError
+
+    from service.api import create_app
+    from service.api.settings import Settings
+
+    overrides: dict[str, Any] = {}
+    if args.data_dir is not None:
+        overrides["data_dir"] = args.data_dir
+    if args.workers is not None:
+        overrides["workers"] = args.workers
+    try:
+        settings = Settings(**overrides)
+    except ValidationError as error:
+        raise InvalidInput(
+            f"settings: {error.errors()[0]['loc']}: {error.errors()[0]['msg']}"
+        ) from None
+    print(
+        f"scengen: serving on http://{args.host}:{args.port} (UI at /docs), data in "
+        f"{settings.data_dir.resolve()}, {settings.workers} worker(s)",
+        file=sys.stderr,
+    )
+    uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level="info")
+    return EXIT_OK
 
 
 def _run_networks(args: argparse.Namespace) -> int:

@@ -29,10 +29,10 @@ def run_with_budget(
     ``function`` must be a module-level function and its arguments and result picklable.
     Domain errors raised in the child are re-raised here as they were.
     """
-    request = pickle.dumps((function.__module__, function.__qualname__, args))
+    request = encode_call(function, args)
     try:
         result = subprocess.run(
-            [sys.executable, "-m", "service.core.budget"],
+            CHILD_COMMAND,
             input=request,
             capture_output=True,
             timeout=budget,
@@ -42,16 +42,29 @@ def run_with_budget(
         raise BudgetExceeded(
             f"{what} did not finish within its budget of {budget:g} s and was stopped"
         ) from None
+    return decode_outcome(result.stdout, result.stderr, what)  # type: ignore[no-any-return]
+
+
+CHILD_COMMAND = [sys.executable, "-m", "service.core.budget"]
+
+
+def encode_call(function: Callable[..., Any], args: tuple[Any, ...]) -> bytes:
+    """What the child reads on stdin: a module-level function and its arguments."""
+    return pickle.dumps((function.__module__, function.__qualname__, args))
+
+
+def decode_outcome(stdout: bytes, stderr: bytes, what: str) -> Any:
+    """The child's answer: its result, or the domain error it raised, re-raised here."""
     try:
-        status, payload = pickle.loads(result.stdout)
+        status, payload = pickle.loads(stdout)
     except Exception:
-        detail = result.stderr.decode(errors="replace").strip().splitlines()[-1:] or ["no output"]
+        detail = stderr.decode(errors="replace").strip().splitlines()[-1:] or ["no output"]
         raise ScengenError(f"{what} died without an answer: {detail[0]}") from None
     if status == "error":
         raise payload
     if status == "crash":
         raise ScengenError(f"{what} crashed: {payload}")
-    return payload  # type: ignore[no-any-return]
+    return payload
 
 
 def _serve() -> None:

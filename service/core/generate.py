@@ -120,6 +120,7 @@ def extend_testcase(
             f"none found within the budget of {budget:g} s: Step 1 used all of it",
             routes=list(routes),
             seed=seed,
+            budget_exhausted=True,
         )
     cars = _ordering_cars(old, junction, ego_track, new_tracks, new_routes, ids)
     clock = time.monotonic()
@@ -197,6 +198,7 @@ def extend_testcase(
         + (f" ({tried})" if tried else ""),
         routes=list(routes),
         seed=seed,
+        budget_exhausted=out_of_time,
     )
 
 

@@ -86,6 +86,28 @@ class Verdict:
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2) + "\n"
 
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Verdict:
+        """The verdict ``to_dict`` wrote (a stored evaluation read back)."""
+
+        def events(items: Sequence[dict[str, Any]]) -> tuple[EventRef, ...]:
+            return tuple(EventRef(**item) for item in items)
+
+        return cls(
+            testcase=data["testcase"],
+            controller=data["controller"],
+            goal_reached=data["goal"]["reached"],
+            goal_time=data["goal"]["time"],
+            collisions=tuple(CollisionRecord(**item) for item in data["collisions"]),
+            violations=tuple(
+                Violation(v["rule"], v["law"], v["other"], events(v["events"]))
+                for v in data["violations"]
+            ),
+            ego_events=events(data["ego_events"]),
+            duration=data["duration"],
+            errors=tuple(data["errors"]),
+        )
+
     def to_junit(self) -> str:
         """One JUnit test case: name = test-case / controller, failure = the reasons."""
         return junit_report([self])

@@ -1,0 +1,216 @@
+"""The FastAPI application: routers combined, errors mapped, docs served from local assets."""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
+from contextlib import asynccontextmanager
+from pathlib import Path
+from typing import Any
+
+import fastapi_offline
+from fastapi import FastAPI, Request, Response
+from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
+from fastapi.openapi.utils import get_openapi
+from fastapi.responses import HTMLResponse, RedirectResponse
+from fastapi.staticfiles import StaticFiles
+
+from service.api.problems import HTTP, install_problem_handlers, problem_response
+from service.api.routes import evaluations, extend, health, networks, testcases
+from service.api.schemas import EXAMPLE_NEW_ROUTE, example_testcase
+from service.api.settings import Settings, get_settings
+from service.api.state import AppState, Metrics
+from service.jobs.executor import LocalExecutor
+from service.store import Store
+
+DOCS_ASSETS = Path(fastapi_offline.__file__).parent / "static"
+TITLE = "scengen"
+DESCRIPTION = """Intersection test-cases for autonomous vehicles, each provably more complex
+than the last.
+
+Start with **POST /testcases** (an ego on a bundled network), grow it with **POST /extend**
+(new cars that make it strictly harder yet solvable, with two certificate trajectories),
+download **/testcases/{id}/bundle** to run any ego controller in SUMO, and judge one with
+**POST /evaluations**. Errors are `application/problem+json`; `GET /problems` lists them.
+"""
+
+ASGIApp = Callable[
+    [MutableMapping[str, Any], Callable[[], Awaitable[Any]], Callable[[Any], Awaitable[None]]],
+    Awaitable[None],
+]
+
+
+def create_app(settings: Settings | None = None) -> FastAPI:
+    """The app; ``settings`` default to the environment (``SCENGEN_*``)."""
+    chosen = settings or get_settings()
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        chosen.data_dir.mkdir(parents=True, exist_ok=True)
+        store = Store(chosen.database, chosen.cache_dir)
+        executor = LocalExecutor(chosen.workers)
+        app.state.scengen = AppState(chosen, store, executor, Metrics())
+        try:
+            yield
+        finally:
+            await executor.shutdown()
+            store.close()
+
+    app = FastAPI(
+        title=TITLE,
+        description=DESCRIPTION,
+        version="1.0.0",
+        lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
+    )
+    for module in (extend, testcases, networks, evaluations, health):
+        app.include_router(module.router)
+    install_problem_handlers(app)
+    _serve_docs(app)
+    app.middleware("http")(_count_requests)
+    app.add_middleware(BodyLimit, limit=chosen.max_upload_bytes)
+    app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
+    return app
+
+
+async def _count_requests(
+    request: Request, call_next: Callable[[Request], Awaitable[Response]]
+) -> Response:
+    clock = time.monotonic()
+    response = await call_next(request)
+    route = request.scope.get("route")
+    template = getattr(route, "path", "unmatched")
+    state: AppState | None = getattr(request.app.state, "scengen", None)
+    if state is not None:
+        state.metrics.observe(
+            request.method, template, response.status_code, time.monotonic() - clock
+        )
+    return response
+
+
+class BodyLimit:
+    """Refuses a request body over the cap with 413, before any of it is parsed or spooled."""
+
+    def __init__(self, app: ASGIApp, limit: int) -> None:
+        self.app = app
+        self.limit = limit
+
+    async def __call__(
+        self,
+        scope: MutableMapping[str, Any],
+        receive: Callable[[], Awaitable[Any]],
+        send: Callable[[Any], Awaitable[None]],
+    ) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+        headers = dict(scope.get("headers", []))
+        declared = headers.get(b"content-length")
+        if declared is not None and declared.isdigit() and int(declared) > self.limit:
+            await self._refuse(scope, receive, send)
+            return
+        seen = 0
+
+        async def counted() -> Any:
+            nonlocal seen
+            message = await receive()
+            if message["type"] == "http.request":
+                seen += len(message.get("body", b""))
+                if seen > self.limit:
+                    raise _TooLarge
+            return message
+
+        try:
+            await self.app(scope, counted, send)
+        except _TooLarge:
+            await self._refuse(scope, receive, send)
+
+    async def _refuse(
+        self,
+        scope: MutableMapping[str, Any],
+        receive: Callable[[], Awaitable[Any]],
+        send: Callable[[Any], Awaitable[None]],
+    ) -> None:
+        mb = self.limit / 1024 / 1024
+        response = problem_response(
+            HTTP[413],
+            f"the request body exceeds {mb:g} MB (SCENGEN_MAX_UPLOAD_MB)",
+            scope.get("path", ""),
+        )
+        await response(scope, receive, send)
+
+
+class _TooLarge(Exception):
+    pass
+
+
+def _serve_docs(app: FastAPI) -> None:
+    """Swagger UI at /docs and ReDoc at /redoc, from assets inside the installation."""
+    app.mount("/docs-assets", StaticFiles(directory=DOCS_ASSETS), name="docs-assets")
+
+    @app.get("/", include_in_schema=False)
+    async def root() -> RedirectResponse:
+        return RedirectResponse("/docs")
+
+    @app.get("/docs", include_in_schema=False)
+    async def swagger_ui() -> HTMLResponse:
+        return get_swagger_ui_html(
+            openapi_url="/openapi.json",
+            title=f"{TITLE} - Swagger UI",
+            swagger_js_url="/docs-assets/swagger-ui-bundle.js",
+            swagger_css_url="/docs-assets/swagger-ui.css",
+            swagger_favicon_url="/docs-assets/favicon.png",
+            swagger_ui_parameters={"displayRequestDuration": True, "defaultModelsExpandDepth": 0},
+        )
+
+    @app.get("/redoc", include_in_schema=False)
+    async def redoc() -> HTMLResponse:
+        return get_redoc_html(
+            openapi_url="/openapi.json",
+            title=f"{TITLE} - ReDoc",
+            redoc_js_url="/docs-assets/redoc.standalone.js",
+            redoc_favicon_url="/docs-assets/favicon.png",
+            with_google_fonts=False,
+        )
+
+
+def _openapi(app: FastAPI) -> dict[str, Any]:
+    """The schema, with request examples that work as they stand (built once)."""
+    if app.openapi_schema is None:
+        schema = get_openapi(
+            title=app.title,
+            version=app.version,
+            description=app.description,
+            routes=app.routes,
+        )
+        _add_examples(schema)
+        app.openapi_schema = schema
+    return app.openapi_schema
+
+
+def _add_examples(schema: dict[str, Any]) -> None:
+    testcase = example_testcase()
+    bodies = {
+        ("/extend", "post"): {
+            "four-way": {
+                "summary": "4-way stop: ego turns left, a new car goes straight from the south",
+                "value": {
+                    "testcase": testcase,
+                    "routes": [EXAMPLE_NEW_ROUTE],
+                    "seed": 0,
+                    "budget": 60,
+                },
+            }
+        },
+        ("/evaluations", "post"): {
+            "four-way": {
+                "summary": "SUMO's driver on the ego-only four-way test-case",
+                "value": {"testcase": copy.deepcopy(testcase), "controller": "sumo"},
+            }
+        },
+    }
+    for (path, method), examples in bodies.items():
+        content = schema["paths"][path][method]["requestBody"]["content"]["application/json"]
+        content["examples"] = examples

@@ -1,0 +1,74 @@
+"""Content negotiation and the artifact cache (pictures, bundles, descriptions).
+
+Artifacts derive from immutable things (a content-addressed test-case, an uploaded network),
+so a file cached under the data directory never goes stale; it is written atomically.
+"""
+
+from __future__ import annotations
+
+import json
+import secrets
+from collections.abc import Awaitable, Callable
+from typing import TYPE_CHECKING, Any
+
+from service.api.problems import Problem
+
+if TYPE_CHECKING:
+    from service.api.state import AppState
+
+PICTURES = {"png": "image/png", "svg": "image/svg+xml"}
+IMAGE_RESPONSES: dict[int | str, dict[str, Any]] = {
+    200: {
+        "content": {
+            "image/png": {"schema": {"type": "string", "format": "binary"}},
+            "image/svg+xml": {"schema": {"type": "string"}},
+        },
+        "description": "the picture",
+    }
+}
+
+
+def picture_format(requested: str | None, accept: str | None) -> tuple[str, str]:
+    """(suffix, media type): the query parameter wins, then Accept, then PNG."""
+    if requested is not None:
+        if requested.lower() not in PICTURES:
+            raise Problem(406, f"format {requested!r} is not offered; valid choices: png, svg")
+        return requested.lower(), PICTURES[requested.lower()]
+    wanted = (accept or "").lower()
+    if "image/svg+xml" in wanted and "image/png" not in wanted:
+        return "svg", PICTURES["svg"]
+    if not wanted or any(m in wanted for m in ("image/png", "image/*", "*/*")):
+        return "png", PICTURES["png"]
+    raise Problem(
+        406, f"Accept {accept!r} matches no picture type; offered: image/png, image/svg+xml"
+    )
+
+
+def wants_junit(requested: str | None, accept: str | None) -> bool:
+    """Whether an evaluation should be answered as JUnit XML rather than JSON."""
+    if requested is not None:
+        if requested not in ("json", "junit"):
+            raise Problem(406, f"format {requested!r} is not offered; valid choices: json, junit")
+        return requested == "junit"
+    wanted = (accept or "").lower()
+    return "xml" in wanted and "application/json" not in wanted
+
+
+async def cached(
+    state: AppState,
+    name: str,
+    produce: Callable[[], Awaitable[Any]],
+    json_cache: bool = False,
+) -> Any:
+    """The artifact ``name`` from the cache, or produced (in a worker) and cached."""
+    path = state.cache_dir / "artifacts" / name
+    if path.is_file():
+        content = path.read_bytes()
+        return json.loads(content) if json_cache else content
+    value = await produce()
+    content = json.dumps(value).encode() if json_cache else value
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(f".{path.name}.{secrets.token_hex(4)}")
+    partial.write_bytes(content)
+    partial.replace(path)
+    return value

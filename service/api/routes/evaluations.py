@@ -1,0 +1,163 @@
+"""/evaluations and /controllers: drive a controller through a test-case and keep the verdict."""
+
+from __future__ import annotations
+
+import time
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Query, Request, Response, status
+
+from service.api.media import wants_junit
+from service.api.problems import Problem
+from service.api.routes.testcases import check_controller, store_inline
+from service.api.schemas import (
+    Controller,
+    EvaluationCreate,
+    EvaluationPage,
+    EvaluationPublic,
+    Links,
+)
+from service.api.state import State, Token
+from service.core.controllers import BUILT_IN, controller_names
+from service.core.verdict import Verdict
+from service.jobs import tasks
+from service.store import EvaluationRecord
+
+router = APIRouter(tags=["evaluations"])
+JUNIT = "application/xml"
+JUNIT_RESPONSE: dict[int | str, dict[str, Any]] = {
+    200: {
+        "content": {"application/json": {}, JUNIT: {"schema": {"type": "string"}}},
+        "description": "the evaluation; JUnit XML with Accept: application/xml or ?format=junit",
+    }
+}
+
+
+def evaluation_public(record: EvaluationRecord) -> EvaluationPublic:
+    return EvaluationPublic(
+        id=record.id,
+        testcase=record.testcase,
+        controller=record.controller,
+        passed=record.passed,
+        reasons=Verdict.from_dict(record.verdict).reasons,
+        verdict=record.verdict,
+        seconds=round(record.seconds, 3),
+        created_at=record.created_at,
+        links=Links(
+            self=f"/evaluations/{record.id}",
+            junit=f"/evaluations/{record.id}?format=junit",
+            testcase=f"/testcases/{record.testcase}",
+            plot=f"/testcases/{record.testcase}/plot?controller={record.controller}",
+        ),
+    )
+
+
+def _answer(record: EvaluationRecord, junit: bool) -> EvaluationPublic | Response:
+    if junit:
+        return Response(Verdict.from_dict(record.verdict).to_junit(), media_type=JUNIT)
+    return evaluation_public(record)
+
+
+@router.get("/controllers", operation_id="list_controllers", tags=["evaluations"])
+async def list_controllers() -> list[Controller]:
+    """The ego controllers installed on this server."""
+    names = controller_names()
+    return [
+        Controller(name=n, description=BUILT_IN[n].about if n in BUILT_IN else "plug-in")
+        for n in names
+    ]
+
+
+@router.post(
+    "/evaluations",
+    operation_id="create_evaluation",
+    status_code=status.HTTP_201_CREATED,
+    dependencies=[Token],
+    response_model=EvaluationPublic,
+    responses=JUNIT_RESPONSE,
+)
+async def create_evaluation(
+    state: State,
+    request: Request,
+    body: EvaluationCreate,
+    response: Response,
+    format: Annotated[str | None, Query(description="json or junit (default: by Accept)")] = None,
+) -> Any:
+    """Replay a test-case in SUMO with a controller driving the ego, and judge it."""
+    junit = wants_junit(format, request.headers.get("accept"))
+    check_controller(body.controller)
+    budget = body.budget or state.settings.evaluate_budget
+    if budget > state.settings.max_budget:
+        raise Problem(
+            422,
+            f"budget {budget:g} s exceeds the server's limit of {state.settings.max_budget:g} s",
+        )
+    if body.testcase is not None:
+        record = store_inline(state, body.testcase)
+    else:
+        record = state.testcase_or_404(str(body.testcase_id))
+    started = time.monotonic()
+    result = await state.run(
+        "evaluate",
+        tasks.evaluate_controller,
+        (
+            record.document,
+            state.network_file_of(record.testcase),
+            state.cache_dir,
+            body.controller,
+            budget,
+        ),
+        budget + state.settings.work_budget,
+        started,
+    )
+    stored = state.store.add_evaluation(
+        record.id, body.controller, result["verdict"], result["seconds"]
+    )
+    response.headers["Location"] = f"/evaluations/{stored.id}"
+    answer = _answer(stored, junit)
+    if isinstance(answer, Response):
+        answer.status_code = status.HTTP_201_CREATED
+        answer.headers["Location"] = f"/evaluations/{stored.id}"
+    return answer
+
+
+@router.get("/evaluations", operation_id="list_evaluations")
+async def list_evaluations(
+    state: State,
+    testcase: Annotated[str | None, Query(description="only of this test-case")] = None,
+    limit: Annotated[int, Query(ge=1, le=200)] = 50,
+    offset: Annotated[int, Query(ge=0)] = 0,
+) -> EvaluationPage:
+    """List stored evaluations, newest first."""
+    page = state.store.list_evaluations(testcase, limit, offset)
+    following = None
+    if offset + limit < page.total:
+        where = f"testcase={testcase}&" if testcase else ""
+        following = f"/evaluations?{where}limit={limit}&offset={offset + limit}"
+    return EvaluationPage(
+        items=[evaluation_public(r) for r in page.items],
+        total=page.total,
+        limit=limit,
+        offset=offset,
+        next=following,
+    )
+
+
+@router.get(
+    "/evaluations/{evaluation}",
+    operation_id="get_evaluation",
+    response_model=EvaluationPublic,
+    responses=JUNIT_RESPONSE,
+)
+async def get_evaluation(
+    state: State,
+    request: Request,
+    evaluation: str,
+    format: Annotated[str | None, Query(description="json or junit (default: by Accept)")] = None,
+) -> Any:
+    """One evaluation: verdict and reasons, or JUnit XML."""
+    junit = wants_junit(format, request.headers.get("accept"))
+    record = state.store.evaluation(evaluation)
+    if record is None:
+        raise Problem(404, f"no evaluation {evaluation!r}; GET /evaluations lists them")
+    return _answer(record, junit)

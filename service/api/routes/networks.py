@@ -1,0 +1,240 @@
+"""/networks: the bundled networks and uploads, their junctions, descriptions and pictures."""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Annotated, Any
+
+from defusedxml import ElementTree as SafeElementTree
+from defusedxml.common import DefusedXmlException
+from fastapi import APIRouter, File, Form, Query, Request, Response, UploadFile, status
+from fastapi.responses import JSONResponse
+
+from service.api.media import IMAGE_RESPONSES, cached, picture_format
+from service.api.problems import Problem
+from service.api.schemas import JunctionSummary, Links, NetworkPublic
+from service.api.state import State, Token
+from service.core.errors import InvalidInput, UnknownJunction
+from service.core.network import ControlType
+from service.jobs import tasks
+from service.store import NetworkRecord, safe_filename
+
+router = APIRouter(prefix="/networks", tags=["networks"])
+CONTROLS = [c.value for c in ControlType]
+CONTROLS_FIELD = (
+    'JSON object junction -> control type, e.g. {"J1": "allway_stop"}; control types: '
+    + ", ".join(CONTROLS)
+)
+
+
+def network_public(record: NetworkRecord) -> NetworkPublic:
+    return NetworkPublic(
+        id=record.id,
+        filename=record.filename,
+        sha256=record.sha256,
+        size=record.size,
+        bundled=record.bundled,
+        controls=record.controls,
+        created_at=record.created_at,
+        links=Links(self=f"/networks/{record.id}", junctions=f"/networks/{record.id}/junctions"),
+    )
+
+
+@router.get("", operation_id="list_networks")
+async def list_networks(state: State) -> list[NetworkPublic]:
+    """List the bundled and uploaded networks."""
+    return [network_public(record) for record in state.store.list_networks()]
+
+
+@router.post(
+    "",
+    operation_id="upload_network",
+    status_code=status.HTTP_201_CREATED,
+    dependencies=[Token],
+)
+async def upload_network(
+    state: State,
+    response: Response,
+    file: Annotated[UploadFile, File(description="a SUMO .net.xml")],
+    controls: Annotated[str, Form(description=CONTROLS_FIELD)] = "{}",
+) -> NetworkPublic:
+    """Upload a network, optionally overriding junctions' control types."""
+    content = await file.read(state.settings.max_upload_bytes + 1)
+    if len(content) > state.settings.max_upload_bytes:
+        raise Problem(413, f"the network exceeds {state.settings.max_upload_mb:g} MB")
+    overrides = _parse_controls(controls)
+    _check_xml(content)
+    filename = file.filename or "network.net.xml"
+    record = state.store.network(_probe_id(filename, content, overrides))
+    if record is None:
+        staged = state.cache_dir / "uploads" / str(time.monotonic_ns()) / safe_filename(filename)
+        staged.parent.mkdir(parents=True, exist_ok=True)
+        staged.write_bytes(content)
+        try:
+            await state.run(
+                "upload",
+                tasks.check_controls,
+                (staged, overrides, state.cache_dir),
+                state.settings.work_budget,
+                time.monotonic(),
+            )
+        finally:
+            staged.unlink(missing_ok=True)
+            staged.parent.rmdir()
+        record = state.store.add_network(filename, content, overrides)
+    response.headers["Location"] = f"/networks/{record.id}"
+    return network_public(record)
+
+
+@router.get("/{network}", operation_id="get_network")
+async def get_network(state: State, network: str) -> NetworkPublic:
+    """One network."""
+    return network_public(state.network_or_404(network))
+
+
+@router.delete(
+    "/{network}",
+    operation_id="delete_network",
+    status_code=status.HTTP_204_NO_CONTENT,
+    dependencies=[Token],
+)
+async def delete_network(state: State, network: str) -> None:
+    """Delete an uploaded network that no stored test-case uses."""
+    record = state.network_or_404(network)
+    if record.bundled:
+        raise Problem(409, f"{network!r} is bundled with the service and cannot be deleted")
+    used = state.store.count_testcases_on(network)
+    if used:
+        raise Problem(409, f"{used} stored test-case(s) use {network!r}; delete them first")
+    state.store.delete_network(network)
+
+
+@router.get("/{network}/junctions", operation_id="list_junctions")
+async def list_junctions(state: State, network: str) -> list[JunctionSummary]:
+    """The network's junctions with three or more approaches."""
+    record = state.network_or_404(network)
+    path = state.store.network_file(network)
+    found = await cached(
+        state,
+        f"networks/{record.id}/junctions.json",
+        lambda: state.run(
+            "junctions", tasks.list_junctions, (path,), state.settings.work_budget, time.monotonic()
+        ),
+        json_cache=True,
+    )
+    supported = set(CONTROLS)
+    return [
+        JunctionSummary(
+            id=item["id"],
+            type=item["type"],
+            control=record.controls.get(item["id"], item["type"]),
+            supported=record.controls.get(item["id"], item["type"]) in supported,
+            approaches=item["approaches"],
+            links=Links(
+                self=f"/networks/{record.id}/junctions/{item['id']}",
+                plot=f"/networks/{record.id}/junctions/{item['id']}/plot",
+            ),
+        )
+        for item in found
+    ]
+
+
+@router.get("/{network}/junctions/{junction}", operation_id="describe_junction")
+async def describe_junction(state: State, network: str, junction: str) -> JSONResponse:
+    """The intersection: forks, exits, routes, conflicts and right-of-way relations."""
+    record = state.network_or_404(network)
+    control = record.controls.get(junction)
+    path = state.store.network_file(network)
+    description = await _junction_work(
+        state,
+        record,
+        junction,
+        "description.json",
+        tasks.describe_junction,
+        (path, junction, control, state.cache_dir),
+    )
+    return JSONResponse(description)
+
+
+@router.get(
+    "/{network}/junctions/{junction}/plot",
+    operation_id="plot_junction",
+    response_class=Response,
+    responses=IMAGE_RESPONSES,
+)
+async def plot_junction(
+    state: State,
+    request: Request,
+    network: str,
+    junction: str,
+    route: Annotated[list[str], Query(description="routes to highlight (fork:exit)")] = [],  # noqa: B006
+    format: Annotated[str | None, Query(description="png or svg (default: by Accept)")] = None,
+) -> Response:
+    """A picture of the junction: connecting lanes by turn, forks, highlighted routes."""
+    record = state.network_or_404(network)
+    suffix, media = picture_format(format, request.headers.get("accept"))
+    path = state.store.network_file(network)
+    key = "-".join(sorted(route)).replace(":", "~") or "all"
+    content = await _junction_work(
+        state,
+        record,
+        junction,
+        f"plot-{key}.{suffix}",
+        tasks.plot_junction,
+        (path, junction, record.controls.get(junction), state.cache_dir, sorted(route), suffix),
+    )
+    return Response(content, media_type=media)
+
+
+async def _junction_work(
+    state: State, record: NetworkRecord, junction: str, name: str, function: Any, args: Any
+) -> Any:
+    if "/" in junction or junction in ("", ".", ".."):
+        raise UnknownJunction(f"junction {junction!r} is not a junction id")
+    return await cached(
+        state,
+        f"networks/{record.id}/{junction}/{name}",
+        lambda: state.run("junction", function, args, state.settings.work_budget, time.monotonic()),
+        json_cache=name.endswith(".json"),
+    )
+
+
+def _parse_controls(text: str) -> dict[str, str]:
+    try:
+        value = json.loads(text or "{}")
+    except json.JSONDecodeError as error:
+        raise Problem(400, f"controls is not valid JSON: {error}") from None
+    if not isinstance(value, dict) or not all(
+        isinstance(k, str) and isinstance(v, str) for k, v in value.items()
+    ):
+        raise InvalidInput('controls must be a JSON object of strings, e.g. {"J1": "allway_stop"}')
+    for junction, control in value.items():
+        if control not in CONTROLS:
+            raise InvalidInput(
+                f"controls: {control!r} for junction {junction!r} is not a control type; "
+                f"valid choices: {', '.join(CONTROLS)}"
+            )
+    return dict(value)
+
+
+def _check_xml(content: bytes) -> None:
+    """Parse with entities and DTDs forbidden; the root must be a SUMO <net>."""
+    try:
+        root = SafeElementTree.fromstring(content, forbid_dtd=True)
+    except DefusedXmlException as error:
+        raise Problem(
+            400, f"the network XML is refused: {type(error).__name__} ({error})"
+        ) from None
+    except SafeElementTree.ParseError as error:
+        raise Problem(400, f"the network is not well-formed XML: {error}") from None
+    if root.tag != "net":
+        raise InvalidInput(f"the upload's root element is <{root.tag}>, not a SUMO <net>")
+    if root.find("junction") is None or root.find("edge") is None:
+        raise InvalidInput("the SUMO <net> has no junctions or edges")
+
+
+def _probe_id(filename: str, content: bytes, controls: dict[str, str]) -> str:
+    from service.store import network_id
+
+    return network_id(filename, content, controls)

@@ -1,0 +1,263 @@
+"""/testcases: create ego-only test-cases, list, fetch, lineage, SUMO bundle and picture."""
+
+from __future__ import annotations
+
+import json
+import time
+from typing import Annotated
+
+from fastapi import APIRouter, Query, Request, Response, status
+from fastapi.responses import JSONResponse
+
+from service.api.media import IMAGE_RESPONSES, cached, picture_format
+from service.api.problems import Problem
+from service.api.schemas import (
+    Lineage,
+    Links,
+    TestCaseCreate,
+    TestCasePage,
+    TestCasePublic,
+    TestCaseSummary,
+)
+from service.api.state import AppState, State, Token
+from service.core.controllers import controller_names
+from service.core.errors import InvalidInput, choices
+from service.core.testcase import NetworkRef, parse_testcase
+from service.jobs import tasks
+from service.store import TestCaseRecord
+
+router = APIRouter(prefix="/testcases", tags=["testcases"])
+
+
+def links(record: TestCaseRecord) -> Links:
+    base = f"/testcases/{record.id}"
+    extra = {"parent": f"/testcases/{record.parent}"} if record.parent else {}
+    return Links(
+        self=base,
+        document=f"{base}/document",
+        bundle=f"{base}/bundle",
+        plot=f"{base}/plot",
+        lineage=f"{base}/lineage",
+        evaluations=f"/evaluations?testcase={record.id}",
+        **extra,
+    )
+
+
+def summary(record: TestCaseRecord) -> TestCaseSummary:
+    return TestCaseSummary(
+        id=record.id,
+        name=record.name,
+        network=record.network,
+        junction=record.junction,
+        parent=record.parent,
+        nonegos=record.nonegos,
+        created_at=record.created_at,
+        links=links(record),
+    )
+
+
+def public(record: TestCaseRecord) -> TestCasePublic:
+    return TestCasePublic(**summary(record).model_dump(), testcase=json.loads(record.document))
+
+
+def store_inline(state: AppState, document: dict[str, object]) -> TestCaseRecord:
+    """Keep a test-case a client sent inline (nothing submitted is lost), after checking
+    that its network is one this server has."""
+    testcase = parse_testcase(document)
+    state.network_file_of(testcase)
+    return state.store.add_testcase(testcase)
+
+
+@router.post(
+    "", operation_id="create_testcase", status_code=status.HTTP_201_CREATED, dependencies=[Token]
+)
+async def create_testcase(state: State, body: TestCaseCreate, response: Response) -> TestCasePublic:
+    """Create an ego-only test-case on a network."""
+    network = state.network_or_404(body.network)
+    junction = body.junction
+    control = body.control.value if body.control else None
+    if control is None and junction is not None:
+        control = network.controls.get(junction)
+    if control is None and junction is None and len(network.controls) == 1:
+        junction, control = next(iter(network.controls.items()))
+    request = body.model_dump(exclude={"network", "junction", "control"})
+    request.update(junction=junction, control=control)
+    document = await state.run(
+        "create",
+        tasks.create_testcase,
+        (
+            state.store.network_file(network.id),
+            NetworkRef(ref=network.id, sha256=network.sha256),
+            state.cache_dir,
+            request,
+        ),
+        state.settings.work_budget,
+        time.monotonic(),
+    )
+    record = state.store.add_testcase(parse_testcase(document))
+    response.headers["Location"] = f"/testcases/{record.id}"
+    return public(record)
+
+
+@router.get("", operation_id="list_testcases")
+async def list_testcases(
+    state: State,
+    network: Annotated[str | None, Query(description="only on this network")] = None,
+    parent: Annotated[str | None, Query(description="only extensions of this test-case")] = None,
+    roots: Annotated[bool, Query(description="only test-cases without a parent")] = False,
+    limit: Annotated[int, Query(ge=1, le=200)] = 50,
+    offset: Annotated[int, Query(ge=0)] = 0,
+) -> TestCasePage:
+    """List stored test-cases, newest first."""
+    page = state.store.list_testcases(network, parent, roots, limit, offset)
+    following = None
+    if offset + limit < page.total:
+        query = "&".join(
+            f"{key}={value}"
+            for key, value in (("network", network), ("parent", parent))
+            if value is not None
+        )
+        following = (
+            f"/testcases?{query + '&' if query else ''}limit={limit}&offset={offset + limit}"
+        )
+        if roots:
+            following += "&roots=true"
+    return TestCasePage(
+        items=[summary(r) for r in page.items],
+        total=page.total,
+        limit=limit,
+        offset=offset,
+        next=following,
+    )
+
+
+@router.get("/{testcase}", operation_id="get_testcase")
+async def get_testcase(state: State, testcase: str) -> TestCasePublic:
+    """One test-case with its document and links."""
+    return public(state.testcase_or_404(testcase))
+
+
+@router.get(
+    "/{testcase}/document",
+    operation_id="get_testcase_document",
+    response_class=JSONResponse,
+    responses={200: {"content": {"application/json": {}}, "description": "the document"}},
+)
+async def get_testcase_document(state: State, testcase: str) -> Response:
+    """The bare test-case document, as ``scengen`` commands read it."""
+    record = state.testcase_or_404(testcase)
+    return Response(
+        record.document,
+        media_type="application/json",
+        headers={"Content-Disposition": f'attachment; filename="{record.id}.json"'},
+    )
+
+
+@router.delete(
+    "/{testcase}",
+    operation_id="delete_testcase",
+    status_code=status.HTTP_204_NO_CONTENT,
+    dependencies=[Token],
+)
+async def delete_testcase(state: State, testcase: str) -> None:
+    """Delete a test-case without extensions, and its evaluations."""
+    state.testcase_or_404(testcase)
+    children = state.store.children(testcase)
+    if children:
+        raise Problem(
+            409,
+            f"{len(children)} extension(s) descend from {testcase!r}; delete them first",
+            children=[c.id for c in children],
+        )
+    state.store.delete_testcase(testcase)
+
+
+@router.get("/{testcase}/lineage", operation_id="get_lineage")
+async def get_lineage(state: State, testcase: str) -> Lineage:
+    """Ancestors (parent first) and children of a test-case."""
+    state.testcase_or_404(testcase)
+    return Lineage(
+        id=testcase,
+        ancestors=[summary(r) for r in state.store.ancestors(testcase)],
+        children=[summary(r) for r in state.store.children(testcase)],
+    )
+
+
+@router.get(
+    "/{testcase}/bundle",
+    operation_id="get_bundle",
+    response_class=Response,
+    responses={200: {"content": {"application/zip": {}}, "description": "the SUMO bundle"}},
+)
+async def get_bundle(state: State, testcase: str) -> Response:
+    """The SUMO export as a zip: network, routes, FCD of the non-egos, .sumocfg, README."""
+    record = state.testcase_or_404(testcase)
+    loaded = record.testcase
+    content = await cached(
+        state,
+        f"testcases/{record.id}/bundle.zip",
+        lambda: state.run(
+            "bundle",
+            tasks.bundle,
+            (record.document, state.network_file_of(loaded), state.cache_dir),
+            state.settings.work_budget,
+            time.monotonic(),
+        ),
+    )
+    return Response(
+        content,
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="{record.id}.zip"'},
+    )
+
+
+@router.get(
+    "/{testcase}/plot",
+    operation_id="plot_testcase",
+    response_class=Response,
+    responses=IMAGE_RESPONSES,
+)
+async def plot_testcase(
+    state: State,
+    request: Request,
+    testcase: str,
+    format: Annotated[str | None, Query(description="png or svg (default: by Accept)")] = None,
+    controller: Annotated[
+        str | None, Query(description="also replay this controller and show its verdict")
+    ] = None,
+) -> Response:
+    """A picture of the test-case: paths, certificates, and a time-distance panel."""
+    record = state.testcase_or_404(testcase)
+    suffix, media = picture_format(format, request.headers.get("accept"))
+    if controller is not None:
+        check_controller(controller)
+    loaded = record.testcase
+    budget = state.settings.work_budget + (state.settings.evaluate_budget if controller else 0)
+    content = await cached(
+        state,
+        f"testcases/{record.id}/plot-{controller or 'testcase'}.{suffix}",
+        lambda: state.run(
+            "plot",
+            tasks.plot_testcase,
+            (
+                record.document,
+                state.network_file_of(loaded),
+                state.cache_dir,
+                suffix,
+                controller,
+                state.settings.evaluate_budget,
+            ),
+            budget,
+            time.monotonic(),
+        ),
+    )
+    return Response(content, media_type=media)
+
+
+def check_controller(name: str) -> None:
+    """Only installed controllers by name: the server never imports a module a client names."""
+    known = controller_names()
+    if name not in known:
+        raise InvalidInput(
+            f"controller {name!r} is not installed here; valid choices: {choices(known)}"
+        )

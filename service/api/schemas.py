@@ -1,0 +1,189 @@
+"""Request and response bodies, one family per resource, with examples that work as they
+stand on the bundled four-way stop (the OpenAPI UI's "Try it out")."""
+
+from __future__ import annotations
+
+from datetime import datetime
+from functools import lru_cache
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from service.core.network import ControlType
+
+EXAMPLE_NETWORK = "4way-stop"
+EXAMPLE_EGO = "E2C_1:C2S_1"  # east arm, left turn to the south
+EXAMPLE_NEW_ROUTE = "S2C_1:C2N_1"  # south arm, straight on to the north
+
+
+@lru_cache
+def example_testcase() -> dict[str, Any]:
+    """An ego-only test-case on the bundled four-way stop (its real network hash)."""
+    import json
+
+    from service.core.testcase import dump_testcase, new_testcase
+
+    return dict(json.loads(dump_testcase(new_testcase(EXAMPLE_NETWORK, EXAMPLE_EGO))))
+
+
+class _Body(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class Links(BaseModel):
+    model_config = ConfigDict(extra="allow")
+    self: str
+
+
+class NetworkPublic(BaseModel):
+    id: str = Field(description="bundled name, or <file stem>-<hash> of an upload")
+    filename: str
+    sha256: str
+    size: int = Field(description="bytes")
+    bundled: bool
+    controls: dict[str, str] = Field(description="junction -> control type overridden at upload")
+    created_at: datetime | None
+    links: Links
+
+
+class JunctionSummary(BaseModel):
+    id: str
+    type: str = Field(description="control type in the network file")
+    control: str | None = Field(description="the control type test-cases use (override applied)")
+    supported: bool = Field(description="whether the effective control type has a rule set")
+    approaches: int
+    links: Links
+
+
+class TestCaseCreate(_Body):
+    """An ego-only test-case: the root of a chain of extensions."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={"examples": [{"network": EXAMPLE_NETWORK, "ego_route": EXAMPLE_EGO}]},
+    )
+    network: str = Field(description="a network id from GET /networks")
+    ego_route: str = Field(description="fork lane id : exit lane id, from the junction's routes")
+    junction: str | None = Field(None, description="default: the network's only supported one")
+    control: ControlType | None = Field(
+        None, description="override the junction's control type (default: the network's)"
+    )
+    start_distance: float = Field(30.0, ge=0, description="ego front before the stop line (m)")
+    start_speed: float = Field(8.0, ge=0, description="ego speed at t = 0 (m/s)")
+    duration: float = Field(20.0, gt=0, le=600, description="length of the test (s)")
+    timestep: float = Field(0.1, gt=0, le=1, description="sample spacing (s)")
+    params: dict[str, float] | None = Field(None, description="rule and speed parameters")
+    name: str = Field("", max_length=200)
+
+
+class TestCaseSummary(BaseModel):
+    id: str = Field(description="content address: the first 16 hex digits of its sha256")
+    name: str
+    network: str
+    junction: str
+    parent: str | None
+    nonegos: int
+    created_at: datetime
+    links: Links
+
+
+class TestCasePublic(TestCaseSummary):
+    testcase: dict[str, Any] = Field(description="the test-case document (scengen/testcase/1)")
+
+
+class TestCasePage(BaseModel):
+    items: list[TestCaseSummary]
+    total: int
+    limit: int
+    offset: int
+    next: str | None = Field(description="the next page, if any")
+
+
+class Lineage(BaseModel):
+    id: str
+    ancestors: list[TestCaseSummary] = Field(description="parent first, root last")
+    children: list[TestCaseSummary]
+
+
+class Attempt(BaseModel):
+    index: int = Field(description="answer set number (Step 2), from 1")
+    outcome: str
+
+
+class ExtendRequest(_Body):
+    """Extend a test-case (inline, or stored by id) with new cars on ``routes``."""
+
+    testcase: dict[str, Any] | None = Field(None, description="the old test-case document")
+    testcase_id: str | None = Field(None, description="or the id of a stored test-case")
+    routes: list[str] = Field(min_length=1, max_length=6, description="one new car per route")
+    seed: int = Field(0, ge=0, description="same seed, same bytes")
+    budget: float | None = Field(None, gt=0, description="seconds (default SCENGEN_EXTEND_BUDGET)")
+    start_distance: float | None = Field(
+        None, ge=0, description="new cars' distance before their stop line (default: varied)"
+    )
+
+    @model_validator(mode="after")
+    def _one_base(self) -> ExtendRequest:
+        if (self.testcase is None) == (self.testcase_id is None):
+            raise ValueError("give exactly one of testcase (inline) and testcase_id")
+        return self
+
+
+class ExtensionPublic(TestCasePublic):
+    new_cars: list[str]
+    attempts: list[Attempt]
+    seconds: dict[str, float] = Field(description="time spent per step")
+
+
+class EvaluationCreate(_Body):
+    """Drive a controller through a test-case in SUMO and judge it."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={"examples": [{"testcase": None, "controller": "sumo"}]},
+    )
+    testcase_id: str | None = Field(None, description="a stored test-case")
+    testcase: dict[str, Any] | None = Field(None, description="or an inline test-case")
+    controller: str = Field("sumo", description="a name from GET /controllers")
+    budget: float | None = Field(
+        None, gt=0, description="seconds (default SCENGEN_EVALUATE_BUDGET)"
+    )
+
+    @model_validator(mode="after")
+    def _one_base(self) -> EvaluationCreate:
+        if (self.testcase is None) == (self.testcase_id is None):
+            raise ValueError("give exactly one of testcase (inline) and testcase_id")
+        return self
+
+
+class EvaluationPublic(BaseModel):
+    id: str
+    testcase: str
+    controller: str
+    passed: bool
+    reasons: list[str]
+    verdict: dict[str, Any] = Field(description="the checker's verdict (scengen/verdict/1)")
+    seconds: float
+    created_at: datetime
+    links: Links
+
+
+class EvaluationPage(BaseModel):
+    items: list[EvaluationPublic]
+    total: int
+    limit: int
+    offset: int
+    next: str | None
+
+
+class Controller(BaseModel):
+    name: str
+    description: str
+
+
+class Health(BaseModel):
+    status: str
+    database: str
+    workers: int
+    running: int
+    waiting: int

@@ -1,0 +1,113 @@
+"""What every route shares: settings, store, executor, metrics; and the FastAPI dependencies
+that hand them out (``State``, ``Token``)."""
+
+from __future__ import annotations
+
+import secrets
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Any
+
+from fastapi import Depends, Request
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+
+from service.api.problems import Problem
+from service.api.settings import Settings
+from service.core.errors import UnknownNetwork, choices
+from service.core.testcase import TestCase
+from service.jobs.executor import LocalExecutor
+from service.store import NetworkRecord, Store, TestCaseRecord
+
+
+@dataclass
+class Metrics:
+    """Request counters for ``/metrics`` (one server process; Prometheus text format)."""
+
+    started: float = field(default_factory=time.time)
+    requests: dict[tuple[str, str, int], int] = field(default_factory=dict)
+    seconds: dict[tuple[str, str], float] = field(default_factory=dict)
+    outcomes: dict[tuple[str, str], int] = field(default_factory=dict)  # (work, outcome)
+
+    def observe(self, method: str, route: str, status: int, seconds: float) -> None:
+        key = (method, route, status)
+        self.requests[key] = self.requests.get(key, 0) + 1
+        self.seconds[(method, route)] = self.seconds.get((method, route), 0.0) + seconds
+
+    def outcome(self, work: str, outcome: str) -> None:
+        self.outcomes[(work, outcome)] = self.outcomes.get((work, outcome), 0) + 1
+
+
+@dataclass
+class AppState:
+    settings: Settings
+    store: Store
+    executor: LocalExecutor
+    metrics: Metrics
+
+    @property
+    def cache_dir(self) -> Path:
+        return self.settings.cache_dir
+
+    def network_or_404(self, ident: str) -> NetworkRecord:
+        record = self.store.network(ident)
+        if record is None:
+            known = [n.id for n in self.store.list_networks()]
+            raise Problem(404, f"no network {ident!r}; known networks: {choices(known)}")
+        return record
+
+    def testcase_or_404(self, ident: str) -> TestCaseRecord:
+        record = self.store.testcase(ident)
+        if record is None:
+            raise Problem(404, f"no test-case {ident!r}; GET /testcases lists them")
+        return record
+
+    def network_file_of(self, testcase: TestCase) -> Path:
+        """The local file of a test-case's network, which must be bundled or uploaded."""
+        if self.store.network(testcase.network.ref) is None:
+            known = [n.id for n in self.store.list_networks()]
+            raise UnknownNetwork(
+                f"network.ref: {testcase.network.ref!r} is neither bundled nor uploaded here; "
+                f"upload it with POST /networks first. Known networks: {choices(known)}",
+                network=testcase.network.ref,
+            )
+        return self.store.network_file(testcase.network.ref)
+
+    async def run(
+        self, work: str, function: Any, args: tuple[Any, ...], budget: float, started: float
+    ) -> Any:
+        """A call in a worker, counted in the metrics by outcome."""
+        try:
+            result = await self.executor.run(function, args, budget, work, started)
+        except Exception as error:
+            self.metrics.outcome(work, type(error).__name__)
+            raise
+        self.metrics.outcome(work, "ok")
+        return result
+
+
+def get_state(request: Request) -> AppState:
+    state: AppState = request.app.state.scengen
+    return state
+
+
+State = Annotated[AppState, Depends(get_state)]
+
+_bearer = HTTPBearer(auto_error=False, description="the server's SCENGEN_API_TOKEN, if set")
+
+
+def require_token(
+    state: State,
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_bearer)],
+) -> None:
+    """Creating or deleting needs ``Authorization: Bearer <token>`` when a token is set."""
+    expected = state.settings.api_token
+    if not expected:
+        return
+    if credentials is None:
+        raise Problem(401, "this request creates or deletes; send Authorization: Bearer <token>")
+    if not secrets.compare_digest(credentials.credentials.encode(), expected.encode()):
+        raise Problem(401, "the bearer token is not the server's API token")
+
+
+Token = Depends(require_token)

@@ -1,0 +1,1 @@
+"""Execution of long work outside the server's process: the worker functions and executors."""

@@ -1,0 +1,196 @@
+"""The units of work an executor runs in a worker process: plain functions over core.
+
+Arguments and results are JSON documents, paths and bytes, so that a call pickles small and
+the same function can run in the local pool or on a remote worker. Every function loads the
+network itself: the caller hands over the file (materialised from the store) and checks
+nothing that a worker would have to repeat.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import io
+import tempfile
+import time
+import zipfile
+from pathlib import Path
+from typing import Any
+
+from service.core.errors import InvalidTestCase
+from service.core.export import export_bundle
+from service.core.generate import extend_testcase
+from service.core.network import Intersection, load_intersection
+from service.core.network.describe import describe_intersection
+from service.core.network.load import SUPPORTED, read_network
+from service.core.replay import evaluate
+from service.core.testcase import (
+    NetworkRef,
+    Params,
+    TestCase,
+    dump_testcase,
+    new_testcase,
+    parse_testcase,
+)
+
+
+def intersection_of(testcase: TestCase, network_file: Path, cache_dir: Path) -> Intersection:
+    """The test-case's intersection, after checking that the network bytes are the ones it
+    was made on."""
+    actual = hashlib.sha256(network_file.read_bytes()).hexdigest()
+    if actual != testcase.network.sha256:
+        raise InvalidTestCase(
+            f"network.sha256: the test-case was made on other bytes of network "
+            f"{testcase.network.ref!r} (expected {testcase.network.sha256[:12]}..., the stored "
+            f"network has {actual[:12]}...)"
+        )
+    return load_intersection(network_file, testcase.junction, testcase.control, cache_dir)
+
+
+def list_junctions(network_file: Path) -> list[dict[str, Any]]:
+    """Every junction with three or more approaches: id, control type, approaches."""
+    net = read_network(network_file)
+    found = []
+    for node in net.getNodes():
+        approaches = sum(1 for e in node.getIncoming() if e.getFunction() != "internal")
+        if node.getType() != "internal" and approaches >= 3:
+            found.append(
+                {
+                    "id": str(node.getID()),
+                    "type": str(node.getType()),
+                    "supported": node.getType() in SUPPORTED,
+                    "approaches": approaches,
+                }
+            )
+    return sorted(found, key=lambda item: item["id"])
+
+
+def check_controls(network_file: Path, controls: dict[str, str], cache_dir: Path) -> None:
+    """Build every overridden junction once: an unknown junction or a control type
+    netconvert cannot apply fails here, at upload, not at the first test-case."""
+    read_network(network_file)
+    for junction, control in sorted(controls.items()):
+        load_intersection(network_file, junction, control, cache_dir)
+
+
+def describe_junction(
+    network_file: Path, junction: str | None, control: str | None, cache_dir: Path
+) -> dict[str, Any]:
+    """``scengen intersection --json`` of one junction."""
+    description = describe_intersection(
+        load_intersection(network_file, junction, control, cache_dir)
+    )
+    description.pop("network", None)  # a server-side path means nothing to a client
+    return description
+
+
+def plot_junction(
+    network_file: Path,
+    junction: str | None,
+    control: str | None,
+    cache_dir: Path,
+    routes: list[str],
+    suffix: str,
+) -> bytes:
+    """The junction's picture (PNG or SVG) with the given routes highlighted."""
+    from service.plot import plot_intersection
+
+    intersection = load_intersection(network_file, junction, control, cache_dir)
+    for route in routes:
+        intersection.route(route)  # an unknown route is an error, not an unlit line
+    with tempfile.TemporaryDirectory(prefix="scengen-plot-") as folder:
+        path = Path(folder) / f"junction.{suffix}"
+        plot_intersection(intersection, path, highlight=routes)
+        return path.read_bytes()
+
+
+def create_testcase(
+    network_file: Path,
+    network: NetworkRef,
+    cache_dir: Path,
+    request: dict[str, Any],
+) -> str:
+    """A new ego-only test-case on a stored network; its JSON document."""
+    params = request.pop("params", None)
+    testcase = new_testcase(
+        network_file,
+        cache_dir=cache_dir,
+        params=None if params is None else Params.model_validate(params),
+        **request,
+    )
+    return dump_testcase(testcase.model_copy(update={"network": network}))
+
+
+def extend(
+    document: str,
+    network_file: Path,
+    cache_dir: Path,
+    routes: list[str],
+    seed: int,
+    budget: float,
+    start_distance: float | None,
+) -> dict[str, Any]:
+    """The extension of a test-case: the new document, the attempts and the step timings."""
+    old = parse_testcase(document)
+    intersection = intersection_of(old, network_file, cache_dir)
+    extension = extend_testcase(
+        old, routes, seed, budget, start_distance, intersection=intersection
+    )
+    return {
+        "document": dump_testcase(extension.testcase),
+        "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],
+        "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
+    }
+
+
+def evaluate_controller(
+    document: str, network_file: Path, cache_dir: Path, controller: str, budget: float
+) -> dict[str, Any]:
+    """A controller's verdict on a test-case (``Verdict.to_dict``) and the seconds it took."""
+    testcase = parse_testcase(document)
+    intersection = intersection_of(testcase, network_file, cache_dir)
+    clock = time.monotonic()
+    evaluation = evaluate(testcase, controller, intersection, budget)
+    return {"verdict": evaluation.verdict.to_dict(), "seconds": time.monotonic() - clock}
+
+
+def bundle(document: str, network_file: Path, cache_dir: Path) -> bytes:
+    """The SUMO export of a test-case as a zip archive (one folder named after it)."""
+    testcase = parse_testcase(document)
+    intersection = intersection_of(testcase, network_file, cache_dir)
+    memory = io.BytesIO()
+    with tempfile.TemporaryDirectory(prefix="scengen-bundle-") as folder:
+        written = export_bundle(testcase, Path(folder), intersection)
+        with zipfile.ZipFile(memory, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path in sorted(written):
+                archive.write(path, path.name)
+    return memory.getvalue()
+
+
+def plot_testcase(
+    document: str,
+    network_file: Path,
+    cache_dir: Path,
+    suffix: str,
+    controller: str | None,
+    budget: float,
+) -> bytes:
+    """The test-case's picture; with a controller, that controller's replay and verdict."""
+    from service.plot import plot_testcase as draw
+
+    testcase = parse_testcase(document)
+    intersection = intersection_of(testcase, network_file, cache_dir)
+    with tempfile.TemporaryDirectory(prefix="scengen-plot-") as folder:
+        path = Path(folder) / f"testcase.{suffix}"
+        if controller is None:
+            draw(testcase, intersection, path)
+        else:
+            evaluation = evaluate(testcase, controller, intersection, budget)
+            draw(
+                testcase,
+                intersection,
+                path,
+                ego=evaluation.trajectory,
+                ego_label=controller,
+                verdict=evaluation.verdict,
+            )
+        return path.read_bytes()

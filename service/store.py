@@ -1,0 +1,366 @@
+"""The service's persistent state: uploaded networks, stored test-cases and evaluations.
+
+One relational schema behind SQLAlchemy Core, so the same code runs on the embedded SQLite
+file and on PostgreSQL (``SCENGEN_DATABASE_URL``). The database is authoritative: a network's
+bytes live in it too, and ``network_file`` materialises them into a local cache on demand, so
+any process that can reach the database can work on any stored object.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import secrets
+from collections.abc import Iterator
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, Generic, TypeVar
+
+import sqlalchemy as sa
+
+from service.core.network import bundled_networks
+from service.core.testcase import TestCase, dump_testcase, parse_testcase
+
+T = TypeVar("T")
+metadata = sa.MetaData()
+
+networks = sa.Table(
+    "networks",
+    metadata,
+    sa.Column("id", sa.String(80), primary_key=True),
+    sa.Column("filename", sa.String(255), nullable=False),
+    sa.Column("sha256", sa.String(64), nullable=False),
+    sa.Column("controls", sa.Text, nullable=False),  # JSON: junction -> control type
+    sa.Column("size", sa.Integer, nullable=False),
+    sa.Column("content", sa.LargeBinary, nullable=False),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+)
+
+testcases = sa.Table(
+    "testcases",
+    metadata,
+    sa.Column("id", sa.String(32), primary_key=True),
+    sa.Column("network", sa.String(80), nullable=False, index=True),
+    sa.Column("junction", sa.String(255), nullable=False),
+    sa.Column("parent", sa.String(32), nullable=True, index=True),
+    sa.Column("name", sa.String(255), nullable=False),
+    sa.Column("nonegos", sa.Integer, nullable=False),
+    sa.Column("document", sa.Text, nullable=False),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+)
+
+evaluations = sa.Table(
+    "evaluations",
+    metadata,
+    sa.Column("id", sa.String(32), primary_key=True),
+    sa.Column("testcase", sa.String(32), nullable=False, index=True),
+    sa.Column("controller", sa.String(255), nullable=False),
+    sa.Column("passed", sa.Boolean, nullable=False),
+    sa.Column("verdict", sa.Text, nullable=False),  # Verdict.to_dict() as JSON
+    sa.Column("seconds", sa.Float, nullable=False),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+)
+
+
+def now() -> datetime:
+    return datetime.now(UTC)
+
+
+def _utc(moment: datetime) -> datetime:
+    """SQLite hands back naive datetimes; every stored time is UTC."""
+    return moment if moment.tzinfo is not None else moment.replace(tzinfo=UTC)
+
+
+def testcase_id(document: str) -> str:
+    """Content address of a test-case: the same bytes are the same stored test-case."""
+    return hashlib.sha256(document.encode()).hexdigest()[:16]
+
+
+def network_id(filename: str, content: bytes, controls: dict[str, str]) -> str:
+    """``<file stem>-<12 hex>`` over the bytes and the control overrides."""
+    stem = re.sub(r"[^A-Za-z0-9_.-]+", "-", filename.removesuffix(".xml").removesuffix(".net"))
+    digest = hashlib.sha256(content + json.dumps(controls, sort_keys=True).encode())
+    return f"{stem.strip('-.')[:60] or 'network'}-{digest.hexdigest()[:12]}"
+
+
+def safe_filename(name: str) -> str:
+    """A file name without directories or odd characters, ending in .net.xml."""
+    stem = re.sub(r"[^A-Za-z0-9_.-]+", "-", Path(name).name).strip("-.")
+    stem = stem.removesuffix(".xml").removesuffix(".net") or "network"
+    return f"{stem[:80]}.net.xml"
+
+
+@dataclass(frozen=True)
+class NetworkRecord:
+    id: str
+    filename: str
+    sha256: str
+    controls: dict[str, str]
+    size: int
+    created_at: datetime | None  # None for a bundled network
+    bundled: bool
+
+
+@dataclass(frozen=True)
+class TestCaseRecord:
+    id: str
+    network: str
+    junction: str
+    parent: str | None
+    name: str
+    nonegos: int
+    document: str
+    created_at: datetime
+
+    @property
+    def testcase(self) -> TestCase:
+        return parse_testcase(self.document)
+
+
+@dataclass(frozen=True)
+class EvaluationRecord:
+    id: str
+    testcase: str
+    controller: str
+    passed: bool
+    verdict: dict[str, Any]
+    seconds: float
+    created_at: datetime
+
+
+@dataclass(frozen=True)
+class Page(Generic[T]):
+    items: list[T]
+    total: int
+
+
+class Store:
+    """Every read and write of the service's state; safe to share within one process."""
+
+    def __init__(self, url: str, cache_dir: Path) -> None:
+        self.url = url
+        self.cache_dir = cache_dir
+        if url.startswith("sqlite:///"):
+            Path(url.removeprefix("sqlite:///")).parent.mkdir(parents=True, exist_ok=True)
+        connect_args = (
+            {"check_same_thread": False, "timeout": 30} if url.startswith("sqlite") else {}
+        )
+        self.engine = sa.create_engine(url, connect_args=connect_args, pool_pre_ping=True)
+        metadata.create_all(self.engine)
+
+    def ping(self) -> None:
+        with self.engine.connect() as connection:
+            connection.execute(sa.text("SELECT 1"))
+
+    def close(self) -> None:
+        self.engine.dispose()
+
+    # networks
+
+    def add_network(self, filename: str, content: bytes, controls: dict[str, str]) -> NetworkRecord:
+        """Store an uploaded network (idempotent: the same bytes and overrides, the same id)."""
+        ident = network_id(filename, content, controls)
+        existing = self.network(ident)
+        if existing is not None:
+            return existing
+        row = {
+            "id": ident,
+            "filename": filename,
+            "sha256": hashlib.sha256(content).hexdigest(),
+            "controls": json.dumps(controls, sort_keys=True),
+            "size": len(content),
+            "content": content,
+            "created_at": now(),
+        }
+        with self.engine.begin() as connection:
+            connection.execute(networks.insert().values(**row))
+        found = self.network(ident)
+        assert found is not None
+        return found
+
+    def network(self, ident: str) -> NetworkRecord | None:
+        """A bundled or uploaded network, or None."""
+        bundled = bundled_networks()
+        if ident in bundled:
+            return _bundled_record(ident, bundled[ident])
+        columns = [c for c in networks.c if c.name != "content"]
+        with self.engine.connect() as connection:
+            row = connection.execute(sa.select(*columns).where(networks.c.id == ident)).first()
+        return None if row is None else _network_record(row._mapping)
+
+    def list_networks(self) -> list[NetworkRecord]:
+        columns = [c for c in networks.c if c.name != "content"]
+        with self.engine.connect() as connection:
+            rows = connection.execute(sa.select(*columns).order_by(networks.c.created_at))
+            uploaded = [_network_record(row._mapping) for row in rows]
+        bundled = [_bundled_record(name, path) for name, path in bundled_networks().items()]
+        return bundled + uploaded
+
+    def network_file(self, ident: str) -> Path:
+        """A local path to the network's bytes (bundled file, or the cached upload)."""
+        bundled = bundled_networks()
+        if ident in bundled:
+            return bundled[ident]
+        with self.engine.connect() as connection:
+            row = connection.execute(
+                sa.select(networks.c.filename, networks.c.content).where(networks.c.id == ident)
+            ).first()
+        if row is None:
+            raise KeyError(ident)
+        path = self.cache_dir / "networks" / ident / safe_filename(row.filename)
+        if not path.is_file():
+            path.parent.mkdir(parents=True, exist_ok=True)
+            partial = path.with_suffix(f".{secrets.token_hex(4)}.part")
+            partial.write_bytes(row.content)
+            partial.replace(path)
+        return path
+
+    def delete_network(self, ident: str) -> None:
+        with self.engine.begin() as connection:
+            connection.execute(networks.delete().where(networks.c.id == ident))
+
+    # test-cases
+
+    def add_testcase(self, testcase: TestCase, parent: str | None = None) -> TestCaseRecord:
+        """Store a test-case under its content address (idempotent)."""
+        document = dump_testcase(testcase)
+        ident = testcase_id(document)
+        existing = self.testcase(ident)
+        if existing is not None:
+            return existing
+        row = {
+            "id": ident,
+            "network": testcase.network.ref,
+            "junction": testcase.junction,
+            "parent": parent,
+            "name": testcase.name,
+            "nonegos": len(testcase.nonegos),
+            "document": document,
+            "created_at": now(),
+        }
+        try:
+            with self.engine.begin() as connection:
+                connection.execute(testcases.insert().values(**row))
+        except sa.exc.IntegrityError:
+            pass  # stored concurrently by another request: the same bytes, the same record
+        found = self.testcase(ident)
+        assert found is not None
+        return found
+
+    def testcase(self, ident: str) -> TestCaseRecord | None:
+        with self.engine.connect() as connection:
+            row = connection.execute(sa.select(testcases).where(testcases.c.id == ident)).first()
+        return None if row is None else _testcase_record(row._mapping)
+
+    def list_testcases(
+        self,
+        network: str | None = None,
+        parent: str | None = None,
+        roots_only: bool = False,
+        limit: int = 50,
+        offset: int = 0,
+    ) -> Page[TestCaseRecord]:
+        """Newest first, without the documents' trajectories loaded twice."""
+        query = sa.select(testcases)
+        if network is not None:
+            query = query.where(testcases.c.network == network)
+        if parent is not None:
+            query = query.where(testcases.c.parent == parent)
+        if roots_only:
+            query = query.where(testcases.c.parent.is_(None))
+        counted = sa.select(sa.func.count()).select_from(query.subquery())
+        ordered = query.order_by(testcases.c.created_at.desc(), testcases.c.id)
+        with self.engine.connect() as connection:
+            total = connection.execute(counted).scalar_one()
+            rows = connection.execute(ordered.limit(limit).offset(offset))
+            return Page([_testcase_record(row._mapping) for row in rows], total)
+
+    def children(self, ident: str) -> list[TestCaseRecord]:
+        return self.list_testcases(parent=ident, limit=1000).items
+
+    def ancestors(self, ident: str) -> Iterator[TestCaseRecord]:
+        """The parent, its parent, ... up to a test-case without one."""
+        seen = {ident}
+        record = self.testcase(ident)
+        while record is not None and record.parent is not None and record.parent not in seen:
+            seen.add(record.parent)
+            record = self.testcase(record.parent)
+            if record is not None:
+                yield record
+
+    def count_testcases_on(self, network: str) -> int:
+        return self.list_testcases(network=network, limit=1).total
+
+    def delete_testcase(self, ident: str) -> None:
+        with self.engine.begin() as connection:
+            connection.execute(evaluations.delete().where(evaluations.c.testcase == ident))
+            connection.execute(testcases.delete().where(testcases.c.id == ident))
+
+    # evaluations
+
+    def add_evaluation(
+        self, testcase: str, controller: str, verdict: dict[str, Any], seconds: float
+    ) -> EvaluationRecord:
+        row = {
+            "id": secrets.token_hex(8),
+            "testcase": testcase,
+            "controller": controller,
+            "passed": bool(verdict["passed"]),
+            "verdict": json.dumps(verdict, sort_keys=True),
+            "seconds": seconds,
+            "created_at": now(),
+        }
+        with self.engine.begin() as connection:
+            connection.execute(evaluations.insert().values(**row))
+        return EvaluationRecord(**{**row, "verdict": verdict})  # type: ignore[arg-type]
+
+    def evaluation(self, ident: str) -> EvaluationRecord | None:
+        with self.engine.connect() as connection:
+            row = connection.execute(
+                sa.select(evaluations).where(evaluations.c.id == ident)
+            ).first()
+        return None if row is None else _evaluation_record(row._mapping)
+
+    def list_evaluations(
+        self, testcase: str | None = None, limit: int = 50, offset: int = 0
+    ) -> Page[EvaluationRecord]:
+        query = sa.select(evaluations)
+        if testcase is not None:
+            query = query.where(evaluations.c.testcase == testcase)
+        counted = sa.select(sa.func.count()).select_from(query.subquery())
+        ordered = query.order_by(evaluations.c.created_at.desc(), evaluations.c.id)
+        with self.engine.connect() as connection:
+            total = connection.execute(counted).scalar_one()
+            rows = connection.execute(ordered.limit(limit).offset(offset))
+            return Page([_evaluation_record(row._mapping) for row in rows], total)
+
+
+def _bundled_record(name: str, path: Path) -> NetworkRecord:
+    content = path.read_bytes()
+    return NetworkRecord(
+        name, path.name, hashlib.sha256(content).hexdigest(), {}, len(content), None, True
+    )
+
+
+def _network_record(row: Any) -> NetworkRecord:
+    return NetworkRecord(
+        row["id"],
+        row["filename"],
+        row["sha256"],
+        json.loads(row["controls"]),
+        row["size"],
+        _utc(row["created_at"]),
+        False,
+    )
+
+
+def _testcase_record(row: Any) -> TestCaseRecord:
+    return TestCaseRecord(**{**row, "created_at": _utc(row["created_at"])})
+
+
+def _evaluation_record(row: Any) -> EvaluationRecord:
+    return EvaluationRecord(
+        **{**row, "verdict": json.loads(row["verdict"]), "created_at": _utc(row["created_at"])}
+    )
