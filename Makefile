@@ -5,14 +5,16 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled
 
-.PHONY: help install test lint format nets run bench coverage clean
+.PHONY: help install browser test lint format nets run demo openapi bench bench-api coverage clean
 
 help:
-	@echo "make run      describe the bundled 4-way stop and drive an ego through it"
-	@echo "make test     install into .venv and run the whole test suite"
+	@echo "make run      serve the HTTP API on http://127.0.0.1:8000 (UI at /docs)"
+	@echo "make demo     describe the bundled 4-way stop and drive an ego through it"
+	@echo "make test     install into .venv (and Chromium, as root) and run the whole test suite"
+	@echo "make openapi  regenerate openapi/openapi.json from the app"
 	@echo "make lint     ruff and mypy --strict"
 	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
-	@echo "make bench    time the checker and the generator (see docs/benchmarks.md)"
+	@echo "make bench    time the checker, the generator and the API (see docs/benchmarks.md)"
 	@echo "make coverage extend every conflicting route pair of the bundled intersections"
 
 $(STAMP): pyproject.toml
@@ -23,7 +25,13 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-test: $(STAMP)
+# The OpenAPI UI test drives Debian's Chromium; installed here when missing (needs root).
+browser:
+	@command -v chromium >/dev/null || { [ "$$(id -u)" = 0 ] && \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium \
+		>/dev/null; } || echo "make: Chromium is missing; install Debian's chromium package"
+
+test: $(STAMP) browser
 	$(BIN)/pytest
 
 lint: $(STAMP)
@@ -39,6 +47,12 @@ nets: $(STAMP)
 	cd sumo_nets && for net in $(NETS); do ../$(BIN)/netconvert -c $$net.netccfg || exit 1; done
 
 run: $(STAMP)
+	$(BIN)/scengen serve --host 127.0.0.1 --port 8000
+
+openapi: $(STAMP)
+	$(BIN)/python -m service.api.openapi openapi/openapi.json
+
+demo: $(STAMP)
 	$(BIN)/scengen intersection 4way-stop
 	$(BIN)/scengen new 4way-stop --ego S2C_1:C2W_1 -o /tmp/scengen-demo.json
 	$(BIN)/scengen drive /tmp/scengen-demo.json --json > /tmp/scengen-demo-cruise.json
@@ -49,6 +63,10 @@ run: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m bench.bench_check
 	$(BIN)/python -m bench.bench_generate
+	$(BIN)/python -m bench.bench_api
+
+bench-api: $(STAMP)
+	$(BIN)/python -m bench.bench_api
 
 coverage: $(STAMP)
 	$(BIN)/python -m bench.coverage

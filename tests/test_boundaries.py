@@ -7,14 +7,29 @@ import sys
 
 import service.core.network as network
 
-FORBIDDEN = ("fastapi", "uvicorn", "starlette", "celery", "redis", "pydantic_settings")
+FORBIDDEN = (
+    "fastapi", "uvicorn", "starlette", "celery", "redis", "pydantic_settings", "sqlalchemy",
+)  # fmt: skip
 
 
 def test_core_imports_no_adapter_libraries() -> None:
     code = (
         "import sys, service.core.network, service.core.poses, service.core.events, "
-        "service.core.testcase, service.core.budget; "
+        "service.core.testcase, service.core.budget, service.core.generate, "
+        "service.core.replay, service.core.export, service.core.check; "
         f"print([m for m in {FORBIDDEN!r} if m in sys.modules])"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    )
+    assert result.stdout.strip() == "[]"
+
+
+def test_worker_tasks_import_no_web_code() -> None:
+    """A worker process (local pool or remote) loads the core, not the web stack."""
+    code = (
+        "import sys, service.jobs.tasks, service.jobs.executor; "
+        "print([m for m in ('fastapi', 'uvicorn', 'starlette') if m in sys.modules])"
     )
     result = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True

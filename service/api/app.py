@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import asyncio
 import copy
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
 from contextlib import asynccontextmanager
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -14,15 +16,21 @@ from fastapi import FastAPI, Request, Response
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 from fastapi.openapi.utils import get_openapi
 from fastapi.responses import HTMLResponse, RedirectResponse
+from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 
 from service.api.problems import HTTP, install_problem_handlers, problem_response
 from service.api.routes import evaluations, extend, health, networks, testcases
-from service.api.schemas import EXAMPLE_NEW_ROUTE, example_testcase
+from service.api.schemas import (
+    EXAMPLE_NETWORK,
+    EXAMPLE_NEW_ROUTE,
+    example_document,
+    example_testcase,
+)
 from service.api.settings import Settings, get_settings
 from service.api.state import AppState, Metrics
 from service.jobs.executor import LocalExecutor
-from service.store import Store
+from service.store import Store, testcase_id
 
 DOCS_ASSETS = Path(fastapi_offline.__file__).parent / "static"
 TITLE = "scengen"
@@ -50,10 +58,13 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         chosen.data_dir.mkdir(parents=True, exist_ok=True)
         store = Store(chosen.database, chosen.cache_dir)
         executor = LocalExecutor(chosen.workers)
-        app.state.scengen = AppState(chosen, store, executor, Metrics())
+        metrics = Metrics()
+        app.state.scengen = AppState(chosen, store, executor, metrics)
+        watcher = asyncio.create_task(_watch_loop_lag(metrics))
         try:
             yield
         finally:
+            watcher.cancel()
             await executor.shutdown()
             store.close()
 
@@ -66,6 +77,9 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         redoc_url=None,
     )
     for module in (extend, testcases, networks, evaluations, health):
+        for route in module.router.routes:  # the handler's one-line docstring is its summary
+            if isinstance(route, APIRoute) and route.endpoint.__doc__:
+                route.summary = route.endpoint.__doc__.strip().splitlines()[0].rstrip(".")
         app.include_router(module.router)
     install_problem_handlers(app)
     _serve_docs(app)
@@ -73,6 +87,14 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app.add_middleware(BodyLimit, limit=chosen.max_upload_bytes)
     app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
     return app
+
+
+async def _watch_loop_lag(metrics: Metrics, period: float = 0.05) -> None:
+    """How late the event loop wakes up: a blocked loop shows here before clients see it."""
+    while True:
+        clock = time.monotonic()
+        await asyncio.sleep(period)
+        metrics.loop_lag(time.monotonic() - clock - period)
 
 
 async def _count_requests(
@@ -148,6 +170,11 @@ class _TooLarge(Exception):
 
 def _serve_docs(app: FastAPI) -> None:
     """Swagger UI at /docs and ReDoc at /redoc, from assets inside the installation."""
+
+    @app.get("/docs-assets/redoc.standalone.js", include_in_schema=False)
+    async def redoc_script() -> Response:
+        return Response(_offline_redoc(), media_type="text/javascript")
+
     app.mount("/docs-assets", StaticFiles(directory=DOCS_ASSETS), name="docs-assets")
 
     @app.get("/", include_in_schema=False)
@@ -176,6 +203,16 @@ def _serve_docs(app: FastAPI) -> None:
         )
 
 
+@lru_cache
+def _offline_redoc() -> bytes:
+    """ReDoc's bundle fetches its "by Redocly" logo from a CDN: point it at a local image."""
+    script = (DOCS_ASSETS / "redoc.standalone.js").read_bytes()
+    return script.replace(REDOC_LOGO, b"/docs-assets/favicon.png")
+
+
+REDOC_LOGO = b"https://cdn.redoc.ly/redoc/logo-mini.svg"
+
+
 def _openapi(app: FastAPI) -> dict[str, Any]:
     """The schema, with request examples that work as they stand (built once)."""
     if app.openapi_schema is None:
@@ -186,6 +223,8 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
             routes=app.routes,
         )
         _add_examples(schema)
+        _add_parameter_examples(schema)
+        _document_problems(schema)
         app.openapi_schema = schema
     return app.openapi_schema
 
@@ -214,3 +253,50 @@ def _add_examples(schema: dict[str, Any]) -> None:
     for (path, method), examples in bodies.items():
         content = schema["paths"][path][method]["requestBody"]["content"]["application/json"]
         content["examples"] = examples
+
+
+PROBLEM_SCHEMA = {
+    "type": "object",
+    "description": "RFC 9457 problem details; GET /problems lists every type",
+    "properties": {
+        "type": {"type": "string", "examples": ["/problems/no-more-complex-testcase"]},
+        "title": {"type": "string"},
+        "status": {"type": "integer"},
+        "detail": {"type": "string", "description": "what went wrong, naming the input"},
+        "instance": {"type": "string"},
+    },
+    "required": ["type", "title", "status", "detail"],
+    "additionalProperties": True,
+}
+
+
+def _document_problems(schema: dict[str, Any]) -> None:
+    """Errors leave as problem+json, not FastAPI's default validation body."""
+    schema.setdefault("components", {}).setdefault("schemas", {})["Problem"] = PROBLEM_SCHEMA
+    for name in ("HTTPValidationError", "ValidationError"):
+        schema["components"]["schemas"].pop(name, None)
+    reference = {"application/problem+json": {"schema": {"$ref": "#/components/schemas/Problem"}}}
+    for operations in schema["paths"].values():
+        for operation in operations.values():
+            responses = operation.setdefault("responses", {})
+            for code, response in responses.items():
+                if code.startswith(("4", "5")):
+                    response["content"] = reference
+            if operation.get("parameters") or operation.get("requestBody"):
+                responses.setdefault("422", {"description": "Invalid request"})
+                responses["422"]["content"] = reference
+
+
+def _add_parameter_examples(schema: dict[str, Any]) -> None:
+    """Path parameters prefilled in "Try it out": the bundled four-way stop, and the
+    example test-case (stored once POST /testcases or POST /extend has run its example)."""
+    values = {
+        "network": EXAMPLE_NETWORK,
+        "junction": "C",
+        "testcase": testcase_id(example_document()),
+    }
+    for operations in schema["paths"].values():
+        for operation in operations.values():
+            for parameter in operation.get("parameters", []):
+                if parameter["in"] == "path" and parameter["name"] in values:
+                    parameter["example"] = values[parameter["name"]]

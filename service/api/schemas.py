@@ -3,6 +3,7 @@ stand on the bundled four-way stop (the OpenAPI UI's "Try it out")."""
 
 from __future__ import annotations
 
+import json
 from datetime import datetime
 from functools import lru_cache
 from typing import Any
@@ -17,13 +18,16 @@ EXAMPLE_NEW_ROUTE = "S2C_1:C2N_1"  # south arm, straight on to the north
 
 
 @lru_cache
-def example_testcase() -> dict[str, Any]:
-    """An ego-only test-case on the bundled four-way stop (its real network hash)."""
-    import json
-
+def example_document() -> str:
+    """An ego-only test-case on the bundled four-way stop (its real network hash): what
+    the POST /testcases example creates, and what the /extend example sends inline."""
     from service.core.testcase import dump_testcase, new_testcase
 
-    return dict(json.loads(dump_testcase(new_testcase(EXAMPLE_NETWORK, EXAMPLE_EGO))))
+    return dump_testcase(new_testcase(EXAMPLE_NETWORK, EXAMPLE_EGO))
+
+
+def example_testcase() -> dict[str, Any]:
+    return dict(json.loads(example_document()))
 
 
 class _Body(BaseModel):

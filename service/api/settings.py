@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from functools import lru_cache
 from pathlib import Path
 
@@ -20,7 +21,12 @@ class Settings(BaseSettings):
     database_url: str = Field(
         "", description="SQLAlchemy URL; empty: sqlite:///<data_dir>/scengen.sqlite3"
     )
-    workers: int = Field(2, ge=1, le=64, description="worker processes running at once")
+    workers: int = Field(
+        default_factory=lambda: os.cpu_count() or 2,
+        ge=1,
+        le=64,
+        description="worker processes running at once (default: one per core)",
+    )
     extend_budget: float = Field(60.0, gt=0, description="default budget of POST /extend (s)")
     evaluate_budget: float = Field(60.0, gt=0, description="default budget of an evaluation (s)")
     max_budget: float = Field(600.0, gt=0, description="largest budget a request may ask for (s)")

@@ -9,8 +9,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any
 
-from fastapi import Depends, Request
+from fastapi import Depends, Request, Response
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from pydantic import BaseModel
 
 from service.api.problems import Problem
 from service.api.settings import Settings
@@ -18,6 +19,8 @@ from service.core.errors import UnknownNetwork, choices
 from service.core.testcase import TestCase
 from service.jobs.executor import LocalExecutor
 from service.store import NetworkRecord, Store, TestCaseRecord
+
+LAG_BUCKETS = (0.01, 0.05, 0.1)
 
 
 @dataclass
@@ -28,11 +31,19 @@ class Metrics:
     requests: dict[tuple[str, str, int], int] = field(default_factory=dict)
     seconds: dict[tuple[str, str], float] = field(default_factory=dict)
     outcomes: dict[tuple[str, str], int] = field(default_factory=dict)  # (work, outcome)
+    lag_max: float = 0.0  # the event loop's worst late wake-up (s)
+    lag_over: dict[float, int] = field(default_factory=lambda: dict.fromkeys(LAG_BUCKETS, 0))
 
     def observe(self, method: str, route: str, status: int, seconds: float) -> None:
         key = (method, route, status)
         self.requests[key] = self.requests.get(key, 0) + 1
         self.seconds[(method, route)] = self.seconds.get((method, route), 0.0) + seconds
+
+    def loop_lag(self, seconds: float) -> None:
+        self.lag_max = max(self.lag_max, seconds)
+        for bucket in LAG_BUCKETS:
+            if seconds > bucket:
+                self.lag_over[bucket] += 1
 
     def outcome(self, work: str, outcome: str) -> None:
         self.outcomes[(work, outcome)] = self.outcomes.get((work, outcome), 0) + 1
@@ -84,6 +95,13 @@ class AppState:
             raise
         self.metrics.outcome(work, "ok")
         return result
+
+
+def json_answer(model: BaseModel, status: int = 200, location: str | None = None) -> Response:
+    """A model as JSON, serialised here (in a worker thread when called from one) rather
+    than by FastAPI on the event loop: test-cases are large."""
+    headers = {"Location": location} if location else None
+    return Response(model.model_dump_json(), status, headers, media_type="application/json")
 
 
 def get_state(request: Request) -> AppState:

@@ -22,7 +22,7 @@ from typing import Any
 from service.core.budget import CHILD_COMMAND, decode_outcome, encode_call
 from service.core.errors import BudgetExceeded
 
-NICENESS = 10  # worker children yield the CPU to the server's event loop
+NICENESS = 19  # worker children yield the CPU to the server's event loop
 
 
 @dataclass

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import asyncio
 import time
+from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, Response, status
@@ -17,11 +19,11 @@ from service.api.schemas import (
     EvaluationPublic,
     Links,
 )
-from service.api.state import State, Token
+from service.api.state import State, Token, json_answer
 from service.core.controllers import BUILT_IN, controller_names
 from service.core.verdict import Verdict
 from service.jobs import tasks
-from service.store import EvaluationRecord
+from service.store import EvaluationRecord, TestCaseRecord
 
 router = APIRouter(tags=["evaluations"])
 JUNIT = "application/xml"
@@ -52,10 +54,10 @@ def evaluation_public(record: EvaluationRecord) -> EvaluationPublic:
     )
 
 
-def _answer(record: EvaluationRecord, junit: bool) -> EvaluationPublic | Response:
+def _answer(record: EvaluationRecord, junit: bool) -> Response:
     if junit:
         return Response(Verdict.from_dict(record.verdict).to_junit(), media_type=JUNIT)
-    return evaluation_public(record)
+    return json_answer(evaluation_public(record))
 
 
 @router.get("/controllers", operation_id="list_controllers", tags=["evaluations"])
@@ -80,7 +82,6 @@ async def create_evaluation(
     state: State,
     request: Request,
     body: EvaluationCreate,
-    response: Response,
     format: Annotated[str | None, Query(description="json or junit (default: by Accept)")] = None,
 ) -> Any:
     """Replay a test-case in SUMO with a controller driving the ego, and judge it."""
@@ -92,32 +93,29 @@ async def create_evaluation(
             422,
             f"budget {budget:g} s exceeds the server's limit of {state.settings.max_budget:g} s",
         )
-    if body.testcase is not None:
-        record = store_inline(state, body.testcase)
-    else:
-        record = state.testcase_or_404(str(body.testcase_id))
     started = time.monotonic()
+
+    def base() -> tuple[TestCaseRecord, Path]:
+        if body.testcase is not None:
+            record = store_inline(state, body.testcase)
+        else:
+            record = state.testcase_or_404(str(body.testcase_id))
+        return record, state.network_file_of(record.testcase)
+
+    record, network_file = await asyncio.to_thread(base)
     result = await state.run(
         "evaluate",
         tasks.evaluate_controller,
-        (
-            record.document,
-            state.network_file_of(record.testcase),
-            state.cache_dir,
-            body.controller,
-            budget,
-        ),
+        (record.document, network_file, state.cache_dir, body.controller, budget),
         budget + state.settings.work_budget,
         started,
     )
     stored = state.store.add_evaluation(
         record.id, body.controller, result["verdict"], result["seconds"]
     )
-    response.headers["Location"] = f"/evaluations/{stored.id}"
     answer = _answer(stored, junit)
-    if isinstance(answer, Response):
-        answer.status_code = status.HTTP_201_CREATED
-        answer.headers["Location"] = f"/evaluations/{stored.id}"
+    answer.status_code = status.HTTP_201_CREATED
+    answer.headers["Location"] = f"/evaluations/{stored.id}"
     return answer
 
 

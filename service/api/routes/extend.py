@@ -2,23 +2,27 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 import time
+from pathlib import Path
+from typing import Any
 
 from fastapi import APIRouter, Response, status
 
 from service.api.problems import Problem
 from service.api.routes.testcases import public, store_inline
 from service.api.schemas import Attempt, ExtendRequest, ExtensionPublic
-from service.api.state import State, Token
+from service.api.state import AppState, State, Token, json_answer
 from service.core.testcase import parse_testcase
 from service.jobs import tasks
+from service.store import TestCaseRecord
 
 router = APIRouter(tags=["extend"])
 
 # Beyond its own budget the generator may finish the answer set in hand; the worker is
 # killed after this much more.
-GRACE = 10.0
+GRACE = 2.0
 
 
 @router.post(
@@ -26,12 +30,13 @@ GRACE = 10.0
     operation_id="extend_testcase",
     status_code=status.HTTP_201_CREATED,
     dependencies=[Token],
+    response_model=ExtensionPublic,
     responses={
         422: {"description": "invalid input, or no more complex test-case exists (problem+json)"},
         504: {"description": "the budget ran out before a test-case was found (problem+json)"},
     },
 )
-async def extend_testcase(state: State, body: ExtendRequest, response: Response) -> ExtensionPublic:
+async def extend_testcase(state: State, body: ExtendRequest) -> Response:
     """Add cars on the given routes so that the test-case becomes strictly harder."""
     started = time.monotonic()
     budget = body.budget or state.settings.extend_budget
@@ -40,11 +45,7 @@ async def extend_testcase(state: State, body: ExtendRequest, response: Response)
             422,
             f"budget {budget:g} s exceeds the server's limit of {state.settings.max_budget:g} s",
         )
-    if body.testcase is not None:
-        old = store_inline(state, body.testcase)
-    else:
-        old = state.testcase_or_404(str(body.testcase_id))
-    network_file = state.network_file_of(old.testcase)
+    old, network_file = await asyncio.to_thread(_base, state, body)
     result = await state.run(
         "extend",
         tasks.extend,
@@ -55,19 +56,32 @@ async def extend_testcase(state: State, body: ExtendRequest, response: Response)
             body.routes,
             body.seed,
             # The generator's own deadline counts from when it starts, after any wait.
-            max(1.0, budget - (time.monotonic() - started)),
+            max(0.1, budget - (time.monotonic() - started)),
             body.start_distance,
         ),
         budget + GRACE,
         started,
     )
+    return await asyncio.to_thread(_store, state, old, result)
+
+
+def _base(state: AppState, body: ExtendRequest) -> tuple[TestCaseRecord, Path]:
+    """The old test-case (an inline one is stored: nothing submitted is lost) and its network."""
+    if body.testcase is not None:
+        old = store_inline(state, body.testcase)
+    else:
+        old = state.testcase_or_404(str(body.testcase_id))
+    return old, state.network_file_of(old.testcase)
+
+
+def _store(state: AppState, old: TestCaseRecord, result: dict[str, Any]) -> Response:
     testcase = parse_testcase(result["document"])
     record = state.store.add_testcase(testcase, parent=old.id)
-    response.headers["Location"] = f"/testcases/{record.id}"
     old_ids = {car["id"] for car in json.loads(old.document).get("nonegos", [])}
-    return ExtensionPublic(
+    answer = ExtensionPublic(
         **public(record).model_dump(),
         new_cars=[car.id for car in testcase.nonegos if car.id not in old_ids],
         attempts=[Attempt(**a) for a in result["attempts"]],
         seconds=result["seconds"],
     )
+    return json_answer(answer, status.HTTP_201_CREATED, f"/testcases/{record.id}")

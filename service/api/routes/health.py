@@ -71,6 +71,15 @@ async def get_metrics(state: State) -> PlainTextResponse:
         "# HELP scengen_work_seconds_total Summed wall time of finished worker calls.",
         "# TYPE scengen_work_seconds_total counter",
         f"scengen_work_seconds_total {stats.seconds:.3f}",
+        "# HELP scengen_event_loop_lag_max_seconds The event loop's worst late wake-up.",
+        "# TYPE scengen_event_loop_lag_max_seconds gauge",
+        f"scengen_event_loop_lag_max_seconds {metrics.lag_max:.6f}",
+        "# HELP scengen_event_loop_late_total Wake-ups (every 50 ms) later than a threshold.",
+        "# TYPE scengen_event_loop_late_total counter",
+        *(
+            f'scengen_event_loop_late_total{{over="{bucket:g}"}} {count}'
+            for bucket, count in sorted(metrics.lag_over.items())
+        ),
         "# HELP scengen_testcases Stored test-cases.",
         "# TYPE scengen_testcases gauge",
         f"scengen_testcases {state.store.list_testcases(limit=1).total}",

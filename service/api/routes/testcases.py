@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 import time
 from typing import Annotated
@@ -19,7 +20,7 @@ from service.api.schemas import (
     TestCasePublic,
     TestCaseSummary,
 )
-from service.api.state import AppState, State, Token
+from service.api.state import AppState, State, Token, json_answer
 from service.core.controllers import controller_names
 from service.core.errors import InvalidInput, choices
 from service.core.testcase import NetworkRef, parse_testcase
@@ -69,9 +70,13 @@ def store_inline(state: AppState, document: dict[str, object]) -> TestCaseRecord
 
 
 @router.post(
-    "", operation_id="create_testcase", status_code=status.HTTP_201_CREATED, dependencies=[Token]
+    "",
+    operation_id="create_testcase",
+    status_code=status.HTTP_201_CREATED,
+    dependencies=[Token],
+    response_model=TestCasePublic,
 )
-async def create_testcase(state: State, body: TestCaseCreate, response: Response) -> TestCasePublic:
+async def create_testcase(state: State, body: TestCaseCreate) -> Response:
     """Create an ego-only test-case on a network."""
     network = state.network_or_404(body.network)
     junction = body.junction
@@ -86,7 +91,7 @@ async def create_testcase(state: State, body: TestCaseCreate, response: Response
         "create",
         tasks.create_testcase,
         (
-            state.store.network_file(network.id),
+            await asyncio.to_thread(state.store.network_file, network.id),
             NetworkRef(ref=network.id, sha256=network.sha256),
             state.cache_dir,
             request,
@@ -94,9 +99,12 @@ async def create_testcase(state: State, body: TestCaseCreate, response: Response
         state.settings.work_budget,
         time.monotonic(),
     )
-    record = state.store.add_testcase(parse_testcase(document))
-    response.headers["Location"] = f"/testcases/{record.id}"
-    return public(record)
+
+    def stored() -> Response:
+        record = state.store.add_testcase(parse_testcase(document))
+        return json_answer(public(record), status.HTTP_201_CREATED, f"/testcases/{record.id}")
+
+    return await asyncio.to_thread(stored)
 
 
 @router.get("", operation_id="list_testcases")
@@ -131,10 +139,10 @@ async def list_testcases(
     )
 
 
-@router.get("/{testcase}", operation_id="get_testcase")
-async def get_testcase(state: State, testcase: str) -> TestCasePublic:
+@router.get("/{testcase}", operation_id="get_testcase", response_model=TestCasePublic)
+async def get_testcase(state: State, testcase: str) -> Response:
     """One test-case with its document and links."""
-    return public(state.testcase_or_404(testcase))
+    return await asyncio.to_thread(lambda: json_answer(public(state.testcase_or_404(testcase))))
 
 
 @router.get(

@@ -1,0 +1,251 @@
+"""Bad input gets a 4xx problem+json that names the problem; nothing reaches a 500."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from fastapi.testclient import TestClient
+
+from service.api import create_app
+from service.api.problems import ALL_TYPES, DOMAIN, problem_type_of
+from service.api.schemas import EXAMPLE_EGO, EXAMPLE_NEW_ROUTE, example_testcase
+from service.api.settings import Settings
+from service.core import errors
+
+TOKEN = "s3cret"
+AUTH = {"authorization": f"Bearer {TOKEN}"}
+
+
+@pytest.fixture(scope="module")
+def client(tmp_path_factory: pytest.TempPathFactory) -> Iterator[TestClient]:
+    settings = Settings(
+        data_dir=tmp_path_factory.mktemp("api"), api_token=TOKEN, max_upload_mb=1.0, workers=2
+    )
+    with TestClient(create_app(settings), raise_server_exceptions=False) as test_client:
+        yield test_client
+
+
+def assert_problem(reply: Any, status: int, slug: str, *words: str) -> dict[str, Any]:
+    assert reply.status_code == status, reply.text
+    assert reply.headers["content-type"] == "application/problem+json"
+    body: dict[str, Any] = reply.json()
+    assert body["type"] == f"/problems/{slug}" and body["status"] == status
+    for word in words:
+        assert word in body["detail"], body["detail"]
+    return body
+
+
+def _subclasses(root: type[errors.ScengenError]) -> list[type[errors.ScengenError]]:
+    found = [root]
+    for child in root.__subclasses__():
+        found += _subclasses(child)
+    return found
+
+
+@pytest.mark.parametrize("error", _subclasses(errors.ScengenError), ids=lambda e: e.__name__)
+def test_every_domain_error_has_its_own_problem_type(error: type[errors.ScengenError]) -> None:
+    assert error in DOMAIN
+    kind = problem_type_of(error("x"))
+    assert kind.status in (422, 502, 504) and kind.slug in ALL_TYPES
+
+
+def test_none_found_splits_by_budget() -> None:
+    assert problem_type_of(errors.NoneFound("x", budget_exhausted=True)).status == 504
+    assert problem_type_of(errors.NoneFound("x", budget_exhausted=False)).status == 422
+
+
+def test_problem_types_are_documented(client: TestClient) -> None:
+    catalogue = client.get("/problems").json()
+    assert set(catalogue) == {f"/problems/{slug}" for slug in ALL_TYPES}
+    assert client.get("/problems/budget-exceeded").json()["status"] == 504
+    assert_problem(client.get("/problems/nope"), 404, "not-found", "GET /problems")
+
+
+@pytest.mark.parametrize(
+    ("method", "path"),
+    [
+        ("post", "/testcases"),
+        ("post", "/extend"),
+        ("post", "/evaluations"),
+        ("post", "/networks"),
+        ("delete", "/testcases/abc"),
+        ("delete", "/networks/abc"),
+    ],
+)
+def test_creating_or_deleting_needs_the_token(client: TestClient, method: str, path: str) -> None:
+    reply = client.request(method, path, json={})
+    assert_problem(reply, 401, "unauthorized", "Bearer")
+    assert reply.headers["www-authenticate"] == "Bearer"
+    wrong = client.request(method, path, json={}, headers={"authorization": "Bearer nope"})
+    assert_problem(wrong, 401, "unauthorized", "not the server's API token")
+
+
+def test_reading_needs_no_token(client: TestClient) -> None:
+    assert client.get("/networks").status_code == 200
+    assert client.get("/testcases").json()["items"] == []
+
+
+def test_malformed_json_is_a_400(client: TestClient) -> None:
+    reply = client.post(
+        "/extend", content=b'{"routes": [', headers={**AUTH, "content-type": "application/json"}
+    )
+    assert_problem(reply, 400, "malformed-request", "not valid JSON")
+
+
+@pytest.mark.parametrize(
+    ("body", "words"),
+    [
+        ({"routes": [EXAMPLE_NEW_ROUTE]}, ["exactly one of testcase"]),
+        ({"testcase_id": "x", "routes": []}, ["routes", "at least 1"]),
+        ({"testcase_id": "x", "routes": ["a"], "colour": 1}, ["colour", "Extra inputs"]),
+    ],
+)
+def test_invalid_extend_bodies_are_named(
+    client: TestClient, body: dict[str, Any], words: list[str]
+) -> None:
+    assert_problem(client.post("/extend", json=body, headers=AUTH), 422, "invalid-request", *words)
+
+
+def test_unknown_ids_are_404(client: TestClient) -> None:
+    for path in ("/testcases/nope", "/testcases/nope/bundle", "/evaluations/nope",
+                 "/networks/nope", "/networks/nope/junctions", "/nothing-here"):  # fmt: skip
+        assert_problem(client.get(path), 404, "not-found", "nope" if "nope" in path else "/docs")
+    reply = client.post("/extend", json={"testcase_id": "nope", "routes": ["a:b"]}, headers=AUTH)
+    assert_problem(reply, 404, "not-found", "no test-case 'nope'")
+
+
+def test_inline_testcase_errors_name_the_field(client: TestClient) -> None:
+    broken = {**example_testcase(), "timestep": -1}
+    reply = client.post("/extend", json={"testcase": broken, "routes": ["a:b"]}, headers=AUTH)
+    assert_problem(reply, 422, "invalid-testcase", "timestep")
+    elsewhere = {**example_testcase(), "network": {"ref": "/etc/x.net.xml", "sha256": "0" * 64}}
+    reply = client.post("/extend", json={"testcase": elsewhere, "routes": ["a:b"]}, headers=AUTH)
+    body = assert_problem(reply, 422, "unknown-network", "POST /networks", "4way-stop")
+    assert "/etc" not in body["detail"]
+
+
+def test_domain_errors_from_a_worker(client: TestClient) -> None:
+    base = {"testcase": example_testcase()}
+    reply = client.post("/extend", json={**base, "routes": ["X:Y"]}, headers=AUTH)
+    assert_problem(reply, 422, "unknown-lane", "'X'", "valid forks")
+    reply = client.post("/extend", json={**base, "routes": ["W2C_1:C2N_1"]}, headers=AUTH)
+    assert_problem(reply, 422, "no-more-complex-testcase", "crosses or merges")
+    reply = client.post(
+        "/testcases",
+        json={"network": "4way-stop", "ego_route": EXAMPLE_EGO, "start_distance": 900},
+        headers=AUTH,
+    )
+    assert_problem(reply, 422, "invalid-input", "900 m")
+
+
+def test_a_budget_too_small_is_a_504(client: TestClient) -> None:
+    reply = client.post(
+        "/extend",
+        json={"testcase": example_testcase(), "routes": [EXAMPLE_NEW_ROUTE], "budget": 0.05},
+        headers=AUTH,
+    )
+    body = reply.json()
+    assert reply.status_code == 504 and body["type"] in (
+        "/problems/budget-exceeded",
+        "/problems/none-found-within-budget",
+    )
+    assert "budget" in body["detail"]
+
+
+def test_budget_over_the_limit_is_refused(client: TestClient) -> None:
+    reply = client.post(
+        "/extend",
+        json={"testcase": example_testcase(), "routes": [EXAMPLE_NEW_ROUTE], "budget": 9999},
+        headers=AUTH,
+    )
+    assert_problem(reply, 422, "invalid-request", "9999", "600")
+
+
+def test_controllers_are_chosen_from_the_installed_ones(client: TestClient) -> None:
+    names = [c["name"] for c in client.get("/controllers").json()]
+    assert "sumo" in names and "certificate:solvability" in names
+    for name in ("os:system", "nope"):
+        reply = client.post(
+            "/evaluations",
+            json={"testcase": example_testcase(), "controller": name},
+            headers=AUTH,
+        )
+        assert_problem(reply, 422, "invalid-input", repr(name), "sumo-cautious")
+
+
+def test_picture_formats(client: TestClient) -> None:
+    reply = client.get("/networks/4way-stop/junctions/C/plot", params={"format": "gif"})
+    assert_problem(reply, 406, "not-acceptable", "png, svg")
+    reply = client.get("/networks/4way-stop/junctions/C/plot", headers={"accept": "text/html"})
+    assert_problem(reply, 406, "not-acceptable", "image/png")
+    reply = client.get("/networks/4way-stop/junctions/C/plot", params={"route": "X:Y"})
+    assert_problem(reply, 422, "unknown-lane", "'X'")
+    assert_problem(client.get("/networks/4way-stop/junctions/Z"), 422, "unknown-junction", "'Z'")
+
+
+BOMB = b"""<?xml version="1.0"?>
+<!DOCTYPE net [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;&a;&a;&a;&a;&a;">
+<!ENTITY c "&b;&b;&b;&b;&b;&b;&b;&b;&b;&b;">]><net>&c;</net>"""
+EXTERNAL = b"""<?xml version="1.0"?>
+<!DOCTYPE net [<!ENTITY x SYSTEM "file:///etc/passwd">]><net><junction/>&x;</net>"""
+
+
+@pytest.mark.parametrize(
+    ("content", "status", "slug", "words"),
+    [
+        (BOMB, 400, "malformed-request", ["refused", "DTD"]),
+        (EXTERNAL, 400, "malformed-request", ["refused", "DTD"]),
+        (b"<net><junction", 400, "malformed-request", ["not well-formed"]),
+        (b"<routes/>", 422, "invalid-input", ["<routes>", "SUMO <net>"]),
+        (b"<net/>", 422, "invalid-input", ["no junctions"]),
+    ],
+    ids=["entity-expansion", "external-entity", "truncated", "not-a-net", "empty-net"],
+)
+def test_unsafe_or_wrong_uploads_are_refused(
+    client: TestClient, content: bytes, status: int, slug: str, words: list[str]
+) -> None:
+    reply = client.post("/networks", files={"file": ("x.net.xml", content)}, headers=AUTH)
+    assert_problem(reply, status, slug, *words)
+
+
+def test_uploads_over_the_cap_are_refused(client: TestClient) -> None:
+    huge = b"<net>" + b" " * (2 * 1024 * 1024) + b"</net>"
+    reply = client.post("/networks", files={"file": ("x.net.xml", huge)}, headers=AUTH)
+    assert_problem(reply, 413, "payload-too-large", "1 MB")
+
+
+@pytest.mark.parametrize(
+    ("controls", "status", "slug", "words"),
+    [
+        ("{not json", 400, "malformed-request", ["controls"]),
+        ('["C"]', 422, "invalid-input", ["JSON object"]),
+        ('{"C": "roundabout"}', 422, "invalid-input", ["roundabout", "allway_stop"]),
+        ('{"Q": "allway_stop"}', 422, "unknown-junction", ["'Q'"]),
+    ],
+)
+def test_bad_control_overrides_are_named(
+    client: TestClient, controls: str, status: int, slug: str, words: list[str]
+) -> None:
+    net = Path(__file__).parents[2] / "sumo_nets" / "t-stop.net.xml"
+    reply = client.post(
+        "/networks",
+        files={"file": ("t.net.xml", net.read_bytes())},
+        data={"controls": controls},
+        headers=AUTH,
+    )
+    body = assert_problem(reply, status, slug, *words)
+    assert "/tmp" not in body["detail"] and "cache" not in str(body.get("network", ""))
+
+
+def test_deleting(client: TestClient) -> None:
+    created = client.post(
+        "/testcases", json={"network": "4way-stop", "ego_route": EXAMPLE_EGO}, headers=AUTH
+    )
+    assert created.status_code == 201
+    ident = created.json()["id"]
+    assert client.delete(f"/testcases/{ident}", headers=AUTH).status_code == 204
+    assert_problem(client.get(f"/testcases/{ident}"), 404, "not-found")
+    assert_problem(client.delete("/networks/4way-stop", headers=AUTH), 409, "conflict", "bundled")

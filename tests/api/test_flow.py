@@ -1,0 +1,224 @@
+"""The whole service through a real uvicorn server: upload CARLA's Town05 with a junction
+made an all-way stop, create a test-case, extend it twice, download and run the bundle in
+SUMO, evaluate a controller, fetch the pictures. Every generated test-case is re-checked
+here by the checker itself, not trusted from the server."""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import threading
+import zipfile
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+import httpx2 as httpx
+import pytest
+
+from service.core.check import check_testcase
+from service.core.network import load_intersection
+from service.core.poses import PoseSample
+from service.core.sumo_binaries import sumo_binary
+from service.core.testcase import TestCase, parse_testcase
+from tests.conftest import TOWN05
+
+pytestmark = pytest.mark.slow
+
+EGO = "-44_1:-9_1"  # Town05 junction 396: a left turn
+CHAIN = ["9_1:8_1", "-8_1:-9_1"]  # oncoming straight, then from the right
+
+
+def samples(rows: Any) -> list[PoseSample]:
+    return [PoseSample(**row.model_dump()) for row in rows]
+
+
+@pytest.fixture(scope="module")
+def town05(api: httpx.Client) -> dict[str, Any]:
+    reply = api.post(
+        "/networks",
+        files={"file": ("Town05.net.xml", TOWN05.read_bytes(), "application/xml")},
+        data={"controls": json.dumps({"396": "allway_stop"})},
+    )
+    assert reply.status_code == 201, reply.text
+    assert reply.headers["location"] == f"/networks/{reply.json()['id']}"
+    return dict(reply.json())
+
+
+@pytest.fixture(scope="module")
+def chain(api: httpx.Client, town05: dict[str, Any]) -> list[dict[str, Any]]:
+    """The root and its two extensions, as the server answered them."""
+    root = api.post(
+        "/testcases", json={"network": town05["id"], "junction": "396", "ego_route": EGO}
+    )
+    assert root.status_code == 201, root.text
+    levels = [root.json()]
+    for route in CHAIN:
+        reply = api.post(
+            "/extend",
+            json={"testcase_id": levels[-1]["id"], "routes": [route], "seed": 0, "budget": 60},
+        )
+        assert reply.status_code == 201, reply.text
+        levels.append(reply.json())
+    return levels
+
+
+@pytest.fixture(scope="module")
+def local_town05(cache_dir: Path) -> Any:
+    return load_intersection(TOWN05, "396", "allway_stop", cache_dir)
+
+
+def test_upload_is_listed_with_its_override(api: httpx.Client, town05: dict[str, Any]) -> None:
+    assert town05["controls"] == {"396": "allway_stop"} and not town05["bundled"]
+    assert town05["id"] in [n["id"] for n in api.get("/networks").json()]
+    junctions = {j["id"]: j for j in api.get(f"/networks/{town05['id']}/junctions").json()}
+    assert junctions["396"]["type"] == "priority" and junctions["396"]["control"] == "allway_stop"
+    described = api.get(f"/networks/{town05['id']}/junctions/396").json()
+    assert described["control"] == "allway_stop" and described["control_overridden"]
+    assert EGO in [r["id"] for r in described["routes"]]
+
+
+def test_uploading_again_gives_the_same_network(api: httpx.Client, town05: dict[str, Any]) -> None:
+    again = api.post(
+        "/networks",
+        files={"file": ("Town05.net.xml", TOWN05.read_bytes())},
+        data={"controls": json.dumps({"396": "allway_stop"})},
+    )
+    assert again.status_code == 201 and again.json()["id"] == town05["id"]
+
+
+def test_each_extension_is_strictly_more_complex(
+    chain: list[dict[str, Any]], local_town05: Any
+) -> None:
+    testcases = [parse_testcase(level["testcase"]) for level in chain]
+    assert [len(t.nonegos) for t in testcases] == [0, 1, 2]
+    for old, new in zip(testcases, testcases[1:], strict=False):
+        _assert_strictly_more_complex(old, new, local_town05)
+    assert [level["parent"] for level in chain] == [None, chain[0]["id"], chain[1]["id"]]
+    assert chain[2]["new_cars"] == ["car2"] and chain[2]["attempts"][-1]["outcome"].startswith(
+        "verified"
+    )
+
+
+def _assert_strictly_more_complex(old: TestCase, new: TestCase, intersection: Any) -> None:
+    assert new.certificates is not None
+    solvable = check_testcase(new, samples(new.certificates.solvability), "s", intersection)
+    assert solvable.passed, solvable.reasons
+    complexity = samples(new.certificates.complexity)
+    assert check_testcase(old, complexity, "c", intersection).passed
+    failed = check_testcase(new, complexity, "c", intersection)
+    assert not failed.passed and failed.goal_reached and failed.violations
+
+
+def test_stored_testcases_and_lineage(api: httpx.Client, chain: list[dict[str, Any]]) -> None:
+    leaf = chain[-1]
+    fetched = api.get(f"/testcases/{leaf['id']}").json()
+    assert fetched["testcase"] == leaf["testcase"]
+    document = api.get(leaf["links"]["document"])
+    assert document.headers["content-type"] == "application/json"
+    assert json.loads(document.text) == leaf["testcase"]
+    lineage = api.get(f"/testcases/{leaf['id']}/lineage").json()
+    assert [a["id"] for a in lineage["ancestors"]] == [chain[1]["id"], chain[0]["id"]]
+    assert lineage["children"] == []
+    children = api.get("/testcases", params={"parent": chain[0]["id"]}).json()
+    assert [c["id"] for c in children["items"]] == [chain[1]["id"]]
+    on_town05 = api.get("/testcases", params={"network": chain[0]["network"], "limit": 2}).json()
+    assert on_town05["total"] == 3 and len(on_town05["items"]) == 2
+    assert on_town05["next"] is not None
+    rest = api.get(on_town05["next"]).json()
+    assert {i["id"] for i in on_town05["items"] + rest["items"]} == {c["id"] for c in chain}
+
+
+def test_extending_is_deterministic(api: httpx.Client, chain: list[dict[str, Any]]) -> None:
+    """The same request again gives the same bytes, hence the same stored id."""
+    reply = api.post(
+        "/extend", json={"testcase": chain[0]["testcase"], "routes": [CHAIN[0]], "budget": 60}
+    )
+    assert reply.status_code == 201 and reply.json()["id"] == chain[1]["id"]
+
+
+def test_the_bundle_runs_in_sumo(
+    api: httpx.Client, chain: list[dict[str, Any]], tmp_path: Path
+) -> None:
+    reply = api.get(chain[-1]["links"]["bundle"])
+    assert reply.headers["content-type"] == "application/zip"
+    zipfile.ZipFile(io.BytesIO(reply.content)).extractall(tmp_path)
+    assert json.loads((tmp_path / "testcase.json").read_text()) == chain[-1]["testcase"]
+    subprocess.run(
+        [sumo_binary("sumo"), "-c", "testcase.sumocfg", "--fcd-output", "run.fcd.xml"],
+        cwd=tmp_path, check=True, capture_output=True, timeout=120,
+    )  # fmt: skip
+    seen = {
+        vehicle.get("id")
+        for step in ET.parse(tmp_path / "run.fcd.xml").getroot().iter("timestep")
+        for vehicle in step.iter("vehicle")
+    }
+    assert {"ego", "car1", "car2"} <= seen
+
+
+def test_evaluations_are_stored_with_junit(api: httpx.Client, chain: list[dict[str, Any]]) -> None:
+    leaf = chain[-1]["id"]
+    created = {}
+    for controller in ("certificate:solvability", "certificate:complexity"):
+        reply = api.post("/evaluations", json={"testcase_id": leaf, "controller": controller})
+        assert reply.status_code == 201, reply.text
+        created[controller] = reply.json()
+    assert created["certificate:solvability"]["passed"]
+    assert not created["certificate:complexity"]["passed"]
+    assert any("car2" in reason for reason in created["certificate:complexity"]["reasons"])
+    failing = created["certificate:complexity"]["id"]
+    junit = api.get(f"/evaluations/{failing}", headers={"accept": "application/xml"})
+    assert junit.headers["content-type"].startswith("application/xml")
+    suite = ET.fromstring(junit.text).find("testsuite")
+    assert suite is not None and suite.get("failures") == "1"
+    listed = api.get("/evaluations", params={"testcase": leaf}).json()
+    assert {e["id"] for e in listed["items"]} == {e["id"] for e in created.values()}
+
+
+def test_sumo_driver_is_judged(api: httpx.Client, chain: list[dict[str, Any]]) -> None:
+    reply = api.post(
+        "/evaluations?format=junit", json={"testcase_id": chain[-1]["id"], "controller": "sumo"}
+    )
+    assert reply.status_code == 201 and reply.headers["location"].startswith("/evaluations/")
+    assert ET.fromstring(reply.text).find("testsuite") is not None
+
+
+def test_pictures(api: httpx.Client, chain: list[dict[str, Any]], town05: dict[str, Any]) -> None:
+    png = api.get(chain[-1]["links"]["plot"])
+    assert png.headers["content-type"] == "image/png" and png.content[:8] == b"\x89PNG\r\n\x1a\n"
+    svg = api.get(chain[-1]["links"]["plot"], headers={"accept": "image/svg+xml"})
+    assert svg.headers["content-type"] == "image/svg+xml" and b"<svg" in svg.content[:500]
+    replay = api.get(chain[-1]["links"]["plot"], params={"controller": "sumo", "format": "svg"})
+    assert replay.status_code == 200 and b"<svg" in replay.content[:500]
+    junction = api.get(
+        f"/networks/{town05['id']}/junctions/396/plot", params={"route": [EGO, *CHAIN]}
+    )
+    assert junction.headers["content-type"] == "image/png" and len(junction.content) > 10_000
+
+
+def test_server_answers_health_while_a_worker_runs(
+    api: httpx.Client, chain: list[dict[str, Any]]
+) -> None:
+    body = {"testcase_id": chain[1]["id"], "routes": ["45_1:44_1"], "seed": 7, "budget": 8}
+    answers: list[httpx.Response] = []
+    worker = threading.Thread(target=lambda: answers.append(api.post("/extend", json=body)))
+    worker.start()
+    busy = []
+    while worker.is_alive():
+        health = api.get("/healthz")
+        assert health.status_code == 200
+        busy.append(health.json()["running"])
+    worker.join()
+    assert max(busy) >= 1
+    assert answers[0].status_code in (201, 422, 504), answers[0].text
+    metrics = api.get("/metrics").text
+    assert 'scengen_http_requests_total{method="POST",route="/extend",status="201"}' in metrics
+    assert "scengen_workers 2" in metrics
+
+
+def test_a_used_network_cannot_be_deleted(api: httpx.Client, town05: dict[str, Any]) -> None:
+    reply = api.delete(f"/networks/{town05['id']}")
+    assert reply.status_code == 409
+    assert reply.headers["content-type"] == "application/problem+json"
+    assert api.delete("/networks/4way-stop").status_code == 409
