@@ -6,11 +6,12 @@ here by the checker itself, not trusted from the server."""
 from __future__ import annotations
 
 import io
+import itertools
 import json
 import subprocess
 import threading
-import zipfile
 import xml.etree.ElementTree as ET
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -93,7 +94,7 @@ def test_each_extension_is_strictly_more_complex(
 ) -> None:
     testcases = [parse_testcase(level["testcase"]) for level in chain]
     assert [len(t.nonegos) for t in testcases] == [0, 1, 2]
-    for old, new in zip(testcases, testcases[1:], strict=False):
+    for old, new in itertools.pairwise(testcases):
         _assert_strictly_more_complex(old, new, local_town05)
     assert [level["parent"] for level in chain] == [None, chain[0]["id"], chain[1]["id"]]
     assert chain[2]["new_cars"] == ["car2"] and chain[2]["attempts"][-1]["outcome"].startswith(
