@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled
 
-.PHONY: help install browser test lint format nets run demo openapi bench bench-api coverage clean
+.PHONY: help install system-tools test lint format nets run demo openapi bench bench-api coverage clean
 
 help:
 	@echo "make run      serve the HTTP API on http://127.0.0.1:8000 (UI at /docs)"
@@ -25,13 +25,16 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
-# The OpenAPI UI test drives Debian's Chromium; installed here when missing (needs root).
-browser:
-	@command -v chromium >/dev/null || { [ "$$(id -u)" = 0 ] && \
-		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium \
-		>/dev/null; } || echo "make: Chromium is missing; install Debian's chromium package"
+# The OpenAPI UI test drives Debian's Chromium, the README's curl examples use jq; both are
+# installed here when missing (as root; otherwise the message says what to install).
+SYSTEM_TOOLS := chromium jq
+system-tools:
+	@missing=""; for tool in $(SYSTEM_TOOLS); do command -v $$tool >/dev/null || \
+		missing="$$missing $$tool"; done; [ -z "$$missing" ] || { [ "$$(id -u)" = 0 ] && \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing \
+		>/dev/null; } || echo "make: missing:$$missing (install Debian's packages)"
 
-test: $(STAMP) browser
+test: $(STAMP) system-tools
 	$(BIN)/pytest
 
 lint: $(STAMP)

@@ -19,11 +19,16 @@ from typing import Any
 
 from service.core.check import check_testcase
 from service.core.controllers import controller_names, resolve_driver
-from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
+from service.core.errors import (
+    InvalidInput,
+    ScengenError,
+    UnknownNetwork,
+    UnsupportedIntersection,
+)
 from service.core.events import compute_events
 from service.core.export import export_bundle
 from service.core.generate import extend_testcase
-from service.core.network import ControlType, bundled_networks, load_intersection
+from service.core.network import ControlType, Intersection, bundled_networks, load_intersection
 from service.core.network.describe import describe_intersection
 from service.core.poses import PoseSample, generate_poses
 from service.core.replay import evaluate as evaluate_controller
@@ -99,6 +104,7 @@ def _parser() -> argparse.ArgumentParser:
     drive.add_argument("--speed", type=float, default=8.0, help="cruise speed (default 8 m/s)")
     drive.add_argument("--json", action="store_true", help="print samples and events as JSON")
     drive.add_argument("--plot", type=Path, metavar="FILE", help="draw the drive to FILE")
+    _network_file_argument(drive)
     drive.set_defaults(run=_run_drive)
 
     check = commands.add_parser(
@@ -120,6 +126,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     check.add_argument("--junit", type=Path, metavar="FILE", help="also write JUnit XML here")
     check.add_argument("--json", action="store_true", help="print the verdict as JSON")
+    _network_file_argument(check)
     check.set_defaults(run=_run_check)
 
     extend = commands.add_parser(
@@ -148,6 +155,7 @@ def _parser() -> argparse.ArgumentParser:
         help="new cars' front before their stop line at t = 0 (default: the ego's)",
     )
     extend.add_argument("-o", "--output", type=Path, metavar="FILE", help="write here")
+    _network_file_argument(extend)
     extend.set_defaults(run=_run_extend)
 
     example = commands.add_parser(
@@ -207,6 +215,7 @@ def _parser() -> argparse.ArgumentParser:
         metavar="SECONDS",
         help="time budget of each replay (default 60 s)",
     )
+    _network_file_argument(evaluate)
     evaluate.set_defaults(run=_run_evaluate)
 
     export = commands.add_parser(
@@ -220,6 +229,7 @@ def _parser() -> argparse.ArgumentParser:
     export.add_argument(
         "-o", "--output", type=Path, required=True, metavar="DIR", help="folder to write"
     )
+    _network_file_argument(export)
     export.set_defaults(run=_run_export)
 
     plot = commands.add_parser(
@@ -239,6 +249,7 @@ def _parser() -> argparse.ArgumentParser:
         action="store_true",
         help="write an animated GIF of the cars moving instead (FILE must end in .gif)",
     )
+    _network_file_argument(plot)
     plot.set_defaults(run=_run_plot)
 
     serve = commands.add_parser(
@@ -254,6 +265,28 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--workers", type=int, metavar="N", help="sets SCENGEN_WORKERS")
     serve.set_defaults(run=_run_serve)
     return parser
+
+
+def _network_file_argument(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--network",
+        type=Path,
+        metavar="FILE",
+        help="the .net.xml of a test-case made on a network uploaded to a server (its "
+        "network.ref is the server's id; GET /networks/{id}/file downloads it)",
+    )
+
+
+def _intersection(testcase: TestCase, args: argparse.Namespace) -> Intersection:
+    try:
+        return load_testcase_intersection(testcase, network_file=args.network)
+    except UnknownNetwork as error:
+        if args.network is not None:
+            raise
+        raise UnknownNetwork(
+            f"{error}; a test-case from a server names the server's network id: pass the "
+            "network's file with --network FILE (GET /networks/{id}/file)"
+        ) from None
 
 
 def _network_arguments(parser: argparse.ArgumentParser) -> None:
@@ -381,7 +414,7 @@ def _emit(testcase: TestCase, output: Path | None) -> int:
 
 def _run_drive(args: argparse.Namespace) -> int:
     testcase = read_testcase(args.testcase)
-    intersection = load_testcase_intersection(testcase)
+    intersection = _intersection(testcase, args)
     route = intersection.route(args.route or testcase.ego.route.id)
     start = testcase.ego.start.distance if args.start_distance is None else args.start_distance
     track = generate_poses(
@@ -435,7 +468,9 @@ def _run_drive(args: argparse.Namespace) -> int:
 def _run_check(args: argparse.Namespace) -> int:
     testcase = read_testcase(args.testcase)
     ego = read_trajectory(args.ego, args.vehicle, testcase.ego.length)
-    verdict = check_testcase(testcase, ego, args.controller or args.ego.stem)
+    verdict = check_testcase(
+        testcase, ego, args.controller or args.ego.stem, _intersection(testcase, args)
+    )
     if args.junit:
         args.junit.write_text(verdict.to_junit())
     if args.json:
@@ -456,7 +491,13 @@ def _run_extend(args: argparse.Namespace) -> int:
     old = read_testcase(args.testcase)
     started = time.monotonic()
     extension = extend_testcase(
-        old, args.add, args.seed, args.budget, args.start_distance, _progress(started)
+        old,
+        args.add,
+        args.seed,
+        args.budget,
+        args.start_distance,
+        _progress(started),
+        _intersection(old, args),
     )
     new = extension.testcase
     provenance = new.provenance or {}
@@ -505,8 +546,9 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     verdicts = []
     for path, testcase in testcases:
         row = [path.stem]
+        junction = _intersection(testcase, args)
         for name in controllers:
-            verdict = evaluate_controller(testcase, name, budget=args.budget).verdict
+            verdict = evaluate_controller(testcase, name, junction, args.budget).verdict
             verdict = dataclasses.replace(verdict, testcase=path.stem)
             verdicts.append(verdict)
             row.append("pass" if verdict.passed else "FAIL: " + _short(verdict))
@@ -525,7 +567,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
 
 def _run_export(args: argparse.Namespace) -> int:
     testcase = read_testcase(args.testcase)
-    for path in export_bundle(testcase, args.output):
+    for path in export_bundle(testcase, args.output, _intersection(testcase, args)):
         print(path)
     print(f"run it: cd {args.output} && sumo -c testcase.sumocfg", file=sys.stderr)
     return EXIT_OK
@@ -540,7 +582,7 @@ def _run_plot(args: argparse.Namespace) -> int:
     from service.plot import animate_testcase, plot_testcase  # matplotlib only when drawing
 
     testcase = read_testcase(args.testcase)
-    junction = load_testcase_intersection(testcase)
+    junction = _intersection(testcase, args)
     if args.animate:
         trajectory: list[PoseSample] = []
         label = ""

@@ -167,7 +167,7 @@ class Store:
             return existing
         row = {
             "id": ident,
-            "filename": filename,
+            "filename": safe_filename(filename),
             "sha256": hashlib.sha256(content).hexdigest(),
             "controls": json.dumps(controls, sort_keys=True),
             "size": len(content),

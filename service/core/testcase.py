@@ -22,7 +22,7 @@ from pydantic import (
     model_validator,
 )
 
-from service.core.errors import InvalidTestCase
+from service.core.errors import InvalidTestCase, UnknownNetwork
 from service.core.events import EventKind
 from service.core.network import (
     Intersection,
@@ -282,9 +282,16 @@ def new_testcase(
     return testcase
 
 
-def load_testcase_intersection(testcase: TestCase, cache_dir: Path | None = None) -> Intersection:
-    """The intersection of a test-case, after checking that its network is unchanged."""
-    path = resolve_network(testcase.network.ref)
+def load_testcase_intersection(
+    testcase: TestCase, cache_dir: Path | None = None, network_file: Path | None = None
+) -> Intersection:
+    """The intersection of a test-case, after checking that its network is unchanged.
+
+    ``network_file`` stands in for the reference when the test-case names a network that
+    only a server knows (an uploaded network's id); its bytes must be the same."""
+    path = resolve_network(testcase.network.ref) if network_file is None else network_file
+    if not path.is_file():
+        raise UnknownNetwork(f"network file {path} does not exist", network=str(path))
     actual = file_sha256(path)
     if actual != testcase.network.sha256:
         raise InvalidTestCase(

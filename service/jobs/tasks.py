@@ -8,7 +8,6 @@ nothing that a worker would have to repeat.
 
 from __future__ import annotations
 
-import hashlib
 import io
 import tempfile
 import time
@@ -16,7 +15,6 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
-from service.core.errors import InvalidTestCase
 from service.core.export import export_bundle
 from service.core.generate import extend_testcase
 from service.core.network import Intersection, load_intersection
@@ -28,6 +26,7 @@ from service.core.testcase import (
     Params,
     TestCase,
     dump_testcase,
+    load_testcase_intersection,
     new_testcase,
     parse_testcase,
 )
@@ -36,14 +35,7 @@ from service.core.testcase import (
 def intersection_of(testcase: TestCase, network_file: Path, cache_dir: Path) -> Intersection:
     """The test-case's intersection, after checking that the network bytes are the ones it
     was made on."""
-    actual = hashlib.sha256(network_file.read_bytes()).hexdigest()
-    if actual != testcase.network.sha256:
-        raise InvalidTestCase(
-            f"network.sha256: the test-case was made on other bytes of network "
-            f"{testcase.network.ref!r} (expected {testcase.network.sha256[:12]}..., the stored "
-            f"network has {actual[:12]}...)"
-        )
-    return load_intersection(network_file, testcase.junction, testcase.control, cache_dir)
+    return load_testcase_intersection(testcase, cache_dir, network_file)
 
 
 def list_junctions(network_file: Path) -> list[dict[str, Any]]:

@@ -9,6 +9,7 @@ import io
 import itertools
 import json
 import subprocess
+import sys
 import threading
 import xml.etree.ElementTree as ET
 import zipfile
@@ -156,6 +157,24 @@ def test_the_bundle_runs_in_sumo(
         for vehicle in step.iter("vehicle")
     }
     assert {"ego", "car1", "car2"} <= seen
+    # The bundle's test-case names the server's network id; with the uploaded file the
+    # command line judges the run, exactly as the service would.
+    network = tmp_path / "uploaded.net.xml"
+    network.write_bytes(api.get(f"/networks/{chain[-1]['network']}/file").content)
+    assert network.read_bytes() == TOWN05.read_bytes()
+    checked = subprocess.run(
+        [sys.executable, "-m", "service", "check", "testcase.json", "--ego", "run.fcd.xml",
+         "--network", str(network), "--json"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert checked.returncode in (0, 1), checked.stderr
+    verdict = json.loads(checked.stdout)
+    assert verdict["passed"] == (checked.returncode == 0)
+    refused = subprocess.run(
+        [sys.executable, "-m", "service", "check", "testcase.json", "--ego", "run.fcd.xml"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert refused.returncode == 2 and "--network FILE" in refused.stderr
 
 
 def test_evaluations_are_stored_with_junit(api: httpx.Client, chain: list[dict[str, Any]]) -> None:

@@ -56,7 +56,7 @@ async def extend_testcase(state: State, body: ExtendRequest) -> Response:
             body.routes,
             body.seed,
             # The generator's own deadline counts from when it starts, after any wait.
-            max(0.1, budget - (time.monotonic() - started)),
+            round(max(0.1, budget - (time.monotonic() - started)), 1),
             body.start_distance,
         ),
         budget + GRACE,

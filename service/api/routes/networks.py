@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import json
 import time
 from typing import Annotated, Any
@@ -37,7 +38,11 @@ def network_public(record: NetworkRecord) -> NetworkPublic:
         bundled=record.bundled,
         controls=record.controls,
         created_at=record.created_at,
-        links=Links(self=f"/networks/{record.id}", junctions=f"/networks/{record.id}/junctions"),
+        links=Links(
+            self=f"/networks/{record.id}",
+            file=f"/networks/{record.id}/file",
+            junctions=f"/networks/{record.id}/junctions",
+        ),
     )
 
 
@@ -91,6 +96,23 @@ async def upload_network(
 async def get_network(state: State, network: str) -> NetworkPublic:
     """One network."""
     return network_public(state.network_or_404(network))
+
+
+@router.get(
+    "/{network}/file",
+    operation_id="get_network_file",
+    response_class=Response,
+    responses={200: {"content": {"application/xml": {}}, "description": "the .net.xml"}},
+)
+async def get_network_file(state: State, network: str) -> Response:
+    """The network's .net.xml as uploaded (``scengen ... --network FILE`` takes it)."""
+    record = state.network_or_404(network)
+    path = await asyncio.to_thread(state.store.network_file, record.id)
+    return Response(
+        await asyncio.to_thread(path.read_bytes),
+        media_type="application/xml",
+        headers={"Content-Disposition": f'attachment; filename="{record.filename}"'},
+    )
 
 
 @router.delete(

@@ -1,0 +1,63 @@
+"""The README's curl examples work as written, against a real server."""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+import subprocess
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from tests.api.conftest import Server
+
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).parents[2]
+
+
+def shell_blocks() -> list[str]:
+    """The ```sh blocks of the README's HTTP section, in order."""
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("## HTTP service") :]
+    section = section[: section.index("\n## ", 3)]
+    return re.findall(r"```sh\n(.*?)```", section, flags=re.S)
+
+
+def run_block(block: str, server: Server, cwd: Path) -> None:
+    script = block.replace("B=http://127.0.0.1:8000", f"B={server.url}")
+    if "B=" not in script:
+        script = f"B={server.url}\n{script}"
+    result = subprocess.run(
+        ["bash", "-euo", "pipefail", "-c", script],
+        cwd=cwd, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr + result.stdout
+
+
+def test_curl_examples_work_as_written(server: Server, tmp_path: Path) -> None:
+    extend, _upload = shell_blocks()
+    run_block(extend, server, tmp_path)
+    root, level1, level2 = (json.loads((tmp_path / f"{n}.json").read_text())
+                            for n in ("root", "level1", "level2"))  # fmt: skip
+    assert level1["parent"] == root["id"] and level1["new_cars"] == ["car1"]
+    assert level2["parent"] == level1["id"] and level2["new_cars"] == ["car2"]
+    inline = json.loads((tmp_path / "inline.json").read_text())
+    assert inline["id"] == level2["id"]  # inline or by id: the same bytes
+    assert (
+        "testcase.sumocfg"
+        in zipfile.ZipFile(io.BytesIO((tmp_path / "level2.zip").read_bytes())).namelist()
+    )
+    assert (tmp_path / "level2.png").read_bytes()[:4] == b"\x89PNG"
+    assert ET.parse(tmp_path / "sumo.junit.xml").getroot().tag == "testsuites"
+
+
+def test_upload_example_gives_the_id_the_readme_names(server: Server, tmp_path: Path) -> None:
+    _, upload = shell_blocks()
+    run_block(upload.replace("tests/data/", f"{ROOT}/tests/data/"), server, tmp_path)
+    town05 = json.loads((tmp_path / "town05.json").read_text())
+    assert town05["id"] in upload
+    assert json.loads((tmp_path / "town05-root.json").read_text())["network"] == town05["id"]
