@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -62,7 +64,7 @@ def plot_intersection(
     for fork in intersection.forks.values():
         x, y = fork.stop_line
         sign = " (stop)" if fork.stop_sign else ""
-        axes.annotate(f"{fork.lane}{sign}", (x, y), fontsize=7, zorder=4)
+        _label_outward(axes, f" {fork.lane}{sign}", (x, y), fork.approach)
         axes.plot([x], [y], marker="s" if fork.stop_sign else "o", color="black", zorder=4)
     if track:
         step = max(1, round(1.0 / max(track[1].t - track[0].t, 1e-9))) if len(track) > 1 else 1
@@ -86,6 +88,19 @@ def plot_intersection(
     )
     figure.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(figure)
+
+
+def _label_outward(axes: Any, text: str, at: tuple[float, float], approach: Any) -> None:
+    """A label that runs from ``at`` back along the lane's approach, away from the junction:
+    labels of lanes side by side on one arm stay apart, and none is upside down."""
+    (x0, y0), (x1, y1) = approach.coords[0], approach.coords[-1]
+    angle = math.degrees(math.atan2(y0 - y1, x0 - x1))
+    flipped = not -90.0 <= angle <= 90.0
+    axes.text(
+        at[0], at[1], text if not flipped else text.strip() + " ", fontsize=7, zorder=4,
+        rotation=angle + 180.0 if flipped else angle, rotation_mode="anchor",
+        ha="right" if flipped else "left", va="center",
+    )  # fmt: skip
 
 
 CAR_COLOURS = ["tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive",
