@@ -264,6 +264,38 @@ def _parser() -> argparse.ArgumentParser:
     serve.add_argument("--data-dir", type=Path, metavar="DIR", help="sets SCENGEN_DATA_DIR")
     serve.add_argument("--workers", type=int, metavar="N", help="sets SCENGEN_WORKERS")
     serve.set_defaults(run=_run_serve)
+
+    worker = commands.add_parser(
+        "worker",
+        help="run a Celery worker for batch jobs (SCENGEN_EXECUTOR=celery on the server)",
+        description="Runs job items sent by a server whose SCENGEN_EXECUTOR is celery. It "
+        "reads SCENGEN_BROKER_URL and SCENGEN_DATABASE_URL (the server's database). Each "
+        "task runs in a fresh process; a killed worker's items are retried elsewhere.",
+    )
+    worker.add_argument(
+        "--concurrency", type=int, default=1, metavar="N", help="tasks at once (default 1)"
+    )
+    worker.add_argument("--name", metavar="NAME", help="worker name (default: host and pid)")
+    worker.set_defaults(run=_run_worker)
+
+    submit = commands.add_parser(
+        "submit",
+        help="submit a batch job to a server; with --wait follow it and fetch the results",
+        description="Exit codes: 0 every evaluation passed, 1 some evaluation failed, 2 bad "
+        "input, 3 the job failed or was cancelled (or the server could not be reached).",
+    )
+    submit.add_argument("batch", type=Path, metavar="BATCH", help="a .json or .yaml batch file")
+    submit.add_argument("--server", required=True, metavar="URL", help="e.g. http://127.0.0.1:8000")
+    submit.add_argument("--token", metavar="T", help="the server's API token (or SCENGEN_TOKEN)")
+    submit.add_argument("--wait", action="store_true", help="follow the job until it finishes")
+    submit.add_argument("--junit", type=Path, metavar="FILE", help="write the JUnit report (waits)")
+    submit.add_argument(
+        "--out", type=Path, metavar="DIR", help="download every result into DIR (waits)"
+    )
+    submit.add_argument(
+        "--idempotency-key", metavar="KEY", help="resubmitting with the same key is safe"
+    )
+    submit.set_defaults(run=_run_submit)
     return parser
 
 
@@ -313,7 +345,7 @@ def _run_serve(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
     from service.api import create_app
-    from service.api.settings import Settings
+    from service.settings import Settings
 
     overrides: dict[str, Any] = {}
     if args.data_dir is not None:
@@ -333,6 +365,43 @@ def _run_serve(args: argparse.Namespace) -> int:
     )
     uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level="info")
     return EXIT_OK
+
+
+def _run_worker(args: argparse.Namespace) -> int:
+    import socket
+
+    from service.jobs.celery_app import start_worker
+    from service.settings import get_settings
+
+    settings = get_settings()
+    name = args.name or f"scengen-{socket.gethostname()}-{os.getpid()}"
+    print(
+        f"scengen: worker {name} on {settings.broker_url}, database {settings.database}",
+        file=sys.stderr,
+    )
+    start_worker(settings, args.concurrency, name)
+    return EXIT_OK
+
+
+def _run_submit(args: argparse.Namespace) -> int:
+    from service import submit
+
+    batch = submit.read_batch(args.batch)
+    client = submit.Client(args.server, args.token or os.environ.get("SCENGEN_TOKEN"))
+    try:
+        job = submit.submit(client, batch, args.idempotency_key)
+        print(
+            f"scengen: job {job['id']}: {args.server.rstrip('/')}/jobs/{job['id']}", file=sys.stderr
+        )
+        if not (args.wait or args.junit or args.out):
+            return EXIT_OK
+        job = submit.follow(client, job, sys.stderr)
+        submit.download(client, job, args.junit, args.out)
+    except submit.ServerUnreachable as error:
+        print(f"scengen: failed: {error}", file=sys.stderr)
+        return EXIT_FAILED
+    submit.print_failures(job)
+    return submit.outcome(job)
 
 
 def _run_networks(args: argparse.Namespace) -> int:

@@ -20,6 +20,7 @@ from typing import Any, Generic, TypeVar
 
 import sqlalchemy as sa
 
+from service.core.errors import UnknownNetwork, choices
 from service.core.network import bundled_networks
 from service.core.testcase import TestCase, dump_testcase, parse_testcase
 
@@ -68,7 +69,7 @@ def now() -> datetime:
     return datetime.now(UTC)
 
 
-def _utc(moment: datetime) -> datetime:
+def utc(moment: datetime) -> datetime:
     """SQLite hands back naive datetimes; every stored time is UTC."""
     return moment if moment.tzinfo is not None else moment.replace(tzinfo=UTC)
 
@@ -217,6 +218,24 @@ class Store:
             partial.replace(path)
         return path
 
+    def network_file_for(self, testcase: TestCase) -> Path:
+        """The local file of a test-case's network, which must be bundled or uploaded."""
+        if self.network(testcase.network.ref) is None:
+            known = [n.id for n in self.list_networks()]
+            raise UnknownNetwork(
+                f"network.ref: {testcase.network.ref!r} is neither bundled nor uploaded here; "
+                f"upload it with POST /networks first. Known networks: {choices(known)}",
+                network=testcase.network.ref,
+            )
+        return self.network_file(testcase.network.ref)
+
+    def keep_inline(self, document: dict[str, Any]) -> TestCaseRecord:
+        """Store a test-case a client sent inline (nothing submitted is lost), after checking
+        that its network is one this service has."""
+        testcase = parse_testcase(document)
+        self.network_file_for(testcase)
+        return self.add_testcase(testcase)
+
     def delete_network(self, ident: str) -> None:
         with self.engine.begin() as connection:
             connection.execute(networks.delete().where(networks.c.id == ident))
@@ -301,10 +320,20 @@ class Store:
     # evaluations
 
     def add_evaluation(
-        self, testcase: str, controller: str, verdict: dict[str, Any], seconds: float
+        self,
+        testcase: str,
+        controller: str,
+        verdict: dict[str, Any],
+        seconds: float,
+        ident: str | None = None,
     ) -> EvaluationRecord:
+        """Store a verdict; with ``ident`` (a job item's), at most once."""
+        if ident is not None:
+            existing = self.evaluation(ident)
+            if existing is not None:
+                return existing
         row = {
-            "id": secrets.token_hex(8),
+            "id": ident or secrets.token_hex(8),
             "testcase": testcase,
             "controller": controller,
             "passed": bool(verdict["passed"]),
@@ -351,16 +380,16 @@ def _network_record(row: Any) -> NetworkRecord:
         row["sha256"],
         json.loads(row["controls"]),
         row["size"],
-        _utc(row["created_at"]),
+        utc(row["created_at"]),
         False,
     )
 
 
 def _testcase_record(row: Any) -> TestCaseRecord:
-    return TestCaseRecord(**{**row, "created_at": _utc(row["created_at"])})
+    return TestCaseRecord(**{**row, "created_at": utc(row["created_at"])})
 
 
 def _evaluation_record(row: Any) -> EvaluationRecord:
     return EvaluationRecord(
-        **{**row, "verdict": json.loads(row["verdict"]), "created_at": _utc(row["created_at"])}
+        **{**row, "verdict": json.loads(row["verdict"]), "created_at": utc(row["created_at"])}
     )

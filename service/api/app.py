@@ -20,16 +20,17 @@ from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 
 from service.api.problems import HTTP, install_problem_handlers, problem_response
-from service.api.routes import evaluations, extend, health, networks, testcases
+from service.api.routes import evaluations, extend, health, jobs, networks, testcases
 from service.api.schemas import (
     EXAMPLE_NETWORK,
     EXAMPLE_NEW_ROUTE,
     example_document,
     example_testcase,
 )
-from service.api.settings import Settings, get_settings
 from service.api.state import AppState, Metrics
+from service.jobs.dispatch import make_dispatcher
 from service.jobs.executor import LocalExecutor
+from service.settings import Settings, get_settings
 from service.store import Store, testcase_id
 
 DOCS_ASSETS = Path(fastapi_offline.__file__).parent / "static"
@@ -59,12 +60,18 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         store = Store(chosen.database, chosen.cache_dir)
         executor = LocalExecutor(chosen.workers)
         metrics = Metrics()
-        app.state.scengen = AppState(chosen, store, executor, metrics)
-        watcher = asyncio.create_task(_watch_loop_lag(metrics))
+        dispatcher = make_dispatcher(store, chosen)
+        app.state.scengen = AppState(chosen, store, executor, metrics, dispatcher)
+        background = [
+            asyncio.create_task(_watch_loop_lag(metrics)),
+            asyncio.create_task(dispatcher.run()),
+        ]
         try:
             yield
         finally:
-            watcher.cancel()
+            for task in background:
+                task.cancel()
+            await dispatcher.close()
             await executor.shutdown()
             store.close()
 
@@ -76,7 +83,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         docs_url=None,
         redoc_url=None,
     )
-    for module in (extend, testcases, networks, evaluations, health):
+    for module in (extend, testcases, networks, evaluations, jobs, health):
         for route in module.router.routes:  # the handler's one-line docstring is its summary
             if isinstance(route, APIRoute) and route.endpoint.__doc__:
                 route.summary = route.endpoint.__doc__.strip().splitlines()[0].rstrip(".")

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from service.api.app import create_app
-from service.api.settings import Settings
+from service.settings import Settings
 
 COMMITTED = Path(__file__).resolve().parents[2] / "openapi" / "openapi.json"
 

@@ -191,3 +191,39 @@ class Health(BaseModel):
     workers: int
     running: int
     waiting: int
+
+
+class JobItemPublic(BaseModel):
+    position: int = Field(description="the item's index in the batch")
+    kind: str
+    state: str = Field(description="queued, running, succeeded, failed or cancelled")
+    attempts: int = Field(description="times a worker started it")
+    progress: str
+    needs: list[int] = Field(description="items it waits for")
+    testcases: list[str] = Field(description="ids of the test-cases it made, in order")
+    evaluations: list[str] = Field(description="ids of its evaluations")
+    error: str | None
+    started_at: datetime | None
+    finished_at: datetime | None
+
+
+class JobPublic(BaseModel):
+    id: str
+    name: str
+    state: str = Field(description="queued, running, succeeded, failed or cancelled")
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+    done: int = Field(description="items finished")
+    total: int
+    evaluations: dict[str, int] = Field(description="passed and failed evaluations so far")
+    items: list[JobItemPublic]
+    links: Links
+
+
+class JobPage(BaseModel):
+    items: list[JobPublic]
+    total: int
+    limit: int
+    offset: int
+    next: str | None

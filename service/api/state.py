@@ -14,10 +14,11 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from pydantic import BaseModel
 
 from service.api.problems import Problem
-from service.api.settings import Settings
-from service.core.errors import UnknownNetwork, choices
+from service.core.errors import choices
 from service.core.testcase import TestCase
+from service.jobs.dispatch import Dispatcher
 from service.jobs.executor import LocalExecutor
+from service.settings import Settings
 from service.store import NetworkRecord, Store, TestCaseRecord
 
 LAG_BUCKETS = (0.01, 0.05, 0.1)
@@ -55,6 +56,7 @@ class AppState:
     store: Store
     executor: LocalExecutor
     metrics: Metrics
+    dispatcher: Dispatcher
 
     @property
     def cache_dir(self) -> Path:
@@ -75,14 +77,7 @@ class AppState:
 
     def network_file_of(self, testcase: TestCase) -> Path:
         """The local file of a test-case's network, which must be bundled or uploaded."""
-        if self.store.network(testcase.network.ref) is None:
-            known = [n.id for n in self.store.list_networks()]
-            raise UnknownNetwork(
-                f"network.ref: {testcase.network.ref!r} is neither bundled nor uploaded here; "
-                f"upload it with POST /networks first. Known networks: {choices(known)}",
-                network=testcase.network.ref,
-            )
-        return self.store.network_file(testcase.network.ref)
+        return self.store.network_file_for(testcase)
 
     async def run(
         self, work: str, function: Any, args: tuple[Any, ...], budget: float, started: float

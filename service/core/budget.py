@@ -8,6 +8,7 @@ stdin: no fork of a threaded server, and no re-import of the caller's ``__main__
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import pickle
 import subprocess
@@ -67,8 +68,22 @@ def decode_outcome(stdout: bytes, stderr: bytes, what: str) -> Any:
     return payload
 
 
+def _die_with_parent() -> None:
+    """On Linux, be killed when the process that started this one dies (a server or worker
+    killed with -9 must not leave its solver children running)."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+        import signal
+
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(
+                1, int(signal.SIGKILL)
+            )  # PR_SET_PDEATHSIG
+
+
 def _serve() -> None:
     """Child side: read one pickled call from stdin, write the pickled outcome to stdout."""
+    _die_with_parent()
     module, name, args = pickle.loads(sys.stdin.buffer.read())
     out = sys.stdout.buffer
     sys.stdout = sys.stderr  # anything the call prints must not corrupt the answer

@@ -9,12 +9,14 @@ nothing that a worker would have to repeat.
 from __future__ import annotations
 
 import io
+import random
 import tempfile
 import time
 import zipfile
 from pathlib import Path
 from typing import Any
 
+from service.core.errors import NoMoreComplexTestCase, NoneFound
 from service.core.export import export_bundle
 from service.core.generate import extend_testcase
 from service.core.network import Intersection, load_intersection
@@ -186,3 +188,56 @@ def plot_testcase(
                 verdict=evaluation.verdict,
             )
         return path.read_bytes()
+
+
+def extend_any(
+    document: str, network_file: Path, cache_dir: Path, seed: int, budget: float
+) -> dict[str, Any]:
+    """An extension by one car on a route the service chooses: the routes that conflict
+    with the ego's, from forks no car uses yet, tried in an order drawn from ``seed``."""
+    old = parse_testcase(document)
+    intersection = intersection_of(old, network_file, cache_dir)
+    used = {old.ego.route.fork, *(car.route.fork for car in old.nonegos)}
+    candidates = sorted(
+        route
+        for route in intersection.conflicts[old.ego.route.id]
+        if intersection.routes[route].fork not in used
+    )
+    random.Random(seed).shuffle(candidates)
+    deadline = time.monotonic() + budget
+    outcomes = []
+    for turn, route in enumerate(candidates):
+        remaining = deadline - time.monotonic()
+        if remaining < 1.0:
+            break
+        share = remaining / (len(candidates) - turn)  # every candidate gets its turn
+        try:
+            extension = extend_testcase(old, [route], seed, share, intersection=intersection)
+        except (NoMoreComplexTestCase, NoneFound) as error:
+            outcomes.append(f"{route}: {type(error).__name__}")
+            continue
+        return {
+            "document": dump_testcase(extension.testcase),
+            "route": route,
+            "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],
+            "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
+        }
+    tried = "; ".join(outcomes) or "none"
+    if len(outcomes) == len(candidates):
+        raise NoMoreComplexTestCase(
+            f"no route that meets the ego's gave a more complex test-case (tried {tried})"
+        )
+    raise NoneFound(
+        f"none found within the budget of {budget:g} s (tried {tried})", budget_exhausted=True
+    )
+
+
+def bundles(sources: list[tuple[str, str, Path]], cache_dir: Path) -> bytes:
+    """The SUMO bundles of several test-cases in one zip, a folder per test-case id."""
+    memory = io.BytesIO()
+    with zipfile.ZipFile(memory, "w", zipfile.ZIP_DEFLATED) as archive:
+        for ident, document, network_file in sources:
+            with zipfile.ZipFile(io.BytesIO(bundle(document, network_file, cache_dir))) as one:
+                for name in one.namelist():
+                    archive.writestr(f"{ident}/{name}", one.read(name))
+    return memory.getvalue()

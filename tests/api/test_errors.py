@@ -12,7 +12,7 @@ from fastapi.testclient import TestClient
 from service.api import create_app
 from service.api.problems import ALL_TYPES, DOMAIN, problem_type_of
 from service.api.schemas import EXAMPLE_EGO, EXAMPLE_NEW_ROUTE, example_testcase
-from service.api.settings import Settings
+from service.settings import Settings
 from service.core import errors
 
 TOKEN = "s3cret"

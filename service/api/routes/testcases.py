@@ -62,11 +62,8 @@ def public(record: TestCaseRecord) -> TestCasePublic:
 
 
 def store_inline(state: AppState, document: dict[str, object]) -> TestCaseRecord:
-    """Keep a test-case a client sent inline (nothing submitted is lost), after checking
-    that its network is one this server has."""
-    testcase = parse_testcase(document)
-    state.network_file_of(testcase)
-    return state.store.add_testcase(testcase)
+    """Keep a test-case a client sent inline (nothing submitted is lost)."""
+    return state.store.keep_inline(document)
 
 
 @router.post(

@@ -1,10 +1,12 @@
-"""The server's settings, from ``SCENGEN_*`` environment variables (documented in README)."""
+"""Settings of the server and the workers, from ``SCENGEN_*`` environment variables
+(documented in the README); the core never reads them."""
 
 from __future__ import annotations
 
 import os
 from functools import lru_cache
 from pathlib import Path
+from typing import Literal
 
 from pydantic import Field
 from pydantic_settings import BaseSettings, SettingsConfigDict
@@ -33,6 +35,18 @@ class Settings(BaseSettings):
     work_budget: float = Field(120.0, gt=0, description="budget of uploads, pictures, bundles (s)")
     api_token: str = Field("", description="when set, creating or deleting needs this bearer token")
     max_upload_mb: float = Field(20.0, gt=0, description="largest request body (MB)")
+    executor: Literal["local", "celery"] = Field(
+        "local", description="where batch jobs run: local worker processes, or Celery workers"
+    )
+    broker_url: str = Field(
+        "redis://127.0.0.1:6379/0", description="Celery's broker (executor=celery)"
+    )
+    item_attempts: int = Field(
+        3, ge=1, le=10, description="times a job item is started before it is marked failed"
+    )
+    lease_seconds: float = Field(
+        30.0, gt=1, description="a running item whose worker is silent this long is retried"
+    )
 
     @property
     def database(self) -> str:

@@ -1,0 +1,208 @@
+"""/jobs: batches for CI pipelines, run by the local pool or Celery workers."""
+
+from __future__ import annotations
+
+import asyncio
+import dataclasses
+import time
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Header, Query, Response, status
+from fastapi.responses import Response as PlainResponse
+
+from service.api.problems import Problem
+from service.api.schemas import JobItemPublic, JobPage, JobPublic, Links
+from service.api.state import AppState, State, Token, json_answer
+from service.core.verdict import Verdict, junit_report
+from service.jobs import tasks
+from service.jobs.batch import Batch
+from service.jobs.store import FINISHED, IdempotencyConflict, JobRecord, JobStore
+
+router = APIRouter(prefix="/jobs", tags=["jobs"])
+STATES = ("queued", "running", *FINISHED)
+
+
+def job_public(state: AppState, job: JobRecord) -> JobPublic:
+    verdicts = [
+        record.passed
+        for item in job.items
+        for record in map(state.store.evaluation, item.evaluations)
+        if record is not None
+    ]
+    base = f"/jobs/{job.id}"
+    return JobPublic(
+        id=job.id,
+        name=job.name,
+        state=job.state,
+        created_at=job.created_at,
+        started_at=job.started_at,
+        finished_at=job.finished_at,
+        done=sum(1 for item in job.items if item.state in FINISHED),
+        total=len(job.items),
+        evaluations={"passed": sum(verdicts), "failed": len(verdicts) - sum(verdicts)},
+        items=[
+            JobItemPublic(
+                position=i.position,
+                kind=i.kind,
+                state=i.state,
+                attempts=i.attempts,
+                progress=i.progress,
+                needs=i.needs,
+                testcases=i.testcases,
+                evaluations=i.evaluations,
+                error=i.error,
+                started_at=i.started_at,
+                finished_at=i.finished_at,
+            )
+            for i in job.items
+        ],
+        links=Links(self=base, junit=f"{base}/junit", bundles=f"{base}/bundles"),
+    )
+
+
+def _jobs(state: AppState) -> JobStore:
+    return JobStore(state.store)
+
+
+def _job_or_404(state: AppState, ident: str) -> JobRecord:
+    job = _jobs(state).job(ident)
+    if job is None:
+        raise Problem(404, f"no job {ident!r}; GET /jobs lists them")
+    return job
+
+
+@router.post(
+    "",
+    operation_id="create_job",
+    status_code=status.HTTP_202_ACCEPTED,
+    dependencies=[Token],
+    response_model=JobPublic,
+)
+async def create_job(
+    state: State,
+    batch: Batch,
+    idempotency_key: Annotated[
+        str | None,
+        Header(max_length=255, description="the same key and batch: the same job, not a new one"),
+    ] = None,
+) -> Response:
+    """Submit a batch; it runs in the background (202, Location: the job)."""
+
+    def create() -> Response:
+        try:
+            job, created = _jobs(state).create(batch, idempotency_key)
+        except IdempotencyConflict:
+            raise Problem(
+                409, f"Idempotency-Key {idempotency_key!r} was used with another batch"
+            ) from None
+        code = status.HTTP_202_ACCEPTED if created else status.HTTP_200_OK
+        return json_answer(job_public(state, job), code, f"/jobs/{job.id}")
+
+    answer = await asyncio.to_thread(create)
+    state.dispatcher.nudge()
+    return answer
+
+
+@router.get("", operation_id="list_jobs")
+async def list_jobs(
+    state: State,
+    job_state: Annotated[
+        str | None, Query(alias="state", description=f"one of {', '.join(STATES)}")
+    ] = None,
+    limit: Annotated[int, Query(ge=1, le=200)] = 20,
+    offset: Annotated[int, Query(ge=0)] = 0,
+) -> JobPage:
+    """List jobs, newest first."""
+    if job_state is not None and job_state not in STATES:
+        raise Problem(422, f"state {job_state!r} is not a job state; valid: {', '.join(STATES)}")
+
+    def page() -> JobPage:
+        found = _jobs(state).list_jobs(job_state, limit, offset)
+        following = None
+        if offset + limit < found.total:
+            where = f"state={job_state}&" if job_state else ""
+            following = f"/jobs?{where}limit={limit}&offset={offset + limit}"
+        return JobPage(
+            items=[job_public(state, j) for j in found.items],
+            total=found.total, limit=limit, offset=offset, next=following,
+        )  # fmt: skip
+
+    return await asyncio.to_thread(page)
+
+
+@router.get("/{job}", operation_id="get_job", response_model=JobPublic)
+async def get_job(state: State, job: str) -> Response:
+    """A job: state, per-item progress, results, timestamps."""
+    return await asyncio.to_thread(lambda: json_answer(job_public(state, _job_or_404(state, job))))
+
+
+@router.delete(
+    "/{job}",
+    operation_id="cancel_job",
+    status_code=status.HTTP_202_ACCEPTED,
+    dependencies=[Token],
+    response_model=JobPublic,
+)
+async def cancel_job(state: State, job: str) -> Response:
+    """Cancel a job: queued items never start, running ones are stopped."""
+
+    def cancel() -> Response:
+        _job_or_404(state, job)
+        _jobs(state).cancel(job)
+        return json_answer(job_public(state, _job_or_404(state, job)), status.HTTP_202_ACCEPTED)
+
+    answer = await asyncio.to_thread(cancel)
+    state.dispatcher.nudge()
+    return answer
+
+
+@router.get(
+    "/{job}/junit",
+    operation_id="get_job_junit",
+    response_class=PlainResponse,
+    responses={200: {"content": {"application/xml": {}}, "description": "JUnit XML"}},
+)
+async def get_job_junit(state: State, job: str) -> Response:
+    """Every evaluation of the job so far as one JUnit XML report."""
+
+    def report() -> str:
+        found = _job_or_404(state, job)
+        verdicts = []
+        for item in found.items:
+            for ident in item.evaluations:
+                record = state.store.evaluation(ident)
+                if record is not None:
+                    verdict = Verdict.from_dict(record.verdict)
+                    label = f"{record.testcase} {verdict.testcase}"
+                    verdicts.append(dataclasses.replace(verdict, testcase=label))
+        return junit_report(verdicts, suite_name=f"scengen job {found.name or found.id}")
+
+    return Response(await asyncio.to_thread(report), media_type="application/xml")
+
+
+@router.get(
+    "/{job}/bundles",
+    operation_id="get_job_bundles",
+    response_class=PlainResponse,
+    responses={200: {"content": {"application/zip": {}}, "description": "the SUMO bundles"}},
+)
+async def get_job_bundles(state: State, job: str) -> Response:
+    """A zip with the SUMO bundle of every test-case the job made, one folder each."""
+
+    def sources() -> list[tuple[str, str, Any]]:
+        found = _job_or_404(state, job)
+        records = [
+            r for i in found.items for r in map(state.store.testcase, i.testcases) if r is not None
+        ]
+        return [(r.id, r.document, state.network_file_of(r.testcase)) for r in records]
+
+    listed = await asyncio.to_thread(sources)
+    content = await state.run(
+        "bundles", tasks.bundles, (listed, state.cache_dir),
+        state.settings.work_budget, time.monotonic(),
+    )  # fmt: skip
+    return Response(
+        content,
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="job-{job}.zip"'},
+    )

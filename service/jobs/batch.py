@@ -1,0 +1,155 @@
+"""A batch: what a CI pipeline submits as one job (``POST /jobs``, ``scengen submit``).
+
+Each item is an extension, a chain of successive extensions, or an evaluation of controllers.
+An item can start from a stored test-case, an inline document, or the last test-case an
+earlier item made; an evaluation can cover every test-case of earlier items.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from service.core.errors import InvalidInput
+
+
+class _Item(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class _Based(_Item):
+    testcase_id: str | None = Field(None, description="a stored test-case")
+    testcase: dict[str, Any] | None = Field(None, description="or an inline test-case document")
+    after: int | None = Field(
+        None, ge=0, description="or the last test-case made by the item with this index"
+    )
+
+    @model_validator(mode="after")
+    def _one_source(self) -> _Based:
+        given = [self.testcase_id is not None, self.testcase is not None, self.after is not None]
+        if sum(given) != 1:
+            raise ValueError("give exactly one of testcase_id, testcase (inline) and after")
+        return self
+
+
+class ExtendItem(_Based):
+    """One extension: new cars on ``routes``."""
+
+    kind: Literal["extend"]
+    routes: list[str] = Field(min_length=1, max_length=6)
+    seed: int = Field(0, ge=0)
+    budget: float | None = Field(None, gt=0, description="seconds (default: the server's)")
+
+
+class ChainItem(_Based):
+    """Successive extensions: ``steps`` gives each level's routes; or ``levels`` lets the
+    service choose, at each level, a route that conflicts with the ego's."""
+
+    kind: Literal["chain"]
+    steps: list[list[str]] | None = Field(None, min_length=1, max_length=10)
+    levels: int | None = Field(None, ge=1, le=10)
+    seed: int = Field(0, ge=0)
+    budget: float | None = Field(None, gt=0, description="seconds per level")
+
+    @model_validator(mode="after")
+    def _steps_or_levels(self) -> ChainItem:
+        if (self.steps is None) == (self.levels is None):
+            raise ValueError("give exactly one of steps (routes per level) and levels")
+        if self.steps is not None and any(not step for step in self.steps):
+            raise ValueError("every step names at least one route")
+        return self
+
+    @property
+    def count(self) -> int:
+        return len(self.steps) if self.steps is not None else int(self.levels or 0)
+
+
+class EvaluateItem(_Item):
+    """Controllers judged on a test-case, or on every test-case of earlier items."""
+
+    kind: Literal["evaluate"]
+    controllers: list[str] = Field(min_length=1, max_length=20)
+    testcase_id: str | None = None
+    testcase: dict[str, Any] | None = None
+    items: list[int] | None = Field(None, min_length=1, description="indices of earlier items")
+    budget: float | None = Field(None, gt=0, description="seconds per evaluation")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> EvaluateItem:
+        given = [self.testcase_id is not None, self.testcase is not None, self.items is not None]
+        if sum(given) != 1:
+            raise ValueError("give exactly one of testcase_id, testcase (inline) and items")
+        return self
+
+
+Item = Annotated[ExtendItem | ChainItem | EvaluateItem, Field(discriminator="kind")]
+
+
+class Batch(BaseModel):
+    """A job's items, run in dependency order (independent items in parallel)."""
+
+    model_config = ConfigDict(
+        extra="forbid",
+        frozen=True,
+        json_schema_extra={
+            "examples": [
+                {
+                    "name": "four-way regression",
+                    "items": [
+                        {
+                            "kind": "chain",
+                            "testcase_id": "ecf9aef2eb19a2b5",
+                            "levels": 2,
+                            "seed": 1,
+                        },
+                        {"kind": "evaluate", "items": [0], "controllers": ["sumo"]},
+                    ],
+                }
+            ]
+        },
+    )
+    name: str = Field("", max_length=200)
+    items: list[Item] = Field(min_length=1, max_length=200)
+
+    @model_validator(mode="after")
+    def _references_point_back(self) -> Batch:
+        for index, item in enumerate(self.items):
+            for earlier in _references(item):
+                if earlier >= index:
+                    raise ValueError(f"items[{index}] refers to item {earlier}, not an earlier one")
+                if isinstance(self.items[earlier], EvaluateItem):
+                    raise ValueError(
+                        f"items[{index}] refers to item {earlier}, an evaluation, which makes "
+                        "no test-case"
+                    )
+        return self
+
+    def fingerprint(self) -> str:
+        """What an Idempotency-Key is bound to: the batch, not its formatting."""
+        canonical = json.dumps(self.model_dump(mode="json"), sort_keys=True)
+        return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def dependencies(item: ExtendItem | ChainItem | EvaluateItem) -> list[int]:
+    """Indices of the items this one waits for."""
+    return sorted(set(_references(item)))
+
+
+def _references(item: ExtendItem | ChainItem | EvaluateItem) -> list[int]:
+    if isinstance(item, EvaluateItem):
+        return list(item.items or [])
+    return [] if item.after is None else [item.after]
+
+
+def parse_batch(document: Any) -> Batch:
+    """A batch from parsed JSON or YAML; InvalidInput names the bad field."""
+    try:
+        return Batch.model_validate(document)
+    except ValidationError as error:
+        problems = "; ".join(
+            f"{'.'.join(str(p) for p in e['loc']) or 'batch'}: {e['msg']}" for e in error.errors()
+        )
+        raise InvalidInput(f"invalid batch: {problems}") from None

@@ -1,0 +1,111 @@
+"""Two executors of job items behind one interface: ``Dispatcher.run`` (a task of the server).
+
+Both look at the database every ``period`` seconds (or at once when nudged): items whose
+lease ran out are given back (or failed after too many attempts), and runnable items are
+started. ``LocalDispatcher`` runs them in this machine's worker threads, each solver call in
+a child process; ``CeleryDispatcher`` sends them to Celery workers (``scengen worker``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import functools
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+from service.jobs.runner import owner_name, run_item
+from service.jobs.store import JobStore
+from service.settings import Settings
+from service.store import Store
+
+
+class Dispatcher:
+    """Starts runnable items; subclasses say where they run."""
+
+    period = 0.5
+
+    def __init__(self, store: Store, settings: Settings) -> None:
+        self.store, self.settings = store, settings
+        self.jobs = JobStore(store)
+        self._nudge = asyncio.Event()
+
+    def nudge(self) -> None:
+        """A job was created or cancelled: look now."""
+        self._nudge.set()
+
+    async def run(self) -> None:
+        while True:
+            try:
+                await asyncio.to_thread(self.jobs.reclaim_expired, self.settings.item_attempts)
+                await self.dispatch()
+            except Exception as error:  # the database is away: try again next period
+                print(f"scengen: dispatcher: {type(error).__name__}: {error}")
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._nudge.wait(), self.period)
+            self._nudge.clear()
+
+    async def dispatch(self) -> None:
+        raise NotImplementedError
+
+    async def close(self) -> None:
+        """Stop (the server is going away)."""
+
+
+class LocalDispatcher(Dispatcher):
+    """Items run in threads of the server, at most ``workers`` at once."""
+
+    def __init__(self, store: Store, settings: Settings) -> None:
+        super().__init__(store, settings)
+        self.pool = ThreadPoolExecutor(settings.workers, thread_name_prefix="scengen-item")
+        self.running: set[tuple[str, int]] = set()
+
+    async def dispatch(self) -> None:
+        free = self.settings.workers - len(self.running)
+        if free <= 0:
+            return
+        ready = await asyncio.to_thread(self.jobs.runnable, free + len(self.running))
+        loop = asyncio.get_running_loop()
+        for item in ready:
+            key = (item.job, item.position)
+            if key in self.running or len(self.running) >= self.settings.workers:
+                continue
+            self.running.add(key)
+            future = loop.run_in_executor(
+                self.pool, run_item, self.store, self.settings, item.job, item.position,
+                owner_name("local"),
+            )  # fmt: skip
+            future.add_done_callback(functools.partial(self._finished, key))
+
+    def _finished(self, key: tuple[str, int], _: object) -> None:
+        self.running.discard(key)
+        self.nudge()
+
+    async def close(self) -> None:
+        self.pool.shutdown(wait=False, cancel_futures=True)
+
+
+class CeleryDispatcher(Dispatcher):
+    """Items go to Celery workers through the broker; the database still decides who runs
+    what, so a message delivered twice, or sent again after a lost lease, runs once."""
+
+    def __init__(self, store: Store, settings: Settings) -> None:
+        super().__init__(store, settings)
+        from service.jobs.celery_app import make_celery
+
+        self.celery: Any = make_celery(settings)
+
+    async def dispatch(self) -> None:
+        ready = await asyncio.to_thread(self.jobs.runnable, 100, True)
+        for item in ready:
+            await asyncio.to_thread(self._send, item.job, item.position)
+
+    def _send(self, job: str, position: int) -> None:
+        self.celery.send_task("scengen.run_item", args=[job, position])
+        self.jobs.mark_sent(job, position)
+
+
+def make_dispatcher(store: Store, settings: Settings) -> Dispatcher:
+    if settings.executor == "celery":
+        return CeleryDispatcher(store, settings)
+    return LocalDispatcher(store, settings)

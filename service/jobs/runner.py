@@ -1,0 +1,245 @@
+"""Runs one job item, wherever it is (a thread of the server, or a Celery worker).
+
+``run_item`` claims the item, renews its lease while it works, runs each solver or SUMO
+call in a killable child process (``python -m service.core.budget``), writes every result
+as soon as it exists, and resumes from those results when the item is retried. Cancelling
+the job, or losing the lease, kills the running child.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import signal
+import socket
+import subprocess
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from service.core.budget import CHILD_COMMAND, decode_outcome, encode_call
+from service.core.errors import BudgetExceeded, ScengenError
+from service.core.testcase import parse_testcase
+from service.jobs import tasks
+from service.jobs.batch import ChainItem, EvaluateItem, ExtendItem
+from service.jobs.store import ItemRecord, JobStore
+from service.settings import Settings
+from service.store import Store, TestCaseRecord
+
+NICENESS = 19
+
+
+class Stopped(Exception):
+    """The item was cancelled, or its lease was lost to another worker."""
+
+
+def owner_name(kind: str) -> str:
+    return f"{kind}:{socket.gethostname()}:{os.getpid()}:{threading.get_ident()}"
+
+
+def run_item(store: Store, settings: Settings, job: str, position: int, owner: str) -> None:
+    """Claim and run one item; return quietly if someone else has it or it is finished."""
+    jobs = JobStore(store)
+    if not jobs.claim(job, position, owner, settings.lease_seconds):
+        return
+    item = jobs.item(job, position)
+    assert item is not None
+    stop = threading.Event()
+    beating = threading.Thread(
+        target=_heartbeat, args=(jobs, item, owner, settings.lease_seconds, stop), daemon=True
+    )
+    beating.start()
+    try:
+        Work(store, jobs, settings, item, owner, stop).run()
+    except Stopped:
+        return  # cancelled (already marked) or taken over by another worker
+    except ScengenError as error:
+        jobs.finish(job, position, owner, "failed", f"{type(error).__name__}: {error}")
+    except Exception as error:  # a bug must not leave the item running forever
+        jobs.finish(
+            job, position, owner, "failed", f"internal error: {type(error).__name__}: {error}"
+        )
+    else:
+        jobs.finish(job, position, owner, "succeeded")
+    finally:
+        stop.set()
+        beating.join()
+
+
+def _heartbeat(
+    jobs: JobStore, item: ItemRecord, owner: str, lease: float, stop: threading.Event
+) -> None:
+    while not stop.wait(lease / 3):
+        try:
+            if not jobs.renew(item.job, item.position, owner, lease):
+                stop.set()
+        except Exception:  # the database is away: keep trying, the lease decides
+            continue
+
+
+class Work:
+    """One item's work; ``stop`` is set when it must end."""
+
+    def __init__(
+        self, store: Store, jobs: JobStore, settings: Settings, item: ItemRecord, owner: str,
+        stop: threading.Event,
+    ) -> None:  # fmt: skip
+        self.store, self.jobs, self.settings = store, jobs, settings
+        self.item, self.owner, self.stop = item, owner, stop
+
+    def run(self) -> None:
+        kind = self.item.kind
+        if kind == "extend":
+            self._extend(ExtendItem.model_validate(self.item.spec))
+        elif kind == "chain":
+            self._chain(ChainItem.model_validate(self.item.spec))
+        else:
+            self._evaluate(EvaluateItem.model_validate(self.item.spec))
+
+    def _source(self, spec: ExtendItem | ChainItem) -> TestCaseRecord:
+        if spec.testcase is not None:
+            return self.store.keep_inline(spec.testcase)
+        if spec.after is not None:
+            earlier = self.jobs.item(self.item.job, spec.after)
+            assert earlier is not None and earlier.testcases
+            ident = earlier.testcases[-1]
+        else:
+            ident = str(spec.testcase_id)
+        record = self.store.testcase(ident)
+        if record is None:
+            raise ScengenError(f"no stored test-case {ident!r}")
+        return record
+
+    def _extend(self, spec: ExtendItem) -> None:
+        if self.item.testcases:
+            return  # made before this worker was killed: never recomputed
+        old = self._source(spec)
+        self.jobs.record(self.item.job, self.item.position, self.owner, "extending")
+        made = self._extension(old, spec.routes, spec.seed, spec.budget)
+        self.jobs.record(self.item.job, self.item.position, self.owner, "done", [made.id])
+
+    def _chain(self, spec: ChainItem) -> None:
+        made = list(self.item.testcases)
+        current = self.store.testcase(made[-1]) if made else self._source(spec)
+        assert current is not None
+        for level in range(len(made), spec.count):
+            progress = f"level {level + 1}/{spec.count}"
+            self.jobs.record(self.item.job, self.item.position, self.owner, progress)
+            seed = spec.seed + level
+            if spec.steps is not None:
+                current = self._extension(current, spec.steps[level], seed, spec.budget)
+            else:
+                current = self._any_extension(current, seed, spec.budget)
+            made.append(current.id)
+            self.jobs.record(self.item.job, self.item.position, self.owner, progress, made)
+
+    def _evaluate(self, spec: EvaluateItem) -> None:
+        targets = self._targets(spec)
+        done = list(self.item.evaluations)
+        budget = spec.budget or self.settings.evaluate_budget
+        pairs = [(t, c) for t in targets for c in spec.controllers]
+        for number, (target, controller) in enumerate(pairs, start=1):
+            ident = _evaluation_id(self.item, target.id, controller)
+            progress = f"evaluation {number}/{len(pairs)}"
+            if ident not in done and self.store.evaluation(ident) is None:
+                self.jobs.record(self.item.job, self.item.position, self.owner, progress)
+                result = self._call(
+                    tasks.evaluate_controller,
+                    (target.document, self.store.network_file_for(target.testcase),
+                     self.settings.cache_dir, controller, budget),
+                    budget + self.settings.work_budget, f"evaluating {controller}",
+                )  # fmt: skip
+                self.store.add_evaluation(
+                    target.id, controller, result["verdict"], result["seconds"], ident
+                )
+            if ident not in done:
+                done.append(ident)
+            self.jobs.record(self.item.job, self.item.position, self.owner, progress, None, done)
+
+    def _targets(self, spec: EvaluateItem) -> list[TestCaseRecord]:
+        if spec.testcase is not None:
+            return [self.store.keep_inline(spec.testcase)]
+        if spec.testcase_id is not None:
+            record = self.store.testcase(spec.testcase_id)
+            if record is None:
+                raise ScengenError(f"no stored test-case {spec.testcase_id!r}")
+            return [record]
+        found = []
+        for position in spec.items or []:
+            earlier = self.jobs.item(self.item.job, position)
+            assert earlier is not None
+            found += [r for r in map(self.store.testcase, earlier.testcases) if r is not None]
+        return found
+
+    def _extension(
+        self, old: TestCaseRecord, routes: list[str], seed: int, budget: float | None
+    ) -> TestCaseRecord:
+        chosen = budget or self.settings.extend_budget
+        result = self._call(
+            tasks.extend,
+            (old.document, self.store.network_file_for(old.testcase), self.settings.cache_dir,
+             routes, seed, chosen, None),
+            chosen + 5.0, f"extending {old.id} by {', '.join(routes)}",
+        )  # fmt: skip
+        return self.store.add_testcase(parse_testcase(result["document"]), parent=old.id)
+
+    def _any_extension(
+        self, old: TestCaseRecord, seed: int, budget: float | None
+    ) -> TestCaseRecord:
+        chosen = budget or self.settings.extend_budget
+        result = self._call(
+            tasks.extend_any,
+            (old.document, self.store.network_file_for(old.testcase), self.settings.cache_dir,
+             seed, chosen),
+            chosen + 5.0, f"extending {old.id}",
+        )  # fmt: skip
+        return self.store.add_testcase(parse_testcase(result["document"]), parent=old.id)
+
+    def _call(
+        self, function: Callable[..., Any], args: tuple[Any, ...], budget: float, what: str
+    ) -> Any:
+        return run_stoppable(function, args, budget, what, self.stop)
+
+
+def run_stoppable(
+    function: Callable[..., Any], args: tuple[Any, ...], budget: float, what: str,
+    stop: threading.Event,
+) -> Any:  # fmt: skip
+    """``function(*args)`` in a child process (lowest priority, own process group), killed
+    when ``budget`` runs out (BudgetExceeded) or ``stop`` is set (Stopped)."""
+    child = subprocess.Popen(
+        ["nice", "-n", str(NICENESS), *CHILD_COMMAND],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        start_new_session=True,
+    )  # fmt: skip
+    answer: dict[str, bytes] = {}
+    request = encode_call(function, args)
+
+    def talk() -> None:
+        answer["out"], answer["err"] = child.communicate(request)
+
+    talker = threading.Thread(target=talk, daemon=True)
+    talker.start()
+    deadline = time.monotonic() + budget
+    try:
+        while talker.is_alive():
+            talker.join(0.2)
+            if stop.is_set():
+                raise Stopped(what)
+            if time.monotonic() > deadline:
+                raise BudgetExceeded(
+                    f"{what} did not finish within its budget of {budget:g} s and was stopped"
+                )
+    finally:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(child.pid, signal.SIGKILL)
+        talker.join(5)
+    return decode_outcome(answer.get("out", b""), answer.get("err", b""), what)
+
+
+def _evaluation_id(item: ItemRecord, testcase: str, controller: str) -> str:
+    """The same item, test-case and controller: the same stored evaluation, once."""
+    key = f"{item.job}/{item.position}/{testcase}/{controller}"
+    return hashlib.sha256(key.encode()).hexdigest()[:16]

@@ -1,0 +1,384 @@
+"""The authoritative state of batch jobs, in the service's database (not in the queue).
+
+An item moves queued -> running -> succeeded | failed | cancelled. A worker claims an item
+with one conditional UPDATE (so a message delivered twice runs once) and holds a lease it
+renews while it works; an item whose lease ran out (its worker was killed) goes back to
+queued until it has been started ``attempts`` times, then fails with the reason. Results are
+written as they are made (a chain's test-cases level by level), so a retry resumes.
+"""
+
+from __future__ import annotations
+
+import json
+import secrets
+import time
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Any
+
+import sqlalchemy as sa
+
+from service.jobs.batch import Batch, dependencies
+from service.store import Page, Store, metadata, now, utc
+
+jobs = sa.Table(
+    "jobs",
+    metadata,
+    sa.Column("id", sa.String(32), primary_key=True),
+    sa.Column("name", sa.String(255), nullable=False),
+    sa.Column("state", sa.String(16), nullable=False, index=True),
+    sa.Column("batch", sa.Text, nullable=False),
+    sa.Column("fingerprint", sa.String(64), nullable=False),
+    sa.Column("idempotency_key", sa.String(255), nullable=True, unique=True),
+    sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    sa.Column("started_at", sa.DateTime(timezone=True), nullable=True),
+    sa.Column("finished_at", sa.DateTime(timezone=True), nullable=True),
+)
+
+items = sa.Table(
+    "job_items",
+    metadata,
+    sa.Column("job", sa.String(32), primary_key=True),
+    sa.Column("position", sa.Integer, primary_key=True),
+    sa.Column("kind", sa.String(16), nullable=False),
+    sa.Column("spec", sa.Text, nullable=False),
+    sa.Column("needs", sa.Text, nullable=False),  # JSON list of positions
+    sa.Column("state", sa.String(16), nullable=False, index=True),
+    sa.Column("attempts", sa.Integer, nullable=False),
+    sa.Column("owner", sa.String(255), nullable=True),
+    sa.Column("lease_until", sa.Float, nullable=True),  # unix time
+    sa.Column("sent_at", sa.Float, nullable=True),  # unix time the item was queued to Celery
+    sa.Column("progress", sa.Text, nullable=False),
+    sa.Column("testcases", sa.Text, nullable=False),  # JSON list of ids, in order made
+    sa.Column("evaluations", sa.Text, nullable=False),  # JSON list of ids
+    sa.Column("error", sa.Text, nullable=True),
+    sa.Column("started_at", sa.DateTime(timezone=True), nullable=True),
+    sa.Column("finished_at", sa.DateTime(timezone=True), nullable=True),
+)
+
+FINISHED = ("succeeded", "failed", "cancelled")
+
+
+@dataclass(frozen=True)
+class ItemRecord:
+    job: str
+    position: int
+    kind: str
+    spec: dict[str, Any]
+    needs: list[int]
+    state: str
+    attempts: int
+    owner: str | None
+    progress: str
+    testcases: list[str]
+    evaluations: list[str]
+    error: str | None
+    started_at: datetime | None
+    finished_at: datetime | None
+
+
+@dataclass(frozen=True)
+class JobRecord:
+    id: str
+    name: str
+    state: str
+    fingerprint: str
+    idempotency_key: str | None
+    created_at: datetime
+    started_at: datetime | None
+    finished_at: datetime | None
+    items: list[ItemRecord]
+
+
+class IdempotencyConflict(Exception):
+    """The Idempotency-Key was used before with another batch."""
+
+
+class JobStore:
+    """Jobs and their items, over the service's ``Store``."""
+
+    def __init__(self, store: Store) -> None:
+        self.store = store
+        self.engine = store.engine
+
+    def create(self, batch: Batch, key: str | None = None) -> tuple[JobRecord, bool]:
+        """The new job (True), or the job an earlier request with ``key`` made (False)."""
+        fingerprint = batch.fingerprint()
+        if key is not None:
+            existing = self._by_key(key)
+            if existing is not None:
+                if existing.fingerprint != fingerprint:
+                    raise IdempotencyConflict(key)
+                return existing, False
+        ident = secrets.token_hex(8)
+        with self.engine.begin() as connection:
+            connection.execute(
+                jobs.insert().values(
+                    id=ident,
+                    name=batch.name,
+                    state="queued",
+                    batch=json.dumps(batch.model_dump(mode="json")),
+                    fingerprint=fingerprint,
+                    idempotency_key=key,
+                    created_at=now(),
+                )
+            )
+            for position, item in enumerate(batch.items):
+                connection.execute(
+                    items.insert().values(
+                        job=ident,
+                        position=position,
+                        kind=item.kind,
+                        spec=json.dumps(item.model_dump(mode="json")),
+                        needs=json.dumps(dependencies(item)),
+                        state="queued",
+                        attempts=0,
+                        progress="",
+                        testcases="[]",
+                        evaluations="[]",
+                    )
+                )
+        job = self.job(ident)
+        assert job is not None
+        return job, True
+
+    def _by_key(self, key: str) -> JobRecord | None:
+        with self.engine.connect() as connection:
+            ident = connection.execute(
+                sa.select(jobs.c.id).where(jobs.c.idempotency_key == key)
+            ).scalar()
+        return None if ident is None else self.job(ident)
+
+    def job(self, ident: str) -> JobRecord | None:
+        with self.engine.connect() as connection:
+            row = connection.execute(sa.select(jobs).where(jobs.c.id == ident)).first()
+            if row is None:
+                return None
+            rows = connection.execute(
+                sa.select(items).where(items.c.job == ident).order_by(items.c.position)
+            )
+            found = [_item(r._mapping) for r in rows]
+        return _job(row._mapping, found)
+
+    def list_jobs(
+        self, state: str | None = None, limit: int = 50, offset: int = 0
+    ) -> Page[JobRecord]:
+        query = sa.select(jobs.c.id)
+        if state is not None:
+            query = query.where(jobs.c.state == state)
+        counted = sa.select(sa.func.count()).select_from(query.subquery())
+        ordered = query.order_by(jobs.c.created_at.desc(), jobs.c.id).limit(limit).offset(offset)
+        with self.engine.connect() as connection:
+            total = connection.execute(counted).scalar_one()
+            idents = list(connection.execute(ordered).scalars())
+        return Page([j for j in (self.job(i) for i in idents) if j is not None], total)
+
+    def item(self, job: str, position: int) -> ItemRecord | None:
+        with self.engine.connect() as connection:
+            row = connection.execute(
+                sa.select(items).where(items.c.job == job, items.c.position == position)
+            ).first()
+        return None if row is None else _item(row._mapping)
+
+    # the worker side
+
+    def claim(self, job: str, position: int, owner: str, lease: float) -> bool:
+        """Take a queued item (atomically: of two claims, one wins)."""
+        with self.engine.begin() as connection:
+            claimed = connection.execute(
+                items.update()
+                .where(items.c.job == job, items.c.position == position, items.c.state == "queued")
+                .values(
+                    state="running",
+                    owner=owner,
+                    lease_until=time.time() + lease,
+                    attempts=items.c.attempts + 1,
+                    started_at=sa.func.coalesce(items.c.started_at, now()),
+                )
+            ).rowcount
+            if claimed:
+                connection.execute(
+                    jobs.update()
+                    .where(jobs.c.id == job, jobs.c.state == "queued")
+                    .values(state="running", started_at=now())
+                )
+        return bool(claimed)
+
+    def renew(self, job: str, position: int, owner: str, lease: float) -> bool:
+        """Extend the lease; False when the item is no longer this owner's (cancelled,
+        or given to another worker after the lease ran out)."""
+        with self.engine.begin() as connection:
+            renewed = connection.execute(
+                items.update()
+                .where(
+                    items.c.job == job,
+                    items.c.position == position,
+                    items.c.owner == owner,
+                    items.c.state == "running",
+                )
+                .values(lease_until=time.time() + lease)
+            ).rowcount
+        return bool(renewed)
+
+    def record(
+        self, job: str, position: int, owner: str, progress: str,
+        testcases: list[str] | None = None, evaluations: list[str] | None = None,
+    ) -> None:  # fmt: skip
+        """Results so far of a running item (kept even if its worker dies next)."""
+        values: dict[str, Any] = {"progress": progress}
+        if testcases is not None:
+            values["testcases"] = json.dumps(testcases)
+        if evaluations is not None:
+            values["evaluations"] = json.dumps(evaluations)
+        with self.engine.begin() as connection:
+            connection.execute(
+                items.update()
+                .where(items.c.job == job, items.c.position == position, items.c.owner == owner)
+                .values(**values)
+            )
+
+    def finish(
+        self, job: str, position: int, owner: str | None, state: str, error: str | None = None
+    ) -> None:
+        where = [items.c.job == job, items.c.position == position, items.c.state.not_in(FINISHED)]
+        if owner is not None:
+            where.append(items.c.owner == owner)
+        with self.engine.begin() as connection:
+            connection.execute(
+                items.update()
+                .where(*where)
+                .values(state=state, error=error, finished_at=now(), lease_until=None)
+            )
+        self.refresh(job)
+
+    def refresh(self, job: str) -> None:
+        """The job's state from its items' states."""
+        record = self.job(job)
+        if record is None or record.state in FINISHED:
+            return
+        states = [item.state for item in record.items]
+        if all(s in FINISHED for s in states):
+            final = "succeeded" if all(s == "succeeded" for s in states) else "failed"
+            if "cancelled" in states and "failed" not in states:
+                final = "cancelled"
+            with self.engine.begin() as connection:
+                connection.execute(
+                    jobs.update()
+                    .where(jobs.c.id == job, jobs.c.state.not_in(FINISHED))
+                    .values(state=final, finished_at=now())
+                )
+
+    def cancel(self, job: str) -> None:
+        """Cancel every unfinished item; running ones stop at their next lease renewal."""
+        with self.engine.begin() as connection:
+            connection.execute(
+                items.update()
+                .where(items.c.job == job, items.c.state.not_in(FINISHED))
+                .values(state="cancelled", error="cancelled", finished_at=now())
+            )
+            connection.execute(
+                jobs.update()
+                .where(jobs.c.id == job, jobs.c.state.not_in(FINISHED))
+                .values(state="cancelled", finished_at=now())
+            )
+
+    # the dispatcher side
+
+    def runnable(
+        self, limit: int, unsent_only: bool = False, resend_after: float = 600
+    ) -> list[ItemRecord]:
+        """Queued items whose dependencies succeeded (failing those whose dependencies
+        failed); oldest jobs first."""
+        query = sa.select(items).where(items.c.state == "queued")
+        if unsent_only:
+            query = query.where(
+                sa.or_(items.c.sent_at.is_(None), items.c.sent_at < time.time() - resend_after)
+            )
+        with self.engine.connect() as connection:
+            rows = [
+                _item(r._mapping)
+                for r in connection.execute(query.order_by(items.c.job, items.c.position))
+            ]
+        ready: list[ItemRecord] = []
+        states: dict[tuple[str, int], str] = {}
+        for item in rows:
+            needed = [self._state(item.job, n, states) for n in item.needs]
+            broken = [
+                n for n, s in zip(item.needs, needed, strict=True) if s in ("failed", "cancelled")
+            ]
+            if broken:
+                self.finish(item.job, item.position, None, "failed",
+                            f"item {broken[0]} it depends on did not succeed")  # fmt: skip
+            elif all(s == "succeeded" for s in needed) and len(ready) < limit:
+                ready.append(item)
+        return ready
+
+    def _state(self, job: str, position: int, cache: dict[tuple[str, int], str]) -> str:
+        if (job, position) not in cache:
+            found = self.item(job, position)
+            cache[(job, position)] = found.state if found else "failed"
+        return cache[(job, position)]
+
+    def mark_sent(self, job: str, position: int) -> None:
+        with self.engine.begin() as connection:
+            connection.execute(
+                items.update()
+                .where(items.c.job == job, items.c.position == position)
+                .values(sent_at=time.time())
+            )
+
+    def reclaim_expired(self, attempts: int) -> list[tuple[str, int]]:
+        """Running items whose lease ran out: back to queued, or failed after ``attempts``."""
+        with self.engine.connect() as connection:
+            rows = [
+                _item(r._mapping)
+                for r in connection.execute(
+                    sa.select(items).where(
+                        items.c.state == "running", items.c.lease_until < time.time()
+                    )
+                )
+            ]
+        moved = []
+        for item in rows:
+            if item.attempts >= attempts:
+                self.finish(
+                    item.job, item.position, item.owner, "failed",
+                    f"its worker stopped answering {item.attempts} times (killed or out of "
+                    f"memory?); last owner {item.owner}",
+                )  # fmt: skip
+            else:
+                with self.engine.begin() as connection:
+                    connection.execute(
+                        items.update()
+                        .where(
+                            items.c.job == item.job,
+                            items.c.position == item.position,
+                            items.c.owner == item.owner,
+                            items.c.state == "running",
+                        )
+                        .values(state="queued", owner=None, lease_until=None, sent_at=None)
+                    )
+            moved.append((item.job, item.position))
+        return moved
+
+
+def _item(row: Any) -> ItemRecord:
+    return ItemRecord(
+        job=row["job"], position=row["position"], kind=row["kind"],
+        spec=json.loads(row["spec"]), needs=json.loads(row["needs"]), state=row["state"],
+        attempts=row["attempts"], owner=row["owner"], progress=row["progress"],
+        testcases=json.loads(row["testcases"]), evaluations=json.loads(row["evaluations"]),
+        error=row["error"],
+        started_at=utc(row["started_at"]) if row["started_at"] else None,
+        finished_at=utc(row["finished_at"]) if row["finished_at"] else None,
+    )  # fmt: skip
+
+
+def _job(row: Any, found: list[ItemRecord]) -> JobRecord:
+    return JobRecord(
+        id=row["id"], name=row["name"], state=row["state"], fingerprint=row["fingerprint"],
+        idempotency_key=row["idempotency_key"], created_at=utc(row["created_at"]),
+        started_at=utc(row["started_at"]) if row["started_at"] else None,
+        finished_at=utc(row["finished_at"]) if row["finished_at"] else None,
+        items=found,
+    )  # fmt: skip

@@ -1,0 +1,173 @@
+"""``scengen submit``: send a batch to a server, follow it, fetch its results (for CI).
+
+Exit codes: 0 every evaluation passed, 1 some evaluation failed, 2 bad input (the batch
+file, or the server refused it), 3 the job failed or was cancelled, or the server could
+not be reached.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import urllib.error
+import urllib.request
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, TextIO
+
+import yaml
+
+from service.core.errors import InvalidInput, ScengenError
+from service.jobs.batch import Batch, parse_batch
+
+FINISHED = ("succeeded", "failed", "cancelled")
+
+
+class ServerRefused(InvalidInput):
+    """The server answered a 4xx: the problem's detail says why."""
+
+
+class ServerUnreachable(ScengenError):
+    """The server could not be reached or answered with a 5xx."""
+
+
+def read_batch(path: Path) -> Batch:
+    """A batch file: JSON, or YAML by its suffix."""
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise InvalidInput(f"cannot read {path}: {error.strerror}") from None
+    try:
+        if path.suffix.lower() in (".yaml", ".yml"):
+            document = yaml.safe_load(text)
+        elif path.suffix.lower() == ".json":
+            document = json.loads(text)
+        else:
+            raise InvalidInput(f"{path}: a batch file ends in .json, .yaml or .yml")
+    except (json.JSONDecodeError, yaml.YAMLError) as error:
+        raise InvalidInput(f"{path} is not valid {path.suffix[1:].upper()}: {error}") from None
+    return parse_batch(document)
+
+
+@dataclass
+class Client:
+    """The few HTTP calls ``submit`` needs (standard library only)."""
+
+    server: str
+    token: str | None = None
+    timeout: float = 60.0
+
+    def call(
+        self, method: str, path: str, body: Any = None, headers: dict[str, str] | None = None
+    ) -> tuple[int, dict[str, str], bytes]:
+        request = urllib.request.Request(
+            self.server.rstrip("/") + path,
+            method=method,
+            data=None if body is None else json.dumps(body).encode(),
+            headers={"Content-Type": "application/json", **(headers or {})},
+        )
+        if self.token:
+            request.add_header("Authorization", f"Bearer {self.token}")
+        try:
+            with urllib.request.urlopen(request, timeout=self.timeout) as reply:
+                return reply.status, dict(reply.headers), reply.read()
+        except urllib.error.HTTPError as error:
+            content = error.read()
+            detail = _detail(content) or error.reason
+            if 400 <= error.code < 500:
+                raise ServerRefused(
+                    f"the server refused {method} {path} ({error.code}): {detail}"
+                ) from None
+            raise ServerUnreachable(f"{method} {path} failed ({error.code}): {detail}") from None
+        except (urllib.error.URLError, OSError) as error:
+            reason = getattr(error, "reason", error)
+            raise ServerUnreachable(f"cannot reach {self.server}: {reason}") from None
+
+    def json(self, method: str, path: str, body: Any = None, **headers: str) -> Any:
+        return json.loads(self.call(method, path, body, headers)[2])
+
+
+def _detail(content: bytes) -> str:
+    try:
+        return str(json.loads(content).get("detail", ""))
+    except (ValueError, AttributeError):
+        return content.decode(errors="replace")[:200]
+
+
+def submit(client: Client, batch: Batch, key: str | None) -> dict[str, Any]:
+    headers = {"Idempotency-Key": key} if key else {}
+    job: dict[str, Any] = client.json("POST", "/jobs", batch.model_dump(mode="json"), **headers)
+    return job
+
+
+def follow(client: Client, job: dict[str, Any], out: TextIO, poll: float = 1.0) -> dict[str, Any]:
+    """Poll until the job finishes; a progress bar on a terminal, plain lines otherwise."""
+    terminal = out.isatty()
+    last = ""
+    while True:
+        line = _summary(job)
+        if terminal:
+            out.write("\r" + _bar(job) + " " + line[:70].ljust(70))
+            out.flush()
+        elif line != last:
+            out.write(f"[{time.strftime('%H:%M:%S')}] {line}\n")
+            out.flush()
+        last = line
+        if job["state"] in FINISHED:
+            if terminal:
+                out.write("\n")
+            return job
+        time.sleep(poll)
+        job = client.json("GET", f"/jobs/{job['id']}")
+
+
+def _bar(job: dict[str, Any], width: int = 24) -> str:
+    filled: int = round(width * int(job["done"]) / max(int(job["total"]), 1))
+    return "[" + "#" * filled + "." * (width - filled) + "]"
+
+
+def _summary(job: dict[str, Any]) -> str:
+    running = [f"item {i['position']} {i['progress']}".strip() for i in job["items"]
+               if i["state"] == "running"]  # fmt: skip
+    ev = job["evaluations"]
+    text = f"job {job['id']} {job['state']}: {job['done']}/{job['total']} items"
+    if ev["passed"] or ev["failed"]:
+        text += f", evaluations {ev['passed']} passed {ev['failed']} failed"
+    return text + (f" ({'; '.join(running)})" if running else "")
+
+
+def download(client: Client, job: dict[str, Any], junit: Path | None, folder: Path | None) -> None:
+    """The JUnit report, and with ``folder`` every result: job.json, junit.xml, the
+    test-case documents and a zip of all SUMO bundles."""
+    report = client.call("GET", f"/jobs/{job['id']}/junit")[2]
+    if junit is not None:
+        junit.write_bytes(report)
+    if folder is None:
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "job.json").write_text(json.dumps(job, indent=2) + "\n")
+    (folder / "junit.xml").write_bytes(report)
+    documents = folder / "testcases"
+    documents.mkdir(exist_ok=True)
+    made = [ident for item in job["items"] for ident in item["testcases"]]
+    for ident in made:
+        content = client.call("GET", f"/testcases/{ident}/document")[2]
+        (documents / f"{ident}.json").write_bytes(content)
+    if made:
+        client.timeout = max(client.timeout, 300.0)
+        (folder / "bundles.zip").write_bytes(client.call("GET", f"/jobs/{job['id']}/bundles")[2])
+
+
+def outcome(job: dict[str, Any]) -> int:
+    if job["state"] != "succeeded":
+        return 3
+    return 1 if job["evaluations"]["failed"] else 0
+
+
+def print_failures(job: dict[str, Any], out: TextIO = sys.stderr) -> None:
+    for item in job["items"]:
+        if item["state"] in ("failed", "cancelled"):
+            out.write(
+                f"item {item['position']} ({item['kind']}) {item['state']}: {item['error']}\n"
+            )
