@@ -127,11 +127,10 @@ class Work:
         for level in range(len(made), spec.count):
             progress = f"level {level + 1}/{spec.count}"
             self.jobs.record(self.item.job, self.item.position, self.owner, progress)
-            seed = spec.seed + level
             if spec.steps is not None:
-                current = self._extension(current, spec.steps[level], seed, spec.budget)
+                current = self._extension(current, spec.steps[level], spec.seed, spec.budget)
             else:
-                current = self._any_extension(current, seed, spec.budget)
+                current = self._any_extension(current, spec.seed, spec.budget)
             made.append(current.id)
             self.jobs.record(self.item.job, self.item.position, self.owner, progress, made)
 

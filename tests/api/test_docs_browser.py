@@ -12,7 +12,7 @@ from typing import Any
 import pytest
 from playwright.sync_api import Page, sync_playwright
 
-from tests.api.conftest import Server
+from tests.servers import Server
 
 pytestmark = pytest.mark.slow
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.api.conftest import Server
+from tests.servers import Server
 
 pytestmark = pytest.mark.slow
 

@@ -1,0 +1,131 @@
+"""Batch jobs on the embedded executor, through a real server and through `scengen submit`."""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import httpx2 as httpx
+import pytest
+import yaml
+
+from tests.jobs.batches import regression_batch
+from tests.servers import Server
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def finished(server: Server) -> dict[str, Any]:
+    reply = server.client.post("/jobs", json=regression_batch())
+    assert reply.status_code == 202, reply.text
+    assert reply.headers["location"] == f"/jobs/{reply.json()['id']}"
+    return server.wait_for_job(reply.json()["id"])
+
+
+def test_the_job_makes_every_result(api: httpx.Client, finished: dict[str, Any]) -> None:
+    assert finished["state"] == "succeeded", [i["error"] for i in finished["items"]]
+    extend, chain, evaluate = finished["items"]
+    assert len(extend["testcases"]) == 1 and len(chain["testcases"]) == 2
+    assert chain["progress"] == "level 2/2" and evaluate["needs"] == [0, 1]
+    assert len(evaluate["evaluations"]) == 6
+    leaf = api.get(f"/testcases/{chain['testcases'][1]}").json()
+    assert leaf["parent"] == chain["testcases"][0] and leaf["nonegos"] == 2
+    assert finished["evaluations"]["passed"] + finished["evaluations"]["failed"] == 6
+    assert all(i["started_at"] and i["finished_at"] for i in finished["items"])
+
+
+def test_junit_and_bundles(api: httpx.Client, finished: dict[str, Any]) -> None:
+    suite = ET.fromstring(api.get(finished["links"]["junit"]).text).find("testsuite")
+    assert suite is not None and suite.get("tests") == "6"
+    assert int(suite.get("failures") or 0) == finished["evaluations"]["failed"]
+    archive = zipfile.ZipFile(io.BytesIO(api.get(finished["links"]["bundles"]).content))
+    made = [t for item in finished["items"] for t in item["testcases"]]
+    assert {name.split("/")[0] for name in archive.namelist()} == set(made)
+    assert f"{made[0]}/testcase.sumocfg" in archive.namelist()
+
+
+def test_the_same_idempotency_key_gives_the_same_job(api: httpx.Client) -> None:
+    batch = {"items": [{"kind": "evaluate", "testcase_id": "nope", "controllers": ["sumo"]}]}
+    first = api.post("/jobs", json=batch, headers={"Idempotency-Key": "ci-run-7"})
+    again = api.post("/jobs", json=batch, headers={"Idempotency-Key": "ci-run-7"})
+    assert first.status_code == 202 and again.status_code == 200
+    assert again.json()["id"] == first.json()["id"]
+    other = {
+        "items": [{"kind": "evaluate", "testcase_id": "nope", "controllers": ["sumo-cautious"]}]
+    }
+    clash = api.post("/jobs", json=other, headers={"Idempotency-Key": "ci-run-7"})
+    assert clash.status_code == 409 and "another batch" in clash.json()["detail"]
+
+
+def test_a_failing_item_fails_the_job_with_its_reason(server: Server) -> None:
+    batch = {"items": [{"kind": "evaluate", "testcase_id": "nope", "controllers": ["sumo"]},
+                       {"kind": "extend", "testcase_id": "nope", "routes": ["a:b"]}]}  # fmt: skip
+    job = server.wait_for_job(server.client.post("/jobs", json=batch).json()["id"])
+    assert job["state"] == "failed"
+    assert all("no stored test-case 'nope'" in item["error"] for item in job["items"])
+
+
+def test_cancelling_stops_a_running_job(server: Server, api: httpx.Client) -> None:
+    batch = {"items": [{"kind": "chain", "testcase": regression_batch()["items"][0]["testcase"],
+                        "levels": 3, "budget": 120}]}  # fmt: skip
+    job = api.post("/jobs", json=batch).json()
+    while api.get(f"/jobs/{job['id']}").json()["items"][0]["state"] != "running":
+        time.sleep(0.2)
+    cancelled = api.delete(f"/jobs/{job['id']}")
+    assert cancelled.status_code == 202 and cancelled.json()["state"] == "cancelled"
+    assert server.wait_for_job(job["id"])["items"][0]["state"] == "cancelled"
+    health = api.get("/healthz").json()
+    assert health["status"] == "ok"
+
+
+def test_listing_jobs(api: httpx.Client, finished: dict[str, Any]) -> None:
+    page = api.get("/jobs", params={"state": "succeeded"}).json()
+    assert finished["id"] in [j["id"] for j in page["items"]]
+    assert api.get("/jobs", params={"state": "bogus"}).status_code == 422
+    assert api.get("/jobs/nope").status_code == 404
+
+
+def scengen(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "service", *args], cwd=cwd,
+                          capture_output=True, text=True, timeout=600)  # fmt: skip
+
+
+def test_submit_waits_and_downloads(server: Server, tmp_path: Path) -> None:
+    batch = regression_batch()
+    batch["items"][2]["controllers"] = ["certificate:solvability"]
+    (tmp_path / "batch.yaml").write_text(yaml.safe_dump(batch))
+    done = scengen("submit", "batch.yaml", "--server", server.url, "--junit", "report.xml",
+                   "--out", "results", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "succeeded: 3/3 items, evaluations 3 passed 0 failed" in done.stderr
+    job = json.loads((tmp_path / "results" / "job.json").read_text())
+    made = [t for item in job["items"] for t in item["testcases"]]
+    assert sorted(p.stem for p in (tmp_path / "results" / "testcases").iterdir()) == sorted(made)
+    assert (tmp_path / "results" / "bundles.zip").stat().st_size > 10_000
+    assert ET.parse(tmp_path / "report.xml").getroot().tag == "testsuites"
+
+
+def test_submit_exit_codes(server: Server, tmp_path: Path) -> None:
+    failing = regression_batch()
+    failing["items"] = [failing["items"][0],
+                        {"kind": "evaluate", "items": [0], "controllers": ["sumo-aggressive"]}]  # fmt: skip
+    (tmp_path / "failing.json").write_text(json.dumps(failing))
+    assert scengen("submit", "failing.json", "--server", server.url, "--wait",
+                   cwd=tmp_path).returncode == 1  # fmt: skip
+    (tmp_path / "broken.json").write_text('{"items": [{"kind": "grow"}]}')
+    bad = scengen("submit", "broken.json", "--server", server.url, cwd=tmp_path)
+    assert bad.returncode == 2 and "invalid batch" in bad.stderr
+    job_fails = {"items": [{"kind": "extend", "testcase_id": "nope", "routes": ["a:b"]}]}
+    (tmp_path / "nope.json").write_text(json.dumps(job_fails))
+    failed = scengen("submit", "nope.json", "--server", server.url, "--wait", cwd=tmp_path)
+    assert failed.returncode == 3 and "no stored test-case" in failed.stderr
+    away = scengen("submit", "nope.json", "--server", "http://127.0.0.1:9", cwd=tmp_path)
+    assert away.returncode == 3 and "cannot reach" in away.stderr

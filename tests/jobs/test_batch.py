@@ -1,0 +1,60 @@
+"""Batch validation: every mistake is named before anything runs."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from service.core.errors import InvalidInput
+from service.jobs.batch import ChainItem, dependencies, parse_batch
+
+ROOT = {"testcase_id": "ecf9aef2eb19a2b5"}
+
+
+def test_a_batch_with_every_kind_of_item() -> None:
+    batch = parse_batch(
+        {
+            "name": "nightly",
+            "items": [
+                {"kind": "extend", **ROOT, "routes": ["S2C_1:C2N_1"]},
+                {"kind": "chain", "after": 0, "levels": 2, "seed": 3},
+                {"kind": "chain", **ROOT, "steps": [["S2C_1:C2N_1"], ["W2C_1:C2E_1"]]},
+                {"kind": "evaluate", "items": [0, 1, 2], "controllers": ["sumo"]},
+            ],
+        }
+    )
+    assert [dependencies(item) for item in batch.items] == [[], [0], [], [0, 1, 2]]
+    chain = batch.items[2]
+    assert isinstance(chain, ChainItem) and chain.count == 2
+
+
+def test_the_fingerprint_ignores_formatting_not_content() -> None:
+    one = parse_batch({"items": [{"kind": "extend", **ROOT, "routes": ["a:b"]}]})
+    same = parse_batch({"items": [{"routes": ["a:b"], **ROOT, "kind": "extend", "seed": 0}]})
+    other = parse_batch({"items": [{"kind": "extend", **ROOT, "routes": ["a:b"], "seed": 1}]})
+    assert one.fingerprint() == same.fingerprint() != other.fingerprint()
+
+
+@pytest.mark.parametrize(
+    ("items", "message"),
+    [
+        ([], "items: List should have at least 1 item"),
+        ([{"kind": "grow", **ROOT}], "does not match any of the expected tags"),
+        ([{"kind": "extend", "routes": ["a:b"]}], "exactly one of testcase_id"),
+        ([{"kind": "chain", **ROOT}], "exactly one of steps"),
+        ([{"kind": "chain", **ROOT, "levels": 11}], "less than or equal to 10"),
+        ([{"kind": "evaluate", "items": [0], "controllers": ["sumo"]}], "not an earlier one"),
+        (
+            [{"kind": "evaluate", **ROOT, "controllers": ["sumo"]},
+             {"kind": "chain", "after": 0, "levels": 1}],
+            "an evaluation, which makes no test-case",
+        ),
+        ([{"kind": "evaluate", **ROOT, "controllers": []}], "controllers"),
+        ([{"kind": "extend", **ROOT, "routes": ["a:b"], "colour": 1}], "colour"),
+    ],
+)  # fmt: skip
+def test_bad_batches_are_named(items: list[dict[str, Any]], message: str) -> None:
+    with pytest.raises(InvalidInput, match="invalid batch") as caught:
+        parse_batch({"items": items})
+    assert message in str(caught.value)

@@ -1,0 +1,128 @@
+"""kill -9 in the middle of a job loses nothing: the server (embedded executor) and a
+Celery worker are killed for real, restarted, and the job completes with every result once.
+Then the same batch on Celery with two workers (PostgreSQL, Redis) gives the same results
+as on the embedded executor."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import redis
+
+from tests.jobs.batches import regression_batch, results
+from tests.servers import Server, Worker
+
+pytestmark = pytest.mark.slow
+
+LEASE = "3"  # seconds: a killed worker's items come back quickly
+
+
+def wait_until(condition: Any, timeout: float = 120) -> Any:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        found = condition()
+        if found:
+            return found
+        time.sleep(0.2)
+    raise TimeoutError("the condition never held")
+
+
+def chain_halfway(server: Server, job: str) -> dict[str, Any] | None:
+    """The job once its chain has made its first level and works on the second."""
+    found: dict[str, Any] = server.client.get(f"/jobs/{job}").json()
+    chain = found["items"][1]
+    return found if chain["state"] == "running" and len(chain["testcases"]) == 1 else None
+
+
+def assert_complete_once(server: Server, job: dict[str, Any], before: dict[str, Any]) -> None:
+    assert job["state"] == "succeeded", [i["error"] for i in job["items"]]
+    chain = job["items"][1]
+    assert chain["testcases"][0] == before["items"][1]["testcases"][0]  # kept, not remade
+    assert chain["attempts"] >= 2  # it was interrupted and resumed
+    evaluations = server.client.get("/evaluations", params={"limit": 200}).json()
+    assert evaluations["total"] == 6 == len(job["items"][2]["evaluations"])
+    made = [t for item in job["items"] for t in item["testcases"]]
+    assert len(made) == 3 == len(set(made))
+
+
+def test_the_embedded_executor_survives_a_killed_server(tmp_path: Path) -> None:
+    server = Server(tmp_path, workers="2", lease_seconds=LEASE)
+    try:
+        job = server.client.post("/jobs", json=regression_batch()).json()["id"]
+        before = wait_until(lambda: chain_halfway(server, job))
+        server.kill()
+        server.start()  # the same data directory: the same SQLite file
+        after = server.wait_for_job(job)
+        assert_complete_once(server, after, before)
+    finally:
+        server.stop()
+
+
+@pytest.fixture
+def celery_settings(postgres_url: str, tmp_path: Path) -> Iterator[dict[str, str]]:
+    broker = "redis://127.0.0.1:6379/7"
+    redis.Redis.from_url(broker).flushdb()
+    yield {
+        "executor": "celery",
+        "broker_url": broker,
+        "database_url": postgres_url,
+        "lease_seconds": LEASE,
+    }
+    redis.Redis.from_url(broker).flushdb()
+    from sqlalchemy import create_engine
+
+    engine = create_engine(postgres_url)
+    with engine.begin() as connection:
+        for table in ("job_items", "jobs", "evaluations", "testcases", "networks"):
+            connection.exec_driver_sql(f"DELETE FROM {table}")
+    engine.dispose()
+
+
+def test_celery_survives_a_killed_worker(tmp_path: Path, celery_settings: dict[str, str]) -> None:
+    server = Server(tmp_path / "server", **celery_settings)
+    workers = [Worker(tmp_path / f"w{n}", f"w{n}", **celery_settings) for n in (1, 2)]
+    try:
+        job = server.client.post("/jobs", json=regression_batch()).json()["id"]
+        before = wait_until(lambda: chain_halfway(server, job))
+        owner = str(before["items"][1].get("owner", ""))
+        victim = next(w for w in workers if w.process.poll() is None)
+        for worker in workers:  # kill whichever runs the chain: both, to be sure
+            worker.kill()
+        assert victim.process.returncode is not None and owner is not None
+        workers = [Worker(tmp_path / f"w{n}", f"w{n}b", **celery_settings) for n in (1, 2)]
+        after = server.wait_for_job(job)
+        assert_complete_once(server, after, before)
+    finally:
+        for worker in workers:
+            worker.stop()
+        server.stop()
+
+
+def test_local_and_celery_give_the_same_results(
+    tmp_path: Path, celery_settings: dict[str, str]
+) -> None:
+    local = Server(tmp_path / "local", workers="2")
+    try:
+        on_local = results(local.wait_for_job(local.client.post("/jobs", json=regression_batch())
+                                              .json()["id"]), local.client)  # fmt: skip
+    finally:
+        local.stop()
+    server = Server(tmp_path / "celery", **celery_settings)
+    workers = [Worker(tmp_path / f"w{n}", f"w{n}", **celery_settings) for n in (1, 2)]
+    try:
+        job = server.wait_for_job(server.client.post("/jobs", json=regression_batch()).json()["id"])
+        assert job["state"] == "succeeded", [i["error"] for i in job["items"]]
+        on_celery = results(job, server.client)
+        ran_on = {line.split("celery@")[1].split()[0] for w in workers
+                  for line in w.log.read_text().splitlines() if " ready." in line}  # fmt: skip
+        assert ran_on == {"w1", "w2"}
+    finally:
+        for worker in workers:
+            worker.stop()
+        server.stop()
+    assert on_celery == on_local
+    assert len(on_local["verdicts"]) == 6

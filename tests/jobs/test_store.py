@@ -1,0 +1,134 @@
+"""Job state in the database: claims, leases, retries, cancellation, idempotency; on SQLite
+and on the machine's PostgreSQL."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from service.jobs.batch import parse_batch
+from service.jobs.store import IdempotencyConflict, JobStore
+from service.store import Store
+
+BATCH = parse_batch(
+    {
+        "items": [
+            {"kind": "extend", "testcase_id": "x", "routes": ["a:b"]},
+            {"kind": "extend", "testcase_id": "x", "routes": ["c:d"]},
+            {"kind": "evaluate", "items": [0, 1], "controllers": ["sumo"]},
+        ]
+    }
+)
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def jobs(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[JobStore]:
+    if request.param == "sqlite":
+        url = f"sqlite:///{tmp_path}/jobs.sqlite3"
+    else:
+        url = request.getfixturevalue("postgres_url")
+    store = Store(url, tmp_path / "cache")
+    yield JobStore(store)
+    if request.param == "postgresql":
+        with store.engine.begin() as connection:
+            for table in ("job_items", "jobs", "evaluations", "testcases", "networks"):
+                connection.exec_driver_sql(f"DELETE FROM {table}")
+    store.close()
+
+
+def test_items_run_in_dependency_order(jobs: JobStore) -> None:
+    job, created = jobs.create(BATCH)
+    assert created and job.state == "queued" and [i.state for i in job.items] == ["queued"] * 3
+    assert [i.position for i in jobs.runnable(10)] == [0, 1]
+    for position in (0, 1):
+        assert jobs.claim(job.id, position, "w", 30)
+        jobs.finish(job.id, position, "w", "succeeded")
+    assert [i.position for i in jobs.runnable(10)] == [2]
+    assert jobs.claim(job.id, 2, "w", 30)
+    jobs.finish(job.id, 2, "w", "succeeded")
+    finished = jobs.job(job.id)
+    assert finished is not None and finished.state == "succeeded" and finished.finished_at
+
+
+def test_of_concurrent_claims_one_wins(jobs: JobStore) -> None:
+    job, _ = jobs.create(BATCH)
+    wins: list[bool] = []
+    racers = [
+        threading.Thread(target=lambda n=n: wins.append(jobs.claim(job.id, 0, f"w{n}", 30)))
+        for n in range(8)
+    ]
+    for racer in racers:
+        racer.start()
+    for racer in racers:
+        racer.join()
+    assert sorted(wins) == [False] * 7 + [True]
+
+
+def test_an_expired_lease_is_retried_then_failed(jobs: JobStore) -> None:
+    job, _ = jobs.create(BATCH)
+    for attempt in (1, 2):
+        assert jobs.claim(job.id, 0, f"w{attempt}", 0.01)
+        time.sleep(0.05)
+        assert jobs.reclaim_expired(attempts=2) == [(job.id, 0)]
+        item = jobs.item(job.id, 0)
+        assert item is not None and item.attempts == attempt
+    item = jobs.item(job.id, 0)
+    assert (
+        item is not None
+        and item.state == "failed"
+        and "stopped answering 2 times" in str(item.error)
+    )
+    # A late answer from the first worker changes nothing.
+    jobs.finish(job.id, 0, "w1", "succeeded")
+    assert (jobs.item(job.id, 0) or item).state == "failed"
+    assert [i.position for i in jobs.runnable(10)] == [1]
+    after = jobs.item(job.id, 2)
+    assert after is not None and after.state == "failed" and "item 0" in str(after.error)
+
+
+def test_a_lost_lease_cannot_be_renewed(jobs: JobStore) -> None:
+    job, _ = jobs.create(BATCH)
+    assert jobs.claim(job.id, 0, "old", 0.01)
+    time.sleep(0.05)
+    jobs.reclaim_expired(attempts=3)
+    assert jobs.claim(job.id, 0, "new", 30)
+    assert not jobs.renew(job.id, 0, "old", 30)
+    assert jobs.renew(job.id, 0, "new", 30)
+
+
+def test_results_recorded_so_far_are_kept(jobs: JobStore) -> None:
+    job, _ = jobs.create(BATCH)
+    assert jobs.claim(job.id, 0, "w", 0.01)
+    jobs.record(job.id, 0, "w", "level 1/2", ["t1"])
+    time.sleep(0.05)
+    jobs.reclaim_expired(attempts=3)
+    item = jobs.item(job.id, 0)
+    assert item is not None and item.state == "queued" and item.testcases == ["t1"]
+
+
+def test_cancel_stops_everything_unfinished(jobs: JobStore) -> None:
+    job, _ = jobs.create(BATCH)
+    assert jobs.claim(job.id, 0, "w", 30)
+    jobs.finish(job.id, 0, "w", "succeeded")
+    assert jobs.claim(job.id, 1, "w", 30)
+    jobs.cancel(job.id)
+    cancelled = jobs.job(job.id)
+    assert cancelled is not None and cancelled.state == "cancelled"
+    assert [i.state for i in cancelled.items] == ["succeeded", "cancelled", "cancelled"]
+    assert not jobs.renew(job.id, 1, "w", 30)  # the running worker learns it must stop
+    assert jobs.runnable(10) == []
+
+
+def test_idempotency_key(jobs: JobStore) -> None:
+    first, created = jobs.create(BATCH, key="pipeline-41")
+    again, created_again = jobs.create(BATCH, key="pipeline-41")
+    assert created and not created_again and again.id == first.id
+    with pytest.raises(IdempotencyConflict):
+        jobs.create(parse_batch({"items": [{"kind": "extend", "testcase_id": "y",
+                                            "routes": ["a:b"]}]}), key="pipeline-41")  # fmt: skip
+    assert jobs.create(BATCH)[0].id != first.id
+    assert jobs.list_jobs().total == 2
