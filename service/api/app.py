@@ -44,6 +44,7 @@ download **/testcases/{id}/bundle** to run any ego controller in SUMO, and judge
 **POST /evaluations**. Errors are `application/problem+json`; `GET /problems` lists them.
 """
 
+KNOWN_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 ASGIApp = Callable[
     [MutableMapping[str, Any], Callable[[], Awaitable[Any]], Callable[[Any], Awaitable[None]]],
     Awaitable[None],
@@ -108,15 +109,18 @@ async def _count_requests(
     request: Request, call_next: Callable[[Request], Awaitable[Response]]
 ) -> Response:
     clock = time.monotonic()
-    response = await call_next(request)
-    route = request.scope.get("route")
-    template = getattr(route, "path", "unmatched")
-    state: AppState | None = getattr(request.app.state, "scengen", None)
-    if state is not None:
-        state.metrics.observe(
-            request.method, template, response.status_code, time.monotonic() - clock
-        )
-    return response
+    status = 500
+    try:
+        response = await call_next(request)
+        status = response.status_code
+        return response
+    finally:
+        route = request.scope.get("route")
+        template = getattr(route, "path", "unmatched")
+        method = request.method if request.method in KNOWN_METHODS else "OTHER"
+        state: AppState | None = getattr(request.app.state, "scengen", None)
+        if state is not None:
+            state.metrics.observe(method, template, status, time.monotonic() - clock)
 
 
 class BodyLimit:
@@ -140,21 +144,32 @@ class BodyLimit:
         if declared is not None and declared.isdigit() and int(declared) > self.limit:
             await self._refuse(scope, receive, send)
             return
-        seen = 0
-
-        async def counted() -> Any:
-            nonlocal seen
+        if scope.get("method") not in ("POST", "PUT", "PATCH"):
+            await self.app(scope, receive, send)
+            return
+        # Read the whole body first (chunked bodies declare no length): over the cap is a
+        # 413 here, not an error somewhere inside the body parser.
+        parts, seen, more = [], 0, True
+        while more:
             message = await receive()
-            if message["type"] == "http.request":
-                seen += len(message.get("body", b""))
-                if seen > self.limit:
-                    raise _TooLarge
-            return message
+            if message["type"] != "http.request":
+                return  # the client went away
+            parts.append(message.get("body", b""))
+            seen += len(parts[-1])
+            if seen > self.limit:
+                await self._refuse(scope, receive, send)
+                return
+            more = message.get("more_body", False)
+        replayed = False
 
-        try:
-            await self.app(scope, counted, send)
-        except _TooLarge:
-            await self._refuse(scope, receive, send)
+        async def replay() -> Any:
+            nonlocal replayed
+            if replayed:
+                return await receive()
+            replayed = True
+            return {"type": "http.request", "body": b"".join(parts), "more_body": False}
+
+        await self.app(scope, replay, send)
 
     async def _refuse(
         self,
@@ -169,10 +184,6 @@ class BodyLimit:
             scope.get("path", ""),
         )
         await response(scope, receive, send)
-
-
-class _TooLarge(Exception):
-    pass
 
 
 def _serve_docs(app: FastAPI) -> None:

@@ -51,7 +51,9 @@ def wants_junit(requested: str | None, accept: str | None) -> bool:
             raise Problem(406, f"format {requested!r} is not offered; valid choices: json, junit")
         return requested == "junit"
     wanted = (accept or "").lower()
-    return "xml" in wanted and "application/json" not in wanted
+    # A browser asks for text/html first and XML only as a fallback: it gets JSON.
+    xml = "application/xml" in wanted or "application/junit+xml" in wanted
+    return xml and "application/json" not in wanted and "text/html" not in wanted
 
 
 async def cached(
@@ -61,7 +63,10 @@ async def cached(
     json_cache: bool = False,
 ) -> Any:
     """The artifact ``name`` from the cache, or produced (in a worker) and cached."""
-    path = state.cache_dir / "artifacts" / name
+    root = (state.cache_dir / "artifacts").resolve()
+    path = (root / name).resolve()
+    if not path.is_relative_to(root) or len(path.name) > 200:
+        raise Problem(404, "no such artifact")  # never a path outside the cache
     if path.is_file():
         content = path.read_bytes()
         return json.loads(content) if json_cache else content

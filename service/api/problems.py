@@ -7,10 +7,12 @@ their message as ``detail`` and their context (step, routes, seed, ...) as extra
 
 from __future__ import annotations
 
+import logging
 import re
 from dataclasses import dataclass
 from typing import Any
 
+import sqlalchemy as sa
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
@@ -19,6 +21,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from service.core import errors
 
 MEDIA_TYPE = "application/problem+json"
+LOG = logging.getLogger("scengen.api")
 
 
 @dataclass(frozen=True)
@@ -130,6 +133,7 @@ HTTP: dict[int, ProblemType] = {
     415: _type("unsupported-media-type", 415, "Unsupported media type", "Send another type."),
     422: _type("invalid-request", 422, "Invalid request", "The body or query fails validation."),
     500: _type("internal-error", 500, "Internal error", "A bug: please report it."),
+    503: _type("database-unavailable", 503, "Database unavailable", "The database did not answer."),
 }
 
 ALL_TYPES: dict[str, ProblemType] = {
@@ -180,7 +184,10 @@ def install_problem_handlers(app: FastAPI) -> None:
     @app.exception_handler(errors.ScengenError)
     async def domain_error(request: Request, error: errors.ScengenError) -> JSONResponse:
         kind = problem_type_of(error)
-        context = {k: v for k, v in error.context.items() if k != "budget_exhausted"}
+        if "traceback" in error.context:
+            LOG.error("worker crash on %s: %s", request.url.path, error.context["traceback"])
+        hidden = ("budget_exhausted", "traceback")
+        context = {k: v for k, v in error.context.items() if k not in hidden}
         return problem_response(kind, _scrub(error.message), request.url.path, **_jsonable(context))
 
     @app.exception_handler(Problem)
@@ -205,11 +212,30 @@ def install_problem_handlers(app: FastAPI) -> None:
         detail = str(error.detail) if error.detail else kind.description
         if error.status_code == 404 and detail == "Not Found":
             detail = f"no route {request.url.path}; the API is listed at /docs"
-        return problem_response(kind, detail, request.url.path)
+        if error.status_code == 405 and detail == "Method Not Allowed":
+            detail = f"{request.method} is not a method of {request.url.path}"
+        return problem_response(kind, detail, request.url.path, dict(error.headers or {}))
+
+    @app.exception_handler(sa.exc.DataError)
+    @app.exception_handler(UnicodeError)
+    async def unstorable(request: Request, error: Exception) -> JSONResponse:
+        detail = (
+            "a value in the request cannot be stored (a NUL character, an unpaired surrogate, "
+            "or text too long?)"
+        )
+        return problem_response(DOMAIN[errors.InvalidInput], detail, request.url.path)
+
+    @app.exception_handler(sa.exc.OperationalError)
+    @app.exception_handler(sa.exc.InterfaceError)
+    async def database_away(request: Request, error: Exception) -> JSONResponse:
+        LOG.error("database error on %s: %s", request.url.path, error)
+        return problem_response(HTTP[503], HTTP[503].description, request.url.path)
 
     @app.exception_handler(Exception)
     async def internal_error(request: Request, error: Exception) -> JSONResponse:
-        return problem_response(HTTP[500], f"{type(error).__name__}: {error}", request.url.path)
+        LOG.exception("internal error on %s %s", request.method, request.url.path)
+        detail = f"internal error ({type(error).__name__}); the server's log has the details"
+        return problem_response(HTTP[500], detail, request.url.path)
 
 
 def _describe_validation(item: Any) -> str:

@@ -11,7 +11,9 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from service.core.network import ControlType
+from service.core.testcase import Params
 
+MAX_SEED = 2**32 - 1  # clingo's and z3's seeds are unsigned 32-bit
 EXAMPLE_NETWORK = "4way-stop"
 EXAMPLE_EGO = "E2C_1:C2S_1"  # east arm, left turn to the south
 EXAMPLE_NEW_ROUTE = "S2C_1:C2N_1"  # south arm, straight on to the north
@@ -76,7 +78,7 @@ class TestCaseCreate(_Body):
     start_speed: float = Field(8.0, ge=0, description="ego speed at t = 0 (m/s)")
     duration: float = Field(20.0, gt=0, le=600, description="length of the test (s)")
     timestep: float = Field(0.1, gt=0, le=1, description="sample spacing (s)")
-    params: dict[str, float] | None = Field(None, description="rule and speed parameters")
+    params: Params | None = Field(None, description="rule and speed parameters")
     name: str = Field("", max_length=200)
 
 
@@ -120,7 +122,7 @@ class ExtendRequest(_Body):
     testcase: dict[str, Any] | None = Field(None, description="the old test-case document")
     testcase_id: str | None = Field(None, description="or the id of a stored test-case")
     routes: list[str] = Field(min_length=1, max_length=6, description="one new car per route")
-    seed: int = Field(0, ge=0, description="same seed, same bytes")
+    seed: int = Field(0, ge=0, le=MAX_SEED, description="same seed, same bytes")
     budget: float | None = Field(None, gt=0, description="seconds (default SCENGEN_EXTEND_BUDGET)")
     start_distance: float | None = Field(
         None, ge=0, description="new cars' distance before their stop line (default: varied)"

@@ -80,11 +80,17 @@ class AppState:
         return self.store.network_file_for(testcase)
 
     async def run(
-        self, work: str, function: Any, args: tuple[Any, ...], budget: float, started: float
+        self,
+        work: str,
+        function: Any,
+        args: tuple[Any, ...],
+        budget: float,
+        started: float,
+        grace: float = 0.0,
     ) -> Any:
         """A call in a worker, counted in the metrics by outcome."""
         try:
-            result = await self.executor.run(function, args, budget, work, started)
+            result = await self.executor.run(function, args, budget, work, started, grace)
         except Exception as error:
             self.metrics.outcome(work, type(error).__name__)
             raise

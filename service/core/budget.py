@@ -64,7 +64,8 @@ def decode_outcome(stdout: bytes, stderr: bytes, what: str) -> Any:
     if status == "error":
         raise payload
     if status == "crash":
-        raise ScengenError(f"{what} crashed: {payload}")
+        summary = str(payload).splitlines()[0] if payload else "no detail"
+        raise ScengenError(f"{what} crashed: {summary}", traceback=str(payload))
     return payload
 
 

@@ -15,6 +15,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from service.core.errors import InvalidInput
 
+MAX_SEED = 2**32 - 1  # clingo's and z3's seeds are unsigned 32-bit
+
 
 class _Item(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -40,7 +42,7 @@ class ExtendItem(_Based):
 
     kind: Literal["extend"]
     routes: list[str] = Field(min_length=1, max_length=6)
-    seed: int = Field(0, ge=0)
+    seed: int = Field(0, ge=0, le=MAX_SEED)
     budget: float | None = Field(None, gt=0, description="seconds (default: the server's)")
 
 
@@ -51,7 +53,7 @@ class ChainItem(_Based):
     kind: Literal["chain"]
     steps: list[list[str]] | None = Field(None, min_length=1, max_length=10)
     levels: int | None = Field(None, ge=1, le=10)
-    seed: int = Field(0, ge=0)
+    seed: int = Field(0, ge=0, le=MAX_SEED)
     budget: float | None = Field(None, gt=0, description="seconds per level")
 
     @model_validator(mode="after")

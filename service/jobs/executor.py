@@ -53,9 +53,11 @@ class LocalExecutor:
         budget: float,
         what: str,
         started: float | None = None,
+        grace: float = 0.0,
     ) -> Any:
-        """``function(*args)`` in a worker; BudgetExceeded when ``budget`` seconds, counted
-        from ``started`` (default: now, a monotonic time), pass before it answers."""
+        """``function(*args)`` in a worker; BudgetExceeded when ``budget`` seconds (plus
+        ``grace`` once it runs), counted from ``started`` (default: now, a monotonic time),
+        pass before it answers."""
         deadline = (time.monotonic() if started is None else started) + budget
         if self._slots is None:
             self._slots = asyncio.Semaphore(self.stats.workers)
@@ -74,7 +76,7 @@ class LocalExecutor:
         clock = time.monotonic()
         outcome = "error"
         try:
-            result = await self._call(function, args, deadline, budget, what)
+            result = await self._call(function, args, deadline + grace, budget, what)
             outcome = "ok"
             return result
         except BudgetExceeded:
@@ -117,7 +119,8 @@ class LocalExecutor:
                 f"{what} did not finish within its budget of {budget:g} s and was stopped"
             ) from None
         finally:
-            _kill_group(child)  # grandchildren it left behind (SUMO, a solver child)
+            if child.returncode is None:  # cancelled: its group is still ours to kill
+                _kill_group(child)
             self._children.discard(child)
         return decode_outcome(stdout, stderr, what)
 

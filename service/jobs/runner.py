@@ -232,8 +232,9 @@ def run_stoppable(
                     f"{what} did not finish within its budget of {budget:g} s and was stopped"
                 )
     finally:
-        with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.killpg(child.pid, signal.SIGKILL)
+        if child.poll() is None:  # stopped early: its group is still ours to kill
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(child.pid, signal.SIGKILL)
         talker.join(5)
     return decode_outcome(answer.get("out", b""), answer.get("err", b""), what)
 

@@ -122,13 +122,22 @@ def extend(
     seed: int,
     budget: float,
     start_distance: float | None,
+    deadline: float | None = None,
 ) -> dict[str, Any]:
-    """The extension of a test-case: the new document, the attempts and the step timings."""
+    """The extension of a test-case: the new document, the attempts and the step timings.
+    With ``deadline`` (a Unix time), the generator gets only what is left of ``budget``."""
     old = parse_testcase(document)
     intersection = intersection_of(old, network_file, cache_dir)
-    extension = extend_testcase(
-        old, routes, seed, budget, start_distance, intersection=intersection
-    )
+    left = budget if deadline is None else min(budget, deadline - time.time())
+    try:
+        extension = extend_testcase(
+            old, routes, seed, max(0.1, left), start_distance, intersection=intersection
+        )
+    except NoneFound as error:
+        if left == budget or not error.context.get("budget_exhausted"):
+            raise
+        message = error.message.replace(f"{max(0.1, left):g} s", f"{budget:g} s", 1)
+        raise NoneFound(message, **error.context) from None
     return {
         "document": dump_testcase(extension.testcase),
         "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],

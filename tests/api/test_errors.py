@@ -12,8 +12,8 @@ from fastapi.testclient import TestClient
 from service.api import create_app
 from service.api.problems import ALL_TYPES, DOMAIN, problem_type_of
 from service.api.schemas import EXAMPLE_EGO, EXAMPLE_NEW_ROUTE, example_testcase
-from service.settings import Settings
 from service.core import errors
+from service.settings import Settings
 
 TOKEN = "s3cret"
 AUTH = {"authorization": f"Bearer {TOKEN}"}
@@ -249,3 +249,64 @@ def test_deleting(client: TestClient) -> None:
     assert client.delete(f"/testcases/{ident}", headers=AUTH).status_code == 204
     assert_problem(client.get(f"/testcases/{ident}"), 404, "not-found")
     assert_problem(client.delete("/networks/4way-stop", headers=AUTH), 409, "conflict", "bundled")
+
+
+def test_routes_cannot_reach_outside_the_cache(client: TestClient, tmp_path: Path) -> None:
+    escape = "E2C_1:C2S/../../../../../../../../../../../../tmp/scengen-escape_1"
+    reply = client.get("/networks/4way-stop/junctions/C/plot", params={"route": escape})
+    assert_problem(reply, 422, "unknown-lane")
+    assert not Path("/tmp/scengen-escape_1.png").exists()
+    many = client.get(
+        "/networks/4way-stop/junctions/C/plot", params={"route": ["E2C_1:C2S_1"] * 40}
+    )
+    assert many.status_code == 200 and many.headers["content-type"] == "image/png"
+
+
+def test_unstorable_values_are_refused_not_500(client: TestClient) -> None:
+    assert client.get("/testcases/%00").status_code == 404
+    body = b'{"network": "4way-stop", "ego_route": "E2C_1:C2S_1", "name": "a\\ud800b"}'
+    reply = client.post(
+        "/testcases", content=body, headers={**AUTH, "content-type": "application/json"}
+    )
+    assert reply.status_code == 422, reply.text
+    assert reply.headers["content-type"] == "application/problem+json"
+
+
+def test_chunked_bodies_over_the_cap_are_413(client: TestClient) -> None:
+    def chunks() -> Any:
+        for _ in range(40):
+            yield b" " * 65536
+
+    reply = client.post(
+        "/testcases", content=chunks(), headers={**AUTH, "content-type": "application/json"}
+    )
+    assert_problem(reply, 413, "payload-too-large")
+
+
+def test_bad_parameters_and_seeds_are_422_not_worker_failures(client: TestClient) -> None:
+    reply = client.post(
+        "/testcases",
+        json={"network": "4way-stop", "ego_route": EXAMPLE_EGO, "params": {"v_max": 1}},
+        headers=AUTH,
+    )
+    assert_problem(reply, 422, "invalid-request", "v_stop < v_run < v_max")
+    reply = client.post(
+        "/extend",
+        json={"testcase": example_testcase(), "routes": [EXAMPLE_NEW_ROUTE], "seed": 2**32},
+        headers=AUTH,
+    )
+    assert_problem(reply, 422, "invalid-request", "seed")
+
+
+def test_method_not_allowed_says_which_are(client: TestClient) -> None:
+    reply = client.put("/networks")
+    body = assert_problem(reply, 405, "method-not-allowed", "PUT")
+    assert "GET" in reply.headers["allow"] and body["status"] == 405
+
+
+def test_a_browser_gets_evaluations_as_json() -> None:
+    from service.api.media import wants_junit
+
+    browser = "text/html,application/xhtml+xml,application/xml;q=0.9,*/*;q=0.8"
+    assert not wants_junit(None, browser)
+    assert wants_junit(None, "application/xml") and not wants_junit(None, None)

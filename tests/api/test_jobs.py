@@ -115,8 +115,8 @@ def test_submit_waits_and_downloads(server: Server, tmp_path: Path) -> None:
 
 def test_submit_exit_codes(server: Server, tmp_path: Path) -> None:
     failing = regression_batch()
-    failing["items"] = [failing["items"][0],
-                        {"kind": "evaluate", "items": [0], "controllers": ["sumo-aggressive"]}]  # fmt: skip
+    judge = {"kind": "evaluate", "items": [0], "controllers": ["sumo-aggressive"]}
+    failing["items"] = [failing["items"][0], judge]
     (tmp_path / "failing.json").write_text(json.dumps(failing))
     assert scengen("submit", "failing.json", "--server", server.url, "--wait",
                    cwd=tmp_path).returncode == 1  # fmt: skip

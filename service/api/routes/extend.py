@@ -20,9 +20,9 @@ from service.store import TestCaseRecord
 
 router = APIRouter(tags=["extend"])
 
-# Beyond its own budget the generator may finish the answer set in hand; the worker is
-# killed after this much more.
-GRACE = 2.0
+# The generator stops itself at the request's deadline, but may finish the answer set in
+# hand (and a worker takes a moment to start): it is killed this much later.
+GRACE = 5.0
 
 
 @router.post(
@@ -55,12 +55,14 @@ async def extend_testcase(state: State, body: ExtendRequest) -> Response:
             state.cache_dir,
             body.routes,
             body.seed,
-            # The generator's own deadline counts from when it starts, after any wait.
-            round(max(0.1, budget - (time.monotonic() - started)), 1),
+            budget,
             body.start_distance,
+            # The deadline is the request's: the wait for a free worker counts against it.
+            time.time() + budget - (time.monotonic() - started),
         ),
-        budget + GRACE,
+        budget,
         started,
+        GRACE,
     )
     return await asyncio.to_thread(_store, state, old, result)
 

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import asyncio
+import hashlib
 import json
 import time
+from pathlib import Path
 from typing import Annotated, Any
 
 from defusedxml import ElementTree as SafeElementTree
@@ -69,13 +71,12 @@ async def upload_network(
     if len(content) > state.settings.max_upload_bytes:
         raise Problem(413, f"the network exceeds {state.settings.max_upload_mb:g} MB")
     overrides = _parse_controls(controls)
-    _check_xml(content)
+    await asyncio.to_thread(_check_xml, content)
     filename = file.filename or "network.net.xml"
-    record = state.store.network(_probe_id(filename, content, overrides))
+    record = await asyncio.to_thread(state.store.network, _probe_id(filename, content, overrides))
     if record is None:
         staged = state.cache_dir / "uploads" / str(time.monotonic_ns()) / safe_filename(filename)
-        staged.parent.mkdir(parents=True, exist_ok=True)
-        staged.write_bytes(content)
+        await asyncio.to_thread(_stage, staged, content)
         try:
             await state.run(
                 "upload",
@@ -87,7 +88,7 @@ async def upload_network(
         finally:
             staged.unlink(missing_ok=True)
             staged.parent.rmdir()
-        record = state.store.add_network(filename, content, overrides)
+        record = await asyncio.to_thread(state.store.add_network, filename, content, overrides)
     response.headers["Location"] = f"/networks/{record.id}"
     return network_public(record)
 
@@ -197,14 +198,15 @@ async def plot_junction(
     record = state.network_or_404(network)
     suffix, media = picture_format(format, request.headers.get("accept"))
     path = state.store.network_file(network)
-    key = "-".join(sorted(route)).replace(":", "~") or "all"
+    chosen = sorted(set(route))
+    key = hashlib.sha256(json.dumps(chosen).encode()).hexdigest()[:16] if chosen else "all"
     content = await _junction_work(
         state,
         record,
         junction,
         f"plot-{key}.{suffix}",
         tasks.plot_junction,
-        (path, junction, record.controls.get(junction), state.cache_dir, sorted(route), suffix),
+        (path, junction, record.controls.get(junction), state.cache_dir, chosen, suffix),
     )
     return Response(content, media_type=media)
 
@@ -220,6 +222,11 @@ async def _junction_work(
         lambda: state.run("junction", function, args, state.settings.work_budget, time.monotonic()),
         json_cache=name.endswith(".json"),
     )
+
+
+def _stage(path: Path, content: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(content)
 
 
 def _parse_controls(text: str) -> dict[str, str]:

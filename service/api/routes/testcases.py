@@ -82,7 +82,8 @@ async def create_testcase(state: State, body: TestCaseCreate) -> Response:
         control = network.controls.get(junction)
     if control is None and junction is None and len(network.controls) == 1:
         junction, control = next(iter(network.controls.items()))
-    request = body.model_dump(exclude={"network", "junction", "control"})
+    request = body.model_dump(exclude={"network", "junction", "control", "params"})
+    request["params"] = None if body.params is None else body.params.model_dump()
     request.update(junction=junction, control=control)
     document = await state.run(
         "create",
