@@ -5,7 +5,8 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled
 
-.PHONY: help install system-tools test lint format nets run demo openapi bench bench-api coverage clean
+.PHONY: help install system-tools test lint format nets run demo openapi bench bench-api bench-jobs \
+	coverage clean
 
 help:
 	@echo "make run      serve the HTTP API on http://127.0.0.1:8000 (UI at /docs)"
@@ -67,9 +68,13 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.bench_check
 	$(BIN)/python -m bench.bench_generate
 	$(BIN)/python -m bench.bench_api
+	$(BIN)/python -m bench.bench_jobs
 
 bench-api: $(STAMP)
 	$(BIN)/python -m bench.bench_api
+
+bench-jobs: $(STAMP)
+	$(BIN)/python -m bench.bench_jobs
 
 coverage: $(STAMP)
 	$(BIN)/python -m bench.coverage

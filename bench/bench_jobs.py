@@ -1,0 +1,123 @@
+"""Benchmark: batch throughput on Celery with one and with two workers (same run, same batch).
+
+Run with `make bench-jobs` (part of `make bench`). Needs the machine's PostgreSQL and Redis
+(as the tests do). For each worker count it creates a fresh database, starts `scengen serve`
+(SCENGEN_EXECUTOR=celery) and that many `scengen worker --concurrency 1` processes, submits
+one batch of independent extensions (the four-way example, seeds 0..N-1) and times it from
+submission to the last item. The ratio of the two throughputs goes into docs/benchmarks.md.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import secrets
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import date
+from pathlib import Path
+from typing import Any
+
+import httpx2 as httpx
+import psycopg
+import redis
+
+from service.api.schemas import EXAMPLE_NEW_ROUTE, example_testcase
+
+ITEMS = 12
+POSTGRES = "postgresql://postgres@127.0.0.1:5432/test"
+BROKER = "redis://127.0.0.1:6379/9"
+
+
+def batch() -> dict[str, Any]:
+    root = example_testcase()
+    return {
+        "name": "throughput",
+        "items": [
+            {"kind": "extend", "testcase": root, "routes": [EXAMPLE_NEW_ROUTE], "seed": seed,
+             "budget": 60}
+            for seed in range(ITEMS)
+        ],
+    }  # fmt: skip
+
+
+def start(args: list[str], env: dict[str, str], log: Path) -> subprocess.Popen[bytes]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "service", *args],
+        env=env, stdout=log.open("w"), stderr=subprocess.STDOUT, start_new_session=True,
+    )  # fmt: skip
+
+
+def run(workers: int, folder: Path) -> float:
+    """Seconds from submission to the last finished item."""
+    name = f"scengen_bench_{secrets.token_hex(4)}"
+    with psycopg.connect(POSTGRES, autocommit=True) as admin:
+        admin.execute(f"CREATE DATABASE {name}")
+    redis.Redis.from_url(BROKER).flushdb()
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    env = {
+        **{k: v for k, v in os.environ.items() if not k.startswith("SCENGEN_")},
+        "SCENGEN_EXECUTOR": "celery",
+        "SCENGEN_BROKER_URL": BROKER,
+        "SCENGEN_DATABASE_URL": f"postgresql+psycopg://postgres@127.0.0.1:5432/{name}",
+        "SCENGEN_DATA_DIR": str(folder / f"data-{workers}"),
+    }
+    processes = [start(["serve", "--port", str(port)], env, folder / f"serve-{workers}.log")]
+    processes += [
+        start(["worker", "--name", f"bench{n}"], env, folder / f"worker-{workers}-{n}.log")
+        for n in range(workers)
+    ]
+    url = f"http://127.0.0.1:{port}"
+    try:
+        for log in [folder / f"worker-{workers}-{n}.log" for n in range(workers)]:
+            while " ready." not in log.read_text():
+                time.sleep(0.2)
+        while True:
+            try:
+                httpx.get(f"{url}/healthz").raise_for_status()
+                break
+            except httpx.TransportError:
+                time.sleep(0.2)
+        clock = time.monotonic()
+        job = httpx.post(f"{url}/jobs", json=batch()).json()
+        while job["state"] not in ("succeeded", "failed", "cancelled"):
+            time.sleep(0.2)
+            job = httpx.get(f"{url}/jobs/{job['id']}").json()
+        seconds = time.monotonic() - clock
+        if job["state"] != "succeeded":
+            raise RuntimeError(f"the batch {job['state']}: {[i['error'] for i in job['items']]}")
+        return seconds
+    finally:
+        for process in processes:
+            os.killpg(process.pid, signal.SIGTERM)
+        for process in processes:
+            try:
+                process.wait(20)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+        with psycopg.connect(POSTGRES, autocommit=True) as admin:
+            admin.execute(f"DROP DATABASE IF EXISTS {name} WITH (FORCE)")
+
+
+def main() -> None:
+    print(f"# bench_jobs {date.today()} on {platform.node()} ({os.cpu_count()} cores): "
+          f"{ITEMS} independent extensions on Celery workers (concurrency 1 each)")  # fmt: skip
+    print("| workers | batch wall time | items per minute |")
+    print("|---|---|---|")
+    throughput = {}
+    with tempfile.TemporaryDirectory(prefix="scengen-bench-jobs-") as folder:
+        for workers in (1, 2):
+            seconds = run(workers, Path(folder))
+            throughput[workers] = ITEMS / seconds * 60
+            print(f"| {workers} | {seconds:.1f} s | {throughput[workers]:.1f} |")
+    print(f"ratio two/one workers: {throughput[2] / throughput[1]:.2f}")
+
+
+if __name__ == "__main__":
+    main()
