@@ -108,7 +108,9 @@ def follow(client: Client, job: dict[str, Any], out: TextIO, poll: float = 1.0) 
     while True:
         line = _summary(job)
         if terminal:
-            out.write("\r" + _bar(job) + " " + line[:70].ljust(70))
+            finished = job["state"] in FINISHED
+            shown = line if finished else line[:80].ljust(80)
+            out.write("\r" + _bar(job) + " " + shown)
             out.flush()
         elif line != last:
             out.write(f"[{time.strftime('%H:%M:%S')}] {line}\n")

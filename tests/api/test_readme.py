@@ -6,6 +6,7 @@ import io
 import json
 import re
 import subprocess
+import sys
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
@@ -61,3 +62,22 @@ def test_upload_example_gives_the_id_the_readme_names(server: Server, tmp_path: 
     town05 = json.loads((tmp_path / "town05.json").read_text())
     assert town05["id"] in upload
     assert json.loads((tmp_path / "town05-root.json").read_text())["network"] == town05["id"]
+
+
+def test_the_batch_example_runs_as_the_readme_shows(server: Server, tmp_path: Path) -> None:
+    created = server.client.post(
+        "/testcases", json={"network": "4way-stop", "ego_route": "E2C_1:C2S_1"}
+    )
+    assert created.json()["id"] == "ecf9aef2eb19a2b5"  # the id the batch file names
+    readme = (ROOT / "README.md").read_text()
+    example = (ROOT / "examples" / "regression.yaml").read_text()
+    assert example.split("name:", 1)[1] in readme  # the README shows the file as it is
+    done = subprocess.run(
+        [sys.executable, "-m", "service", "submit", str(ROOT / "examples" / "regression.yaml"),
+         "--server", server.url, "--junit", "report.xml"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert "succeeded: 3/3 items, evaluations 6 passed 2 failed" in done.stderr, done.stderr
+    assert done.returncode == 1  # SUMO's driver fails the two-car level, as the README says
+    suite = ET.parse(tmp_path / "report.xml").getroot().find("testsuite")
+    assert suite is not None and suite.get("tests") == "8" and suite.get("failures") == "2"
