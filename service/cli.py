@@ -375,6 +375,13 @@ def _run_worker(args: argparse.Namespace) -> int:
 
     settings = get_settings()
     name = args.name or f"scengen-{socket.gethostname()}-{os.getpid()}"
+    if settings.database.startswith("sqlite"):
+        print(
+            f"scengen: warning: the worker uses the SQLite file {settings.database}; it must be "
+            "the server's own file (same machine and SCENGEN_DATA_DIR), or set "
+            "SCENGEN_DATABASE_URL to the server's PostgreSQL",
+            file=sys.stderr,
+        )
     print(
         f"scengen: worker {name} on {settings.broker_url}, database {settings.database}",
         file=sys.stderr,
@@ -390,18 +397,23 @@ def _run_submit(args: argparse.Namespace) -> int:
     client = submit.Client(args.server, args.token or os.environ.get("SCENGEN_TOKEN"))
     try:
         job = submit.submit(client, batch, args.idempotency_key)
-        print(
-            f"scengen: job {job['id']}: {args.server.rstrip('/')}/jobs/{job['id']}", file=sys.stderr
-        )
+        print(f"scengen: job {job['id']}: {args.server.rstrip('/')}/jobs/{job['id']}",
+              file=sys.stderr)  # fmt: skip
         if not (args.wait or args.junit or args.out):
             return EXIT_OK
         job = submit.follow(client, job, sys.stderr)
-        submit.download(client, job, args.junit, args.out)
     except submit.ServerUnreachable as error:
         print(f"scengen: failed: {error}", file=sys.stderr)
         return EXIT_FAILED
     submit.print_failures(job)
-    return submit.outcome(job)
+    code = submit.outcome(job)  # decided before the downloads, which cannot change it
+    try:
+        submit.download(client, job, args.junit, args.out)
+    except (ScengenError, OSError) as error:
+        print(f"scengen: failed: the job {job['state']}, but its results could not be "
+              f"fetched: {error}", file=sys.stderr)  # fmt: skip
+        return EXIT_FAILED
+    return code
 
 
 def _run_networks(args: argparse.Namespace) -> int:

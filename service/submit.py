@@ -85,7 +85,14 @@ class Client:
             raise ServerUnreachable(f"cannot reach {self.server}: {reason}") from None
 
     def json(self, method: str, path: str, body: Any = None, **headers: str) -> Any:
-        return json.loads(self.call(method, path, body, headers)[2])
+        content = self.call(method, path, body, headers)[2]
+        try:
+            return json.loads(content)
+        except ValueError:
+            raise ServerUnreachable(
+                f"{method} {path}: the answer is not JSON (a proxy page?): "
+                f"{content[:80].decode(errors='replace')!r}"
+            ) from None
 
 
 def _detail(content: bytes) -> str:
@@ -101,8 +108,16 @@ def submit(client: Client, batch: Batch, key: str | None) -> dict[str, Any]:
     return job
 
 
-def follow(client: Client, job: dict[str, Any], out: TextIO, poll: float = 1.0) -> dict[str, Any]:
-    """Poll until the job finishes; a progress bar on a terminal, plain lines otherwise."""
+def follow(
+    client: Client,
+    job: dict[str, Any],
+    out: TextIO,
+    poll: float = 1.0,
+    patience: float = 600.0,
+) -> dict[str, Any]:
+    """Poll until the job finishes; a progress bar on a terminal, plain lines otherwise.
+    A server that is away (restarting, database down) is retried for ``patience`` seconds:
+    the job goes on without it."""
     terminal = out.isatty()
     last = ""
     while True:
@@ -121,7 +136,21 @@ def follow(client: Client, job: dict[str, Any], out: TextIO, poll: float = 1.0) 
                 out.write("\n")
             return job
         time.sleep(poll)
-        job = client.json("GET", f"/jobs/{job['id']}")
+        job = _poll(client, job, out, patience)
+
+
+def _poll(client: Client, job: dict[str, Any], out: TextIO, patience: float) -> dict[str, Any]:
+    deadline, wait = time.monotonic() + patience, 1.0
+    while True:
+        try:
+            found: dict[str, Any] = client.json("GET", f"/jobs/{job['id']}")
+            return found
+        except ServerUnreachable as error:
+            if time.monotonic() + wait > deadline:
+                raise
+            out.write(f"\nscengen: {error}; retrying in {wait:g} s\n")
+            time.sleep(wait)
+            wait = min(wait * 2, 15.0)
 
 
 def _bar(job: dict[str, Any], width: int = 24) -> str:

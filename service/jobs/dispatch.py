@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
+import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -59,6 +60,8 @@ class LocalDispatcher(Dispatcher):
         super().__init__(store, settings)
         self.pool = ThreadPoolExecutor(settings.workers, thread_name_prefix="scengen-item")
         self.running: set[tuple[str, int]] = set()
+        self.owner = owner_name("local")
+        self.shutdown = threading.Event()
 
     async def dispatch(self) -> None:
         free = self.settings.workers - len(self.running)
@@ -73,7 +76,7 @@ class LocalDispatcher(Dispatcher):
             self.running.add(key)
             future = loop.run_in_executor(
                 self.pool, run_item, self.store, self.settings, item.job, item.position,
-                owner_name("local"),
+                self.owner, self.shutdown,
             )  # fmt: skip
             future.add_done_callback(functools.partial(self._finished, key))
 
@@ -82,7 +85,10 @@ class LocalDispatcher(Dispatcher):
         self.nudge()
 
     async def close(self) -> None:
-        self.pool.shutdown(wait=False, cancel_futures=True)
+        """Stop the running items and give their claims back: a restart costs no attempt."""
+        self.shutdown.set()
+        await asyncio.to_thread(self.pool.shutdown, True, cancel_futures=True)
+        await asyncio.to_thread(self.jobs.release, self.owner)
 
 
 class CeleryDispatcher(Dispatcher):

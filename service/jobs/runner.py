@@ -14,6 +14,7 @@ import os
 import signal
 import socket
 import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -39,8 +40,16 @@ def owner_name(kind: str) -> str:
     return f"{kind}:{socket.gethostname()}:{os.getpid()}:{threading.get_ident()}"
 
 
-def run_item(store: Store, settings: Settings, job: str, position: int, owner: str) -> None:
-    """Claim and run one item; return quietly if someone else has it or it is finished."""
+def run_item(
+    store: Store,
+    settings: Settings,
+    job: str,
+    position: int,
+    owner: str,
+    shutdown: threading.Event | None = None,
+) -> None:
+    """Claim and run one item; return quietly if someone else has it or it is finished.
+    ``shutdown`` stops it without finishing it (the caller gives the claim back)."""
     jobs = JobStore(store)
     if not jobs.claim(job, position, owner, settings.lease_seconds):
         return
@@ -48,9 +57,17 @@ def run_item(store: Store, settings: Settings, job: str, position: int, owner: s
     assert item is not None
     stop = threading.Event()
     beating = threading.Thread(
-        target=_heartbeat, args=(jobs, item, owner, settings.lease_seconds, stop), daemon=True
+        target=_heartbeat,
+        args=(jobs, item, owner, settings.lease_seconds, stop, shutdown or threading.Event()),
+        daemon=True,
     )
     beating.start()
+    if item.testcases or item.evaluations:
+        print(
+            f"scengen: job {job} item {position}: resuming after {len(item.testcases)} "
+            f"test-case(s) and {len(item.evaluations)} evaluation(s) made before",
+            file=sys.stderr,
+        )
     try:
         Work(store, jobs, settings, item, owner, stop).run()
     except Stopped:
@@ -69,14 +86,26 @@ def run_item(store: Store, settings: Settings, job: str, position: int, owner: s
 
 
 def _heartbeat(
-    jobs: JobStore, item: ItemRecord, owner: str, lease: float, stop: threading.Event
+    jobs: JobStore,
+    item: ItemRecord,
+    owner: str,
+    lease: float,
+    stop: threading.Event,
+    shutdown: threading.Event,
 ) -> None:
-    while not stop.wait(lease / 3):
+    """Renew the lease often enough to see a cancellation within seconds; after a failed
+    renewal (the database is away) retry every second: the lease decides."""
+    interval = min(lease / 3, 2.0)
+    while not stop.wait(interval):
+        if shutdown.is_set():
+            stop.set()
+            return
         try:
             if not jobs.renew(item.job, item.position, owner, lease):
-                stop.set()
-        except Exception:  # the database is away: keep trying, the lease decides
-            continue
+                stop.set()  # cancelled, or given to another worker
+            interval = min(lease / 3, 2.0)
+        except Exception:
+            interval = 1.0
 
 
 class Work:

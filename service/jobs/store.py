@@ -111,6 +111,17 @@ class JobStore:
                     raise IdempotencyConflict(key)
                 return existing, False
         ident = secrets.token_hex(8)
+        try:
+            self._insert(ident, batch, fingerprint, key)
+        except sa.exc.IntegrityError:
+            if key is None:
+                raise
+            return self.create(batch, key)  # the same key, submitted at the same moment
+        job = self.job(ident)
+        assert job is not None
+        return job, True
+
+    def _insert(self, ident: str, batch: Batch, fingerprint: str, key: str | None) -> None:
         with self.engine.begin() as connection:
             connection.execute(
                 jobs.insert().values(
@@ -138,9 +149,6 @@ class JobStore:
                         evaluations="[]",
                     )
                 )
-        job = self.job(ident)
-        assert job is not None
-        return job, True
 
     def _by_key(self, key: str) -> JobRecord | None:
         with self.engine.connect() as connection:
@@ -233,40 +241,68 @@ class JobStore:
         with self.engine.begin() as connection:
             connection.execute(
                 items.update()
-                .where(items.c.job == job, items.c.position == position, items.c.owner == owner)
+                .where(
+                    items.c.job == job,
+                    items.c.position == position,
+                    items.c.owner == owner,
+                    items.c.state == "running",
+                )
                 .values(**values)
             )
 
     def finish(
-        self, job: str, position: int, owner: str | None, state: str, error: str | None = None
+        self,
+        job: str,
+        position: int,
+        owner: str | None,
+        state: str,
+        error: str | None = None,
+        expired_before: float | None = None,
     ) -> None:
+        """Finish an item (only its owner's, and only while unfinished) and, in the same
+        transaction, its job when this was the last item."""
         where = [items.c.job == job, items.c.position == position, items.c.state.not_in(FINISHED)]
         if owner is not None:
             where.append(items.c.owner == owner)
+        if expired_before is not None:
+            where.append(items.c.lease_until < expired_before)
         with self.engine.begin() as connection:
             connection.execute(
                 items.update()
                 .where(*where)
                 .values(state=state, error=error, finished_at=now(), lease_until=None)
             )
-        self.refresh(job)
+            _refresh(connection, job)
 
     def refresh(self, job: str) -> None:
         """The job's state from its items' states."""
-        record = self.job(job)
-        if record is None or record.state in FINISHED:
-            return
-        states = [item.state for item in record.items]
-        if all(s in FINISHED for s in states):
-            final = "succeeded" if all(s == "succeeded" for s in states) else "failed"
-            if "cancelled" in states and "failed" not in states:
-                final = "cancelled"
-            with self.engine.begin() as connection:
+        with self.engine.begin() as connection:
+            _refresh(connection, job)
+
+    def unfinished_jobs(self) -> list[str]:
+        with self.engine.connect() as connection:
+            return list(
                 connection.execute(
-                    jobs.update()
-                    .where(jobs.c.id == job, jobs.c.state.not_in(FINISHED))
-                    .values(state=final, finished_at=now())
-                )
+                    sa.select(jobs.c.id).where(jobs.c.state.not_in(FINISHED))
+                ).scalars()
+            )
+
+    def release(self, owner: str) -> int:
+        """Give this owner's running items back, undoing their attempt (a clean shutdown)."""
+        with self.engine.begin() as connection:
+            return int(
+                connection.execute(
+                    items.update()
+                    .where(items.c.owner == owner, items.c.state == "running")
+                    .values(
+                        state="queued",
+                        owner=None,
+                        lease_until=None,
+                        sent_at=None,
+                        attempts=items.c.attempts - 1,
+                    )
+                ).rowcount
+            )
 
     def cancel(self, job: str) -> None:
         """Cancel every unfinished item; running ones stop at their next lease renewal."""
@@ -276,11 +312,7 @@ class JobStore:
                 .where(items.c.job == job, items.c.state.not_in(FINISHED))
                 .values(state="cancelled", error="cancelled", finished_at=now())
             )
-            connection.execute(
-                jobs.update()
-                .where(jobs.c.id == job, jobs.c.state.not_in(FINISHED))
-                .values(state="cancelled", finished_at=now())
-            )
+            _refresh(connection, job)
 
     # the dispatcher side
 
@@ -289,7 +321,9 @@ class JobStore:
     ) -> list[ItemRecord]:
         """Queued items whose dependencies succeeded (failing those whose dependencies
         failed); oldest jobs first."""
-        query = sa.select(items).where(items.c.state == "queued")
+        query = (
+            sa.select(items).join(jobs, jobs.c.id == items.c.job).where(items.c.state == "queued")
+        )
         if unsent_only:
             query = query.where(
                 sa.or_(items.c.sent_at.is_(None), items.c.sent_at < time.time() - resend_after)
@@ -297,7 +331,9 @@ class JobStore:
         with self.engine.connect() as connection:
             rows = [
                 _item(r._mapping)
-                for r in connection.execute(query.order_by(items.c.job, items.c.position))
+                for r in connection.execute(
+                    query.order_by(jobs.c.created_at, items.c.job, items.c.position)
+                )
             ]
         ready: list[ItemRecord] = []
         states: dict[tuple[str, int], str] = {}
@@ -328,14 +364,16 @@ class JobStore:
             )
 
     def reclaim_expired(self, attempts: int) -> list[tuple[str, int]]:
-        """Running items whose lease ran out: back to queued, or failed after ``attempts``."""
+        """Running items whose lease ran out: back to queued, or failed after ``attempts``.
+        Every update re-checks the lease, so a worker that renews meanwhile keeps its item."""
+        cutoff = time.time()
+        for job in self.unfinished_jobs():
+            self.refresh(job)  # a job whose last item finished as its worker died
         with self.engine.connect() as connection:
             rows = [
                 _item(r._mapping)
                 for r in connection.execute(
-                    sa.select(items).where(
-                        items.c.state == "running", items.c.lease_until < time.time()
-                    )
+                    sa.select(items).where(items.c.state == "running", items.c.lease_until < cutoff)
                 )
             ]
         moved = []
@@ -345,6 +383,7 @@ class JobStore:
                     item.job, item.position, item.owner, "failed",
                     f"its worker stopped answering {item.attempts} times (killed or out of "
                     f"memory?); last owner {item.owner}",
+                    expired_before=cutoff,
                 )  # fmt: skip
             else:
                 with self.engine.begin() as connection:
@@ -355,6 +394,7 @@ class JobStore:
                             items.c.position == item.position,
                             items.c.owner == item.owner,
                             items.c.state == "running",
+                            items.c.lease_until < cutoff,
                         )
                         .values(state="queued", owner=None, lease_until=None, sent_at=None)
                     )
@@ -382,3 +422,18 @@ def _job(row: Any, found: list[ItemRecord]) -> JobRecord:
         finished_at=utc(row["finished_at"]) if row["finished_at"] else None,
         items=found,
     )  # fmt: skip
+
+
+def _refresh(connection: sa.Connection, job: str) -> None:
+    """Set a job's final state once all its items are finished."""
+    states = list(connection.execute(sa.select(items.c.state).where(items.c.job == job)).scalars())
+    if not states or not all(s in FINISHED for s in states):
+        return
+    final = "succeeded" if all(s == "succeeded" for s in states) else "failed"
+    if "cancelled" in states and "failed" not in states:
+        final = "cancelled"
+    connection.execute(
+        jobs.update()
+        .where(jobs.c.id == job, jobs.c.state.not_in(FINISHED))
+        .values(state=final, finished_at=now())
+    )

@@ -79,11 +79,26 @@ def test_cancelling_stops_a_running_job(server: Server, api: httpx.Client) -> No
     job = api.post("/jobs", json=batch).json()
     while api.get(f"/jobs/{job['id']}").json()["items"][0]["state"] != "running":
         time.sleep(0.2)
+    time.sleep(1.0)  # let it start a solver child
     cancelled = api.delete(f"/jobs/{job['id']}")
     assert cancelled.status_code == 202 and cancelled.json()["state"] == "cancelled"
     assert server.wait_for_job(job["id"])["items"][0]["state"] == "cancelled"
-    health = api.get("/healthz").json()
-    assert health["status"] == "ok"
+
+    def items_running() -> int:
+        lines = api.get("/metrics").text.splitlines()
+        return int(next(x for x in lines if x.startswith("scengen_job_items_running ")).split()[1])
+
+    deadline = time.monotonic() + 15
+    while items_running() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert items_running() == 0  # the worker saw the cancellation and killed its child
+
+
+def test_item_budgets_are_capped(api: httpx.Client) -> None:
+    batch = {"items": [{"kind": "evaluate", "testcase_id": "x", "controllers": ["sumo"],
+                        "budget": 100000}]}  # fmt: skip
+    reply = api.post("/jobs", json=batch)
+    assert reply.status_code == 422 and "items[0].budget" in reply.json()["detail"]
 
 
 def test_listing_jobs(api: httpx.Client, finished: dict[str, Any]) -> None:

@@ -58,6 +58,7 @@ def test_the_embedded_executor_survives_a_killed_server(tmp_path: Path) -> None:
         server.start()  # the same data directory: the same SQLite file
         after = server.wait_for_job(job)
         assert_complete_once(server, after, before)
+        assert "item 1: resuming after 1 test-case(s)" in server.log.read_text()
     finally:
         server.stop()
 
@@ -88,14 +89,13 @@ def test_celery_survives_a_killed_worker(tmp_path: Path, celery_settings: dict[s
     try:
         job = server.client.post("/jobs", json=regression_batch()).json()["id"]
         before = wait_until(lambda: chain_halfway(server, job))
-        owner = str(before["items"][1].get("owner", ""))
-        victim = next(w for w in workers if w.process.poll() is None)
-        for worker in workers:  # kill whichever runs the chain: both, to be sure
+        for worker in workers:  # whichever runs the chain: kill -9 both, mid-item
             worker.kill()
-        assert victim.process.returncode is not None and owner is not None
         workers = [Worker(tmp_path / f"w{n}", f"w{n}b", **celery_settings) for n in (1, 2)]
         after = server.wait_for_job(job)
         assert_complete_once(server, after, before)
+        logs = " ".join(w.log.read_text() for w in workers)
+        assert "item 1: resuming after 1 test-case(s)" in logs
     finally:
         for worker in workers:
             worker.stop()
@@ -117,9 +117,8 @@ def test_local_and_celery_give_the_same_results(
         job = server.wait_for_job(server.client.post("/jobs", json=regression_batch()).json()["id"])
         assert job["state"] == "succeeded", [i["error"] for i in job["items"]]
         on_celery = results(job, server.client)
-        ran_on = {line.split("celery@")[1].split()[0] for w in workers
-                  for line in w.log.read_text().splitlines() if " ready." in line}  # fmt: skip
-        assert ran_on == {"w1", "w2"}
+        ran = [w.log.read_text().count("Task scengen.run_item[") for w in workers]
+        assert all(count >= 1 for count in ran), ran  # both workers ran items
     finally:
         for worker in workers:
             worker.stop()

@@ -132,3 +132,49 @@ def test_idempotency_key(jobs: JobStore) -> None:
                                             "routes": ["a:b"]}]}), key="pipeline-41")  # fmt: skip
     assert jobs.create(BATCH)[0].id != first.id
     assert jobs.list_jobs().total == 2
+
+
+def test_a_job_whose_last_item_finished_unrecorded_is_finalised(jobs: JobStore) -> None:
+    from service.jobs.store import items
+
+    job, _ = jobs.create(BATCH)
+    with jobs.engine.begin() as connection:  # as if the worker died between the two writes
+        connection.execute(items.update().where(items.c.job == job.id).values(state="succeeded"))
+    assert (jobs.job(job.id) or job).state == "queued"
+    jobs.reclaim_expired(attempts=3)
+    assert (jobs.job(job.id) or job).state == "succeeded"
+
+
+def test_a_clean_shutdown_gives_claims_back_without_an_attempt(jobs: JobStore) -> None:
+    job, _ = jobs.create(BATCH)
+    assert jobs.claim(job.id, 0, "server-1", 30)
+    assert jobs.release("server-1") == 1
+    item = jobs.item(job.id, 0)
+    assert item is not None and item.state == "queued" and item.attempts == 0
+
+
+def test_nothing_is_recorded_into_a_cancelled_item(jobs: JobStore) -> None:
+    job, _ = jobs.create(BATCH)
+    assert jobs.claim(job.id, 0, "w", 30)
+    jobs.cancel(job.id)
+    jobs.record(job.id, 0, "w", "late", ["t-after-cancel"])
+    item = jobs.item(job.id, 0)
+    assert item is not None and item.testcases == [] and item.state == "cancelled"
+
+
+def test_the_same_key_at_the_same_moment_gives_one_job(jobs: JobStore) -> None:
+    made: list[str] = []
+    racers = [
+        threading.Thread(target=lambda: made.append(jobs.create(BATCH, key="race")[0].id))
+        for _ in range(6)
+    ]
+    for racer in racers:
+        racer.start()
+    for racer in racers:
+        racer.join()
+    assert len(made) == 6 and len(set(made)) == 1
+
+
+def test_older_jobs_run_first(jobs: JobStore) -> None:
+    created = [jobs.create(BATCH)[0].id for _ in range(4)]
+    assert [i.job for i in jobs.runnable(2)] == [created[0], created[0]]

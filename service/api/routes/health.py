@@ -80,6 +80,9 @@ async def get_metrics(state: State) -> PlainTextResponse:
             f'scengen_event_loop_late_total{{over="{bucket:g}"}} {count}'
             for bucket, count in sorted(metrics.lag_over.items())
         ),
+        "# HELP scengen_job_items_running Job items this server runs now (local executor).",
+        "# TYPE scengen_job_items_running gauge",
+        f"scengen_job_items_running {len(getattr(state.dispatcher, 'running', ()))}",
         "# HELP scengen_testcases Stored test-cases.",
         "# TYPE scengen_testcases gauge",
         f"scengen_testcases {state.store.list_testcases(limit=1).total}",

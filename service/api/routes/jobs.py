@@ -87,6 +87,14 @@ async def create_job(
     ] = None,
 ) -> Response:
     """Submit a batch; it runs in the background (202, Location: the job)."""
+    limit = state.settings.max_budget
+    for position, item in enumerate(batch.items):
+        if item.budget is not None and item.budget > limit:
+            raise Problem(
+                422,
+                f"items[{position}].budget {item.budget:g} s exceeds the server's limit of "
+                f"{limit:g} s",
+            )
 
     def create() -> Response:
         try:
