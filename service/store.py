@@ -363,6 +363,17 @@ class Store:
             ).first()
         return None if row is None else _evaluation_record(row._mapping)
 
+    def evaluations_passed(self, idents: list[str]) -> list[bool]:
+        """Whether each stored evaluation among ``idents`` passed (one query)."""
+        if not idents:
+            return []
+        with self.engine.connect() as connection:
+            return list(
+                connection.execute(
+                    sa.select(evaluations.c.passed).where(evaluations.c.id.in_(idents))
+                ).scalars()
+            )
+
     def list_evaluations(
         self, testcase: str | None = None, limit: int = 50, offset: int = 0
     ) -> Page[EvaluationRecord]:

@@ -243,6 +243,7 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
         _add_examples(schema)
         _add_parameter_examples(schema)
         _document_problems(schema)
+        _drop_repeated_descriptions(schema)
         app.openapi_schema = schema
     return app.openapi_schema
 
@@ -318,3 +319,11 @@ def _add_parameter_examples(schema: dict[str, Any]) -> None:
             for parameter in operation.get("parameters", []):
                 if parameter["in"] == "path" and parameter["name"] in values:
                     parameter["example"] = values[parameter["name"]]
+
+
+def _drop_repeated_descriptions(schema: dict[str, Any]) -> None:
+    """A one-line docstring is the summary; the UI need not show it twice."""
+    for operations in schema["paths"].values():
+        for operation in operations.values():
+            if operation.get("description", "").rstrip(".") == operation.get("summary"):
+                del operation["description"]

@@ -204,6 +204,7 @@ class JobItemPublic(BaseModel):
     needs: list[int] = Field(description="items it waits for")
     testcases: list[str] = Field(description="ids of the test-cases it made, in order")
     evaluations: list[str] = Field(description="ids of its evaluations")
+    links: list[str] = Field(description="its test-cases and evaluations")
     error: str | None
     started_at: datetime | None
     finished_at: datetime | None

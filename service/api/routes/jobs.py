@@ -23,12 +23,9 @@ STATES = ("queued", "running", *FINISHED)
 
 
 def job_public(state: AppState, job: JobRecord) -> JobPublic:
-    verdicts = [
-        record.passed
-        for item in job.items
-        for record in map(state.store.evaluation, item.evaluations)
-        if record is not None
-    ]
+    verdicts = list(
+        state.store.evaluations_passed([e for item in job.items for e in item.evaluations])
+    )
     base = f"/jobs/{job.id}"
     return JobPublic(
         id=job.id,
@@ -53,6 +50,8 @@ def job_public(state: AppState, job: JobRecord) -> JobPublic:
                 error=i.error,
                 started_at=i.started_at,
                 finished_at=i.finished_at,
+                links=[f"/testcases/{t}" for t in i.testcases]
+                + [f"/evaluations/{e}" for e in i.evaluations],
             )
             for i in job.items
         ],
