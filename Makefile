@@ -10,12 +10,13 @@ NETS := 4way-stop t-stop y-uncontrolled
 
 help:
 	@echo "make run      serve the HTTP API on http://127.0.0.1:8000 (UI at /docs)"
-	@echo "make demo     describe the bundled 4-way stop and drive an ego through it"
-	@echo "make test     install into .venv (and Chromium, as root) and run the whole test suite"
+	@echo "make test     install into .venv (Chromium and jq too, as root) and run every test"
 	@echo "make openapi  regenerate openapi/openapi.json from the app"
 	@echo "make lint     ruff and mypy --strict"
 	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
-	@echo "make bench    time the checker, the generator and the API (see docs/benchmarks.md)"
+	@echo "make bench    time the checker, the generator, the API and batch jobs (docs/benchmarks.md)"
+	@echo "make bench-api / bench-jobs   one of those benchmarks"
+	@echo "make demo     describe the 4-way stop, write a test-case, drive and judge an ego"
 	@echo "make coverage extend every conflicting route pair of the bundled intersections"
 
 $(STAMP): pyproject.toml
