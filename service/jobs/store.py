@@ -218,12 +218,7 @@ class JobStore:
         with self.engine.begin() as connection:
             renewed = connection.execute(
                 items.update()
-                .where(
-                    items.c.job == job,
-                    items.c.position == position,
-                    items.c.owner == owner,
-                    items.c.state == "running",
-                )
+                .where(*_owned(job, position, owner))
                 .values(lease_until=time.time() + lease)
             ).rowcount
         return bool(renewed)
@@ -239,16 +234,7 @@ class JobStore:
         if evaluations is not None:
             values["evaluations"] = json.dumps(evaluations)
         with self.engine.begin() as connection:
-            connection.execute(
-                items.update()
-                .where(
-                    items.c.job == job,
-                    items.c.position == position,
-                    items.c.owner == owner,
-                    items.c.state == "running",
-                )
-                .values(**values)
-            )
+            connection.execute(items.update().where(*_owned(job, position, owner)).values(**values))
 
     def finish(
         self,
@@ -422,6 +408,16 @@ def _job(row: Any, found: list[ItemRecord]) -> JobRecord:
         finished_at=utc(row["finished_at"]) if row["finished_at"] else None,
         items=found,
     )  # fmt: skip
+
+
+def _owned(job: str, position: int, owner: str) -> list[sa.ColumnElement[bool]]:
+    """The item, while it runs under this owner."""
+    return [
+        items.c.job == job,
+        items.c.position == position,
+        items.c.owner == owner,
+        items.c.state == "running",
+    ]
 
 
 def _refresh(connection: sa.Connection, job: str) -> None:

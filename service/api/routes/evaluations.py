@@ -26,6 +26,7 @@ from service.jobs import tasks
 from service.store import EvaluationRecord, TestCaseRecord
 
 router = APIRouter(tags=["evaluations"])
+VerdictFormat = Annotated[str | None, Query(description="json or junit (default: by Accept)")]
 JUNIT = "application/xml"
 JUNIT_RESPONSE: dict[int | str, dict[str, Any]] = {
     200: {
@@ -82,7 +83,7 @@ async def create_evaluation(
     state: State,
     request: Request,
     body: EvaluationCreate,
-    format: Annotated[str | None, Query(description="json or junit (default: by Accept)")] = None,
+    format: VerdictFormat = None,
 ) -> Any:
     """Replay a test-case in SUMO with a controller driving the ego, and judge it."""
     junit = wants_junit(format, request.headers.get("accept"))
@@ -151,7 +152,7 @@ async def get_evaluation(
     state: State,
     request: Request,
     evaluation: str,
-    format: Annotated[str | None, Query(description="json or junit (default: by Accept)")] = None,
+    format: VerdictFormat = None,
 ) -> Any:
     """One evaluation: verdict and reasons, or JUnit XML."""
     junit = wants_junit(format, request.headers.get("accept"))
