@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import copy
+import secrets
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
 from contextlib import asynccontextmanager
@@ -92,7 +93,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_problem_handlers(app)
     _serve_docs(app)
     app.middleware("http")(_count_requests)
-    app.add_middleware(BodyLimit, limit=chosen.max_upload_bytes)
+    app.add_middleware(BodyLimit, limit=chosen.max_upload_bytes, token=chosen.api_token)
     app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
     return app
 
@@ -124,11 +125,14 @@ async def _count_requests(
 
 
 class BodyLimit:
-    """Refuses a request body over the cap with 413, before any of it is parsed or spooled."""
+    """Refuses a request body over the cap with 413, and a write without the API token with
+    401, before any of the body is read, parsed or spooled. (The routes check the token
+    too: that is what documents it in OpenAPI.)"""
 
-    def __init__(self, app: ASGIApp, limit: int) -> None:
+    def __init__(self, app: ASGIApp, limit: int, token: str = "") -> None:
         self.app = app
         self.limit = limit
+        self.token = token
 
     async def __call__(
         self,
@@ -140,6 +144,10 @@ class BodyLimit:
             await self.app(scope, receive, send)
             return
         headers = dict(scope.get("headers", []))
+        writes = scope.get("method") in ("POST", "PUT", "PATCH", "DELETE")
+        if writes and self.token and not _bearer_matches(headers, self.token):
+            await self.app(scope, _no_body, send)  # the route's own check answers 401
+            return
         declared = headers.get(b"content-length")
         if declared is not None and declared.isdigit() and int(declared) > self.limit:
             await self._refuse(scope, receive, send)
@@ -184,6 +192,15 @@ class BodyLimit:
             scope.get("path", ""),
         )
         await response(scope, receive, send)
+
+
+def _bearer_matches(headers: dict[bytes, bytes], token: str) -> bool:
+    scheme, _, given = headers.get(b"authorization", b"").decode(errors="replace").partition(" ")
+    return scheme.lower() == "bearer" and secrets.compare_digest(given.encode(), token.encode())
+
+
+async def _no_body() -> dict[str, Any]:
+    return {"type": "http.request", "body": b"", "more_body": False}
 
 
 def _serve_docs(app: FastAPI) -> None:

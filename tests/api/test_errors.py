@@ -310,3 +310,12 @@ def test_a_browser_gets_evaluations_as_json() -> None:
     browser = "text/html,application/xhtml+xml,application/xml;q=0.9,*/*;q=0.8"
     assert not wants_junit(None, browser)
     assert wants_junit(None, "application/xml") and not wants_junit(None, None)
+
+
+def test_without_the_token_no_body_is_read(client: TestClient) -> None:
+    malformed = client.post(
+        "/extend", content=b'{"routes": [', headers={"content-type": "application/json"}
+    )
+    assert_problem(malformed, 401, "unauthorized")
+    huge = client.post("/networks", files={"file": ("x.net.xml", b" " * (2 * 1024 * 1024))})
+    assert_problem(huge, 401, "unauthorized")
