@@ -57,6 +57,7 @@ items = sa.Table(
 )
 
 FINISHED = ("succeeded", "failed", "cancelled")
+SWEEP_PERIOD = 10.0  # seconds between looks for jobs left unfinished with finished items
 
 
 @dataclass(frozen=True)
@@ -100,6 +101,7 @@ class JobStore:
     def __init__(self, store: Store) -> None:
         self.store = store
         self.engine = store.engine
+        self._swept = -SWEEP_PERIOD
 
     def create(self, batch: Batch, key: str | None = None) -> tuple[JobRecord, bool]:
         """The new job (True), or the job an earlier request with ``key`` made (False)."""
@@ -306,40 +308,44 @@ class JobStore:
         self, limit: int, unsent_only: bool = False, resend_after: float = 600
     ) -> list[ItemRecord]:
         """Queued items whose dependencies succeeded (failing those whose dependencies
-        failed); oldest jobs first."""
-        query = (
-            sa.select(items).join(jobs, jobs.c.id == items.c.job).where(items.c.state == "queued")
+        failed); oldest jobs first. Two light queries, whatever the number of items; only
+        the chosen items are read in full."""
+        queued = (
+            sa.select(items.c.job, items.c.position, items.c.needs)
+            .join(jobs, jobs.c.id == items.c.job)
+            .where(items.c.state == "queued")
         )
         if unsent_only:
-            query = query.where(
+            queued = queued.where(
                 sa.or_(items.c.sent_at.is_(None), items.c.sent_at < time.time() - resend_after)
             )
         with self.engine.connect() as connection:
-            rows = [
-                _item(r._mapping)
-                for r in connection.execute(
-                    query.order_by(jobs.c.created_at, items.c.job, items.c.position)
+            waiting = list(
+                connection.execute(
+                    queued.order_by(jobs.c.created_at, items.c.job, items.c.position)
                 )
-            ]
-        ready: list[ItemRecord] = []
-        states: dict[tuple[str, int], str] = {}
-        for item in rows:
-            needed = [self._state(item.job, n, states) for n in item.needs]
-            broken = [
-                n for n, s in zip(item.needs, needed, strict=True) if s in ("failed", "cancelled")
-            ]
+            )
+            active = sorted({row.job for row in waiting})
+            states = {
+                (row.job, row.position): row.state
+                for row in connection.execute(
+                    sa.select(items.c.job, items.c.position, items.c.state).where(
+                        items.c.job.in_(active)
+                    )
+                )
+            } if active else {}  # fmt: skip
+        chosen: list[tuple[str, int]] = []
+        for row in waiting:
+            needs = json.loads(row.needs)
+            needed = [states.get((row.job, n), "failed") for n in needs]
+            broken = [n for n, state in zip(needs, needed, strict=True)
+                      if state in ("failed", "cancelled")]  # fmt: skip
             if broken:
-                self.finish(item.job, item.position, None, "failed",
+                self.finish(row.job, row.position, None, "failed",
                             f"item {broken[0]} it depends on did not succeed")  # fmt: skip
-            elif all(s == "succeeded" for s in needed) and len(ready) < limit:
-                ready.append(item)
-        return ready
-
-    def _state(self, job: str, position: int, cache: dict[tuple[str, int], str]) -> str:
-        if (job, position) not in cache:
-            found = self.item(job, position)
-            cache[(job, position)] = found.state if found else "failed"
-        return cache[(job, position)]
+            elif all(state == "succeeded" for state in needed) and len(chosen) < limit:
+                chosen.append((row.job, row.position))
+        return [found for found in (self.item(j, p) for j, p in chosen) if found is not None]
 
     def mark_sent(self, job: str, position: int) -> None:
         with self.engine.begin() as connection:
@@ -353,8 +359,10 @@ class JobStore:
         """Running items whose lease ran out: back to queued, or failed after ``attempts``.
         Every update re-checks the lease, so a worker that renews meanwhile keeps its item."""
         cutoff = time.time()
-        for job in self.unfinished_jobs():
-            self.refresh(job)  # a job whose last item finished as its worker died
+        if time.monotonic() - self._swept > SWEEP_PERIOD:
+            self._swept = time.monotonic()
+            for job in self.unfinished_jobs():
+                self.refresh(job)  # a job whose last item finished as its worker died
         with self.engine.connect() as connection:
             rows = [
                 _item(r._mapping)
