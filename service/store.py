@@ -21,7 +21,7 @@ from typing import Any, Generic, TypeVar
 import sqlalchemy as sa
 
 from service.core.errors import UnknownNetwork, choices
-from service.core.network import bundled_networks
+from service.core.network import bundled_networks, file_sha256
 from service.core.testcase import TestCase, dump_testcase, parse_testcase
 
 T = TypeVar("T")
@@ -389,10 +389,7 @@ class Store:
 
 
 def _bundled_record(name: str, path: Path) -> NetworkRecord:
-    content = path.read_bytes()
-    return NetworkRecord(
-        name, path.name, hashlib.sha256(content).hexdigest(), {}, len(content), None, True
-    )
+    return NetworkRecord(name, path.name, file_sha256(path), {}, path.stat().st_size, None, True)
 
 
 def _network_record(row: Any) -> NetworkRecord:

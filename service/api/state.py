@@ -15,7 +15,6 @@ from pydantic import BaseModel
 
 from service.api.problems import Problem
 from service.core.errors import choices
-from service.core.testcase import TestCase
 from service.jobs.dispatch import Dispatcher
 from service.jobs.executor import LocalExecutor
 from service.settings import Settings
@@ -74,10 +73,6 @@ class AppState:
         if record is None:
             raise Problem(404, f"no test-case {ident!r}; GET /testcases lists them")
         return record
-
-    def network_file_of(self, testcase: TestCase) -> Path:
-        """The local file of a test-case's network, which must be bundled or uploaded."""
-        return self.store.network_file_for(testcase)
 
     async def run(
         self,

@@ -23,6 +23,9 @@ from service.core.budget import CHILD_COMMAND, decode_outcome, encode_call
 from service.core.errors import BudgetExceeded
 
 NICENESS = 19  # worker children yield the CPU to the server's event loop
+# Every worker call, here and in a job item (service.jobs.runner): a fresh child at the
+# lowest CPU priority.
+WORKER_COMMAND = ["nice", "-n", str(NICENESS), *CHILD_COMMAND]
 
 
 @dataclass
@@ -97,10 +100,7 @@ class LocalExecutor:
         what: str,
     ) -> Any:
         child = await asyncio.create_subprocess_exec(
-            "nice",
-            "-n",
-            str(NICENESS),
-            *CHILD_COMMAND,
+            *WORKER_COMMAND,
             stdin=asyncio.subprocess.PIPE,
             stdout=asyncio.subprocess.PIPE,
             stderr=asyncio.subprocess.PIPE,

@@ -20,16 +20,15 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from service.core.budget import CHILD_COMMAND, decode_outcome, encode_call
+from service.core.budget import decode_outcome, encode_call
 from service.core.errors import BudgetExceeded, ScengenError
 from service.core.testcase import parse_testcase
 from service.jobs import tasks
 from service.jobs.batch import ChainItem, EvaluateItem, ExtendItem
+from service.jobs.executor import WORKER_COMMAND
 from service.jobs.store import ItemRecord, JobStore
 from service.settings import Settings
 from service.store import Store, TestCaseRecord
-
-NICENESS = 19
 
 
 class Stopped(Exception):
@@ -156,10 +155,8 @@ class Work:
         for level in range(len(made), spec.count):
             progress = f"level {level + 1}/{spec.count}"
             self.jobs.record(self.item.job, self.item.position, self.owner, progress)
-            if spec.steps is not None:
-                current = self._extension(current, spec.steps[level], spec.seed, spec.budget)
-            else:
-                current = self._any_extension(current, spec.seed, spec.budget)
+            routes = None if spec.steps is None else spec.steps[level]
+            current = self._extension(current, routes, spec.seed, spec.budget)
             made.append(current.id)
             self.jobs.record(self.item.job, self.item.position, self.owner, progress, made)
 
@@ -202,27 +199,19 @@ class Work:
         return found
 
     def _extension(
-        self, old: TestCaseRecord, routes: list[str], seed: int, budget: float | None
+        self, old: TestCaseRecord, routes: list[str] | None, seed: int, budget: float | None
     ) -> TestCaseRecord:
+        """``old`` extended by cars on ``routes``, or on a route the service picks (None)."""
         chosen = budget or self.settings.extend_budget
-        result = self._call(
-            tasks.extend,
-            (old.document, self.store.network_file_for(old.testcase), self.settings.cache_dir,
-             routes, seed, chosen, None),
-            chosen + 5.0, f"extending {old.id} by {', '.join(routes)}",
-        )  # fmt: skip
-        return self.store.add_testcase(parse_testcase(result["document"]), parent=old.id)
-
-    def _any_extension(
-        self, old: TestCaseRecord, seed: int, budget: float | None
-    ) -> TestCaseRecord:
-        chosen = budget or self.settings.extend_budget
-        result = self._call(
-            tasks.extend_any,
-            (old.document, self.store.network_file_for(old.testcase), self.settings.cache_dir,
-             seed, chosen),
-            chosen + 5.0, f"extending {old.id}",
-        )  # fmt: skip
+        common = (old.document, self.store.network_file_for(old.testcase), self.settings.cache_dir)
+        call: Callable[..., Any]
+        args: tuple[Any, ...]
+        if routes is None:
+            call, args, what = tasks.extend_any, (*common, seed, chosen), f"extending {old.id}"
+        else:
+            call, args = tasks.extend, (*common, routes, seed, chosen, None)
+            what = f"extending {old.id} by {', '.join(routes)}"
+        result = self._call(call, args, chosen + 5.0, what)
         return self.store.add_testcase(parse_testcase(result["document"]), parent=old.id)
 
     def _call(
@@ -238,7 +227,7 @@ def run_stoppable(
     """``function(*args)`` in a child process (lowest priority, own process group), killed
     when ``budget`` runs out (BudgetExceeded) or ``stop`` is set (Stopped)."""
     child = subprocess.Popen(
-        ["nice", "-n", str(NICENESS), *CHILD_COMMAND],
+        WORKER_COMMAND,
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
         start_new_session=True,
     )  # fmt: skip

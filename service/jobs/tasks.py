@@ -19,14 +19,13 @@ from typing import Any
 from service.core.errors import NoMoreComplexTestCase, NoneFound
 from service.core.export import export_bundle
 from service.core.generate import extend_testcase
-from service.core.network import Intersection, load_intersection
+from service.core.network import load_intersection
 from service.core.network.describe import describe_intersection
-from service.core.network.load import SUPPORTED, read_network
+from service.core.network.load import SUPPORTED, junction_arms, read_network
 from service.core.replay import evaluate
 from service.core.testcase import (
     NetworkRef,
     Params,
-    TestCase,
     dump_testcase,
     load_testcase_intersection,
     new_testcase,
@@ -34,18 +33,12 @@ from service.core.testcase import (
 )
 
 
-def intersection_of(testcase: TestCase, network_file: Path, cache_dir: Path) -> Intersection:
-    """The test-case's intersection, after checking that the network bytes are the ones it
-    was made on."""
-    return load_testcase_intersection(testcase, cache_dir, network_file)
-
-
 def list_junctions(network_file: Path) -> list[dict[str, Any]]:
     """Every junction with three or more approaches: id, control type, approaches."""
     net = read_network(network_file)
     found = []
     for node in net.getNodes():
-        approaches = sum(1 for e in node.getIncoming() if e.getFunction() != "internal")
+        approaches = junction_arms(node)
         if node.getType() != "internal" and approaches >= 3:
             found.append(
                 {
@@ -127,7 +120,7 @@ def extend(
     """The extension of a test-case: the new document, the attempts and the step timings.
     With ``deadline`` (a Unix time), the generator gets only what is left of ``budget``."""
     old = parse_testcase(document)
-    intersection = intersection_of(old, network_file, cache_dir)
+    intersection = load_testcase_intersection(old, cache_dir, network_file)
     left = budget if deadline is None else min(budget, deadline - time.time())
     try:
         extension = extend_testcase(
@@ -150,7 +143,7 @@ def evaluate_controller(
 ) -> dict[str, Any]:
     """A controller's verdict on a test-case (``Verdict.to_dict``) and the seconds it took."""
     testcase = parse_testcase(document)
-    intersection = intersection_of(testcase, network_file, cache_dir)
+    intersection = load_testcase_intersection(testcase, cache_dir, network_file)
     clock = time.monotonic()
     evaluation = evaluate(testcase, controller, intersection, budget)
     return {"verdict": evaluation.verdict.to_dict(), "seconds": time.monotonic() - clock}
@@ -159,7 +152,7 @@ def evaluate_controller(
 def bundle(document: str, network_file: Path, cache_dir: Path) -> bytes:
     """The SUMO export of a test-case as a zip archive (one folder named after it)."""
     testcase = parse_testcase(document)
-    intersection = intersection_of(testcase, network_file, cache_dir)
+    intersection = load_testcase_intersection(testcase, cache_dir, network_file)
     memory = io.BytesIO()
     with tempfile.TemporaryDirectory(prefix="scengen-bundle-") as folder:
         written = export_bundle(testcase, Path(folder), intersection)
@@ -181,7 +174,7 @@ def plot_testcase(
     from service.plot import plot_testcase as draw
 
     testcase = parse_testcase(document)
-    intersection = intersection_of(testcase, network_file, cache_dir)
+    intersection = load_testcase_intersection(testcase, cache_dir, network_file)
     with tempfile.TemporaryDirectory(prefix="scengen-plot-") as folder:
         path = Path(folder) / f"testcase.{suffix}"
         if controller is None:
@@ -205,7 +198,7 @@ def extend_any(
     """An extension by one car on a route the service chooses: the routes that conflict
     with the ego's, from forks no car uses yet, tried in an order drawn from ``seed``."""
     old = parse_testcase(document)
-    intersection = intersection_of(old, network_file, cache_dir)
+    intersection = load_testcase_intersection(old, cache_dir, network_file)
     used = {old.ego.route.fork, *(car.route.fork for car in old.nonegos)}
     candidates = sorted(
         route

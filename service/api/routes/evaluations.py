@@ -11,7 +11,7 @@ from fastapi import APIRouter, Query, Request, Response, status
 
 from service.api.media import wants_junit
 from service.api.problems import Problem
-from service.api.routes.testcases import check_controller, store_inline
+from service.api.routes.testcases import check_controller
 from service.api.schemas import (
     Controller,
     EvaluationCreate,
@@ -98,10 +98,10 @@ async def create_evaluation(
 
     def base() -> tuple[TestCaseRecord, Path]:
         if body.testcase is not None:
-            record = store_inline(state, body.testcase)
+            record = state.store.keep_inline(body.testcase)
         else:
             record = state.testcase_or_404(str(body.testcase_id))
-        return record, state.network_file_of(record.testcase)
+        return record, state.store.network_file_for(record.testcase)
 
     record, network_file = await asyncio.to_thread(base)
     result = await state.run(

@@ -11,7 +11,7 @@ from typing import Any
 from fastapi import APIRouter, Response, status
 
 from service.api.problems import Problem
-from service.api.routes.testcases import public, store_inline
+from service.api.routes.testcases import public
 from service.api.schemas import Attempt, ExtendRequest, ExtensionPublic
 from service.api.state import AppState, State, Token, json_answer
 from service.core.testcase import parse_testcase
@@ -70,10 +70,10 @@ async def extend_testcase(state: State, body: ExtendRequest) -> Response:
 def _base(state: AppState, body: ExtendRequest) -> tuple[TestCaseRecord, Path]:
     """The old test-case (an inline one is stored: nothing submitted is lost) and its network."""
     if body.testcase is not None:
-        old = store_inline(state, body.testcase)
+        old = state.store.keep_inline(body.testcase)
     else:
         old = state.testcase_or_404(str(body.testcase_id))
-    return old, state.network_file_of(old.testcase)
+    return old, state.store.network_file_for(old.testcase)
 
 
 def _store(state: AppState, old: TestCaseRecord, result: dict[str, Any]) -> Response:

@@ -201,7 +201,7 @@ async def get_job_bundles(state: State, job: str) -> Response:
         records = [
             r for i in found.items for r in map(state.store.testcase, i.testcases) if r is not None
         ]
-        return [(r.id, r.document, state.network_file_of(r.testcase)) for r in records]
+        return [(r.id, r.document, state.store.network_file_for(r.testcase)) for r in records]
 
     listed = await asyncio.to_thread(sources)
     content = await state.run(

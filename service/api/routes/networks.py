@@ -21,7 +21,7 @@ from service.api.state import State, Token
 from service.core.errors import InvalidInput, UnknownJunction
 from service.core.network import ControlType
 from service.jobs import tasks
-from service.store import NetworkRecord, safe_filename
+from service.store import NetworkRecord, network_id, safe_filename
 
 router = APIRouter(prefix="/networks", tags=["networks"])
 CONTROLS = [c.value for c in ControlType]
@@ -73,7 +73,7 @@ async def upload_network(
     overrides = _parse_controls(controls)
     await asyncio.to_thread(_check_xml, content)
     filename = file.filename or "network.net.xml"
-    record = await asyncio.to_thread(state.store.network, _probe_id(filename, content, overrides))
+    record = await asyncio.to_thread(state.store.network, network_id(filename, content, overrides))
     if record is None:
         staged = state.cache_dir / "uploads" / str(time.monotonic_ns()) / safe_filename(filename)
         await asyncio.to_thread(_stage, staged, content)
@@ -261,9 +261,3 @@ def _check_xml(content: bytes) -> None:
         raise InvalidInput(f"the upload's root element is <{root.tag}>, not a SUMO <net>")
     if root.find("junction") is None or root.find("edge") is None:
         raise InvalidInput("the SUMO <net> has no junctions or edges")
-
-
-def _probe_id(filename: str, content: bytes, controls: dict[str, str]) -> str:
-    from service.store import network_id
-
-    return network_id(filename, content, controls)

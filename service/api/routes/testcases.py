@@ -20,7 +20,7 @@ from service.api.schemas import (
     TestCasePublic,
     TestCaseSummary,
 )
-from service.api.state import AppState, State, Token, json_answer
+from service.api.state import State, Token, json_answer
 from service.core.controllers import controller_names
 from service.core.errors import InvalidInput, choices
 from service.core.testcase import NetworkRef, parse_testcase
@@ -59,11 +59,6 @@ def summary(record: TestCaseRecord) -> TestCaseSummary:
 
 def public(record: TestCaseRecord) -> TestCasePublic:
     return TestCasePublic(**summary(record).model_dump(), testcase=json.loads(record.document))
-
-
-def store_inline(state: AppState, document: dict[str, object]) -> TestCaseRecord:
-    """Keep a test-case a client sent inline (nothing submitted is lost)."""
-    return state.store.keep_inline(document)
 
 
 @router.post(
@@ -205,7 +200,7 @@ async def get_bundle(state: State, testcase: str) -> Response:
         lambda: state.run(
             "bundle",
             tasks.bundle,
-            (record.document, state.network_file_of(loaded), state.cache_dir),
+            (record.document, state.store.network_file_for(loaded), state.cache_dir),
             state.settings.work_budget,
             time.monotonic(),
         ),
@@ -247,7 +242,7 @@ async def plot_testcase(
             tasks.plot_testcase,
             (
                 record.document,
-                state.network_file_of(loaded),
+                state.store.network_file_for(loaded),
                 state.cache_dir,
                 suffix,
                 controller,

@@ -87,7 +87,8 @@ def read_network(path: Path) -> Any:
         raise InvalidInput(f"cannot read SUMO network {path}: {exc}", network=str(path)) from exc
 
 
-def _junction_arms(node: Any) -> int:
+def junction_arms(node: Any) -> int:
+    """How many roads come into a junction (internal lanes do not count)."""
     return sum(1 for edge in node.getIncoming() if edge.getFunction() != "internal")
 
 
@@ -97,7 +98,7 @@ def _choose_junction(net: Any, path: Path, junction: str | None) -> str:
     }
     if junction is not None:
         if junction not in nodes:
-            crossings = [j for j, node in nodes.items() if _junction_arms(node) >= 3]
+            crossings = [j for j, node in nodes.items() if junction_arms(node) >= 3]
             raise UnknownJunction(
                 f"junction {junction!r} is not in {path.name}; junctions with 3 or more "
                 f"approaches: {choices(crossings)}",
@@ -107,7 +108,7 @@ def _choose_junction(net: Any, path: Path, junction: str | None) -> str:
     supported = [j for j, node in nodes.items() if node.getType() in SUPPORTED]
     if len(supported) == 1:
         return supported[0]
-    crossings = [f"{j} ({n.getType()})" for j, n in nodes.items() if _junction_arms(n) >= 3]
+    crossings = [f"{j} ({n.getType()})" for j, n in nodes.items() if junction_arms(n) >= 3]
     reason = "several junctions" if supported else "no junction"
     raise UnknownJunction(
         f"{path.name} has {reason} of a supported control type ({', '.join(SUPPORTED)}); "
