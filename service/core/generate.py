@@ -169,7 +169,7 @@ def extend_testcase(
             result.method,
             len(attempts) + 1,
         )
-        problem_found = _verify(old, candidate, junction, ids)
+        problem_found = verify_extension(old, candidate, junction, ids)
         seconds["verification"] += time.monotonic() - clock
         if problem_found is None:
             attempts.append(Attempt(ordering.index, f"verified ({result.method} timing)"))
@@ -530,7 +530,9 @@ def _rounded(sample: PoseSample) -> dict[str, float]:
     return {key: round(value, 6) for key, value in data.items()}
 
 
-def _verify(old: TestCase, new: TestCase, junction: Intersection, ids: Sequence[str]) -> str | None:
+def verify_extension(
+    old: TestCase, new: TestCase, junction: Intersection, ids: Sequence[str]
+) -> str | None:
     """None when the candidate is verified, else what is wrong."""
     assert new.certificates is not None
     solvability = [PoseSample(**s.model_dump()) for s in new.certificates.solvability]
