@@ -41,7 +41,7 @@ from service.core.testcase import (
 )
 from service.core.trajectory import read_trajectory
 from service.core.verdict import Verdict, junit_report
-from service.examples import EXAMPLES, run_example, write_chain
+from service.examples import EXAMPLES, run_example, write_testcase
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
 CONTROLS = [c.value for c in ControlType]
@@ -597,9 +597,11 @@ def _run_extend(args: argparse.Namespace) -> int:
 def _run_example(args: argparse.Namespace) -> int:
     example = EXAMPLES[args.name]
     print(f"{example.name}: {example.about}", file=sys.stderr)
-    chain = run_example(example, args.seed, args.budget, _progress(time.monotonic()))
-    for path in write_chain(chain, args.output):
-        print(path)
+
+    def keep(testcase: TestCase) -> None:  # each level is written as soon as it is verified
+        print(write_testcase(testcase, args.output), flush=True)
+
+    run_example(example, args.seed, args.budget, _progress(time.monotonic()), keep)
     return EXIT_OK
 
 

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from service.core.errors import ScengenError
 from service.core.generate import extend_testcase
 from service.core.testcase import TestCase, dump_testcase, new_testcase
 
@@ -64,25 +65,33 @@ def run_example(
     seed: int = 0,
     budget: float = 120.0,
     progress: Callable[[str], None] | None = None,
+    on_level: Callable[[TestCase], None] | None = None,
 ) -> list[TestCase]:
-    """The chain of test-cases: the ego-only start, then one per step."""
+    """The chain of test-cases: the ego-only start, then one per step. ``on_level`` hears
+    of each level as soon as it is verified; a level that fails names itself in its error."""
     chain = [
         new_testcase(
             example.network, example.ego, duration=example.duration, name=f"{example.name}-0"
         )
     ]
+    if on_level is not None:
+        on_level(chain[0])
     for level, routes in enumerate(example.steps, start=1):
-        extension = extend_testcase(chain[-1], list(routes), seed, budget, progress=progress)
+        try:
+            extension = extend_testcase(chain[-1], list(routes), seed, budget, progress=progress)
+        except ScengenError as error:
+            message = f"{example.name} level {level}: {error.message}"
+            raise type(error)(message, **error.context) from error
         document = extension.testcase.model_copy(update={"name": f"{example.name}-{level}"})
         chain.append(document)
+        if on_level is not None:
+            on_level(document)
     return chain
 
 
-def write_chain(chain: list[TestCase], folder: Path) -> list[Path]:
+def write_testcase(testcase: TestCase, folder: Path) -> Path:
+    """``folder/NAME.json``, the folder made when missing."""
     folder.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for testcase in chain:
-        path = folder / f"{testcase.name}.json"
-        path.write_text(dump_testcase(testcase))
-        paths.append(path)
-    return paths
+    path = folder / f"{testcase.name}.json"
+    path.write_text(dump_testcase(testcase))
+    return path

@@ -4,16 +4,25 @@ Solver and simulator libraries do not always honour their own timeouts, and libs
 per-process singleton, so every long call runs here, never in the caller's process. The
 child is a fresh interpreter (``python -m service.core.budget``) fed the call by pickle on
 stdin: no fork of a threaded server, and no re-import of the caller's ``__main__``.
+
+``WarmWorker`` keeps such a child alive between calls, so that its imports (libsumo, about
+half a second) are paid once per process; each call still runs under its budget, and a call
+that overruns kills the child (the next call starts a fresh one).
 """
 
 from __future__ import annotations
 
+import atexit
 import contextlib
 import importlib
 import os
 import pickle
+import select
+import struct
 import subprocess
 import sys
+import threading
+import time
 import traceback
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -85,12 +94,84 @@ def _die_with_parent() -> None:
             os._exit(1)
 
 
-def _serve() -> None:
-    """Child side: read one pickled call from stdin, write the pickled outcome to stdout."""
-    _die_with_parent()
-    module, name, args = pickle.loads(sys.stdin.buffer.read())
-    out = sys.stdout.buffer
-    sys.stdout = sys.stderr  # anything the call prints must not corrupt the answer
+FRAME = struct.Struct(">Q")  # a length, then that many bytes of pickle
+
+
+class WarmWorker:
+    """One child interpreter that serves calls one after another, each under its budget."""
+
+    def __init__(self) -> None:
+        self._process: subprocess.Popen[bytes] | None = None
+        self._owner = 0
+        self._lock = threading.Lock()
+        atexit.register(self.close)
+
+    def call(self, function: Callable[..., T], args: tuple[Any, ...], budget: float,
+             what: str) -> T:  # fmt: skip
+        """``function(*args)`` in the warm child; BudgetExceeded after ``budget`` seconds."""
+        with self._lock:
+            process = self._child()
+            assert process.stdin is not None and process.stdout is not None
+            request = encode_call(function, args)
+            try:
+                process.stdin.write(FRAME.pack(len(request)) + request)
+                process.stdin.flush()
+                reply = _read_frame(process.stdout.fileno(), time.monotonic() + budget)
+            except TimeoutError:
+                self._stop()
+                raise BudgetExceeded(
+                    f"{what} did not finish within its budget of {budget:g} s and was stopped"
+                ) from None
+            except (OSError, EOFError):
+                self._stop()
+                raise ScengenError(f"{what} died without an answer") from None
+        return decode_outcome(reply, b"", what)  # type: ignore[no-any-return]
+
+    def _child(self) -> subprocess.Popen[bytes]:
+        if self._owner != os.getpid():  # a forked copy of a parent's worker is not ours
+            self._process, self._owner = None, os.getpid()
+        if self._process is None or self._process.poll() is not None:
+            self._process = subprocess.Popen(
+                [*CHILD_COMMAND, "--many"],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,
+            )
+        return self._process
+
+    def _stop(self) -> None:
+        if self._process is not None:
+            with contextlib.suppress(OSError):
+                self._process.kill()
+            self._process.wait()
+            self._process = None
+
+    def close(self) -> None:
+        """End the child (it also ends when this process does)."""
+        if self._process is not None and self._owner == os.getpid():
+            self._stop()
+
+
+def _read_frame(fd: int, deadline: float) -> bytes:
+    """One frame from ``fd``; TimeoutError at the deadline, EOFError when the child is gone."""
+    data = b""
+    size: int | None = None
+    while size is None or len(data) < FRAME.size + size:
+        left = deadline - time.monotonic()
+        if left <= 0 or not select.select([fd], [], [], left)[0]:
+            raise TimeoutError
+        chunk = os.read(fd, 1 << 20)
+        if not chunk:
+            raise EOFError
+        data += chunk
+        if size is None and len(data) >= FRAME.size:
+            (size,) = FRAME.unpack(data[: FRAME.size])
+    return data[FRAME.size :]
+
+
+def _answer(request: bytes) -> bytes:
+    """Run one pickled call; the pickled outcome."""
+    module, name, args = pickle.loads(request)
     try:
         target: Any = importlib.import_module(module)
         for part in name.split("."):
@@ -100,9 +181,30 @@ def _serve() -> None:
         answer = ("error", exc)
     except BaseException as exc:  # report anything, the parent decides
         answer = ("crash", f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}")
-    out.write(pickle.dumps(answer))
+    return pickle.dumps(answer)
+
+
+def _serve() -> None:
+    """Child side: read one pickled call from stdin, write the pickled outcome to stdout."""
+    _die_with_parent()
+    request = sys.stdin.buffer.read()
+    out = sys.stdout.buffer
+    sys.stdout = sys.stderr  # anything the call prints must not corrupt the answer
+    out.write(_answer(request))
     out.flush()
 
 
+def _serve_many() -> None:
+    """Warm child side: answer framed calls from stdin until it closes."""
+    _die_with_parent()
+    source, out = sys.stdin.buffer, sys.stdout.buffer
+    sys.stdout = sys.stderr
+    while header := source.read(FRAME.size):
+        (size,) = FRAME.unpack(header)
+        answer = _answer(source.read(size))
+        out.write(FRAME.pack(len(answer)) + answer)
+        out.flush()
+
+
 if __name__ == "__main__":
-    _serve()
+    _serve_many() if "--many" in sys.argv[1:] else _serve()

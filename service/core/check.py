@@ -31,7 +31,7 @@ from service.core.rules import (
     solve_rules,
     time_symbol,
 )
-from service.core.testcase import TestCase, load_testcase_intersection
+from service.core.testcase import NonEgo, TestCase, load_testcase_intersection
 from service.core.verdict import CollisionRecord, EventRef, Verdict, Violation
 
 EGO = "ego"
@@ -63,22 +63,50 @@ def check_testcase(
     intersection: Intersection | None = None,
 ) -> Verdict:
     """The verdict on ``ego`` (samples of the ego's rectangle centre) in ``testcase``."""
-    junction = intersection or load_testcase_intersection(testcase)
-    _check_start(testcase, junction, ego)
-    cars = [_ego_car(testcase, junction, ego), *_nonego_cars(testcase, junction)]
-    violations = _violations(junction, cars, testcase.params.m)
-    collisions = _collisions(cars)
-    goal_time = _goal_time(testcase, junction, cars[0])
-    return Verdict(
-        testcase=testcase_label(testcase),
-        controller=controller,
-        goal_reached=goal_time is not None,
-        goal_time=goal_time,
-        collisions=tuple(collisions),
-        violations=tuple(violations),
-        ego_events=tuple(_refs(cars[0])),
-        duration=testcase.duration,
-    )
+    return Judge(testcase, intersection).verdict(ego, controller)
+
+
+class Judge:
+    """The checker for one test-case: the non-egos' events are computed once, then any
+    number of ego trajectories are judged against them."""
+
+    def __init__(
+        self,
+        testcase: TestCase,
+        intersection: Intersection | None = None,
+        known: Judge | None = None,
+    ) -> None:
+        """``known``: the judge of a test-case whose non-egos this one keeps (an extension
+        keeps its parent's): their events are taken from it, where the cars are equal."""
+        self.testcase = testcase
+        self.junction = intersection or load_testcase_intersection(testcase)
+        reuse = {car.id: car for car in known.nonegos} if known is not None else {}
+        kept = {n.id: n for n in known.testcase.nonegos} if known is not None else {}
+        self.nonegos: list[Car] = [
+            reuse[n.id] if kept.get(n.id) == n else _nonego_car(testcase, self.junction, n)
+            for n in testcase.nonegos
+        ]
+
+    def ego_car(self, ego: Sequence[PoseSample]) -> Car:
+        """The ego as the checker sees it (its events), after checking where it starts."""
+        _check_start(self.testcase, self.junction, ego)
+        return _ego_car(self.testcase, self.junction, ego)
+
+    def verdict(self, ego: Sequence[PoseSample] | Car, controller: str = "ego") -> Verdict:
+        """The verdict on an ego trajectory (or an ego car made by ``ego_car``)."""
+        car = ego if isinstance(ego, Car) else self.ego_car(ego)
+        cars = [car, *self.nonegos]
+        goal_time = _goal_time(self.testcase, self.junction, car)
+        return Verdict(
+            testcase=testcase_label(self.testcase),
+            controller=controller,
+            goal_reached=goal_time is not None,
+            goal_time=goal_time,
+            collisions=tuple(_collisions(cars)),
+            violations=tuple(_violations(self.junction, cars, self.testcase.params.m)),
+            ego_events=tuple(_refs(car)),
+            duration=self.testcase.duration,
+        )
 
 
 def _car(
@@ -99,14 +127,11 @@ def _ego_car(testcase: TestCase, junction: Intersection, samples: Sequence[PoseS
                 testcase, junction)  # fmt: skip
 
 
-def _nonego_cars(testcase: TestCase, junction: Intersection) -> list[Car]:
-    cars = []
-    for nonego in testcase.nonegos:
-        route = junction.route(nonego.route.id)
-        samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
-        cars.append(_car(nonego.id, route.fork, route.connecting_lane, nonego.length,
-                         nonego.width, samples, testcase, junction))  # fmt: skip
-    return cars
+def _nonego_car(testcase: TestCase, junction: Intersection, nonego: NonEgo) -> Car:
+    route = junction.route(nonego.route.id)
+    samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
+    return _car(nonego.id, route.fork, route.connecting_lane, nonego.length, nonego.width,
+                samples, testcase, junction)  # fmt: skip
 
 
 def _check_start(testcase: TestCase, junction: Intersection, ego: Sequence[PoseSample]) -> None:

@@ -12,8 +12,9 @@ Events (design section 1), each with a time and a distance travelled:
 
 "Overlap" means the interiors intersect; touching edges do not count. Between two samples
 the pose is interpolated linearly in distance and the time linearly in distance (constant
-speed within a step), and each event is placed by bisection to within ``TOLERANCE`` metres,
-so event distances are not truncated to a time step. The same function serves Step 1
+speed within a step), and each event is placed to within ``TOLERANCE`` metres,
+so event distances are not truncated to a time step (the flip is searched among 16 shares
+at once, then again within the gap where it happens). The same function serves Step 1
 (constant speed) and the checker (any trajectory, stops included).
 """
 
@@ -32,6 +33,7 @@ from service.core.network import Fork, Intersection
 from service.core.poses import PoseSample, interpolate_heading
 
 TOLERANCE = 1e-4  # metres
+SPLIT = 16  # shares tried at once in each round of the refinement
 
 
 class EventKind(StrEnum):
@@ -106,22 +108,28 @@ class _Track:
             interpolate_heading(a.heading, b.heading, share),
         )
 
-    def rect_between(self, k: int, share: float) -> Polygon:
-        _, _, x, y, heading = self.between(k, share)
+    def rects_between(self, k: int, shares: np.ndarray) -> np.ndarray:
+        """The rectangles at ``shares`` of the way from sample k to k+1."""
+        a, b = self.samples[k], self.samples[k + 1]
+        delta = (b.heading - a.heading + 180.0) % 360.0 - 180.0
         return rectangles(
-            np.array([x]), np.array([y]), np.array([heading]), self.length, self.width
-        )[0]
+            a.x + shares * (b.x - a.x),
+            a.y + shares * (b.y - a.y),
+            (a.heading + shares * delta) % 360.0,
+            self.length,
+            self.width,
+        )
 
-    def refine(self, k: int, flips: Callable[[float], bool]) -> tuple[float, float]:
-        """(time, distance) where the state flips between samples k and k+1 (bisection)."""
+    def refine(self, k: int, flips: Callable[[np.ndarray], np.ndarray]) -> tuple[float, float]:
+        """(time, distance) where the state flips between samples k and k+1: the first
+        flip among SPLIT evenly spaced shares, then again within that gap, to TOLERANCE."""
         low, high = 0.0, 1.0
         span = max(abs(self.distance[k + 1] - self.distance[k]), TOLERANCE)
-        for _ in range(max(1, math.ceil(math.log2(span / TOLERANCE)))):
-            middle = (low + high) / 2.0
-            if flips(middle):
-                high = middle
-            else:
-                low = middle
+        while (high - low) * span > TOLERANCE:
+            shares = low + (high - low) * np.arange(1, SPLIT + 1) / SPLIT
+            flipped = np.flatnonzero(flips(shares))
+            first = int(flipped[0]) if flipped.size else SPLIT - 1
+            low, high = (float(shares[first - 1]) if first else low), float(shares[first])
         time, distance, *_ = self.between(k, high)
         return time, distance
 
@@ -137,9 +145,8 @@ def _region_events(
     for k in np.flatnonzero(inside[1:] != inside[:-1]):
         was_inside = bool(inside[k])
 
-        def flips(share: float, k: int = int(k), was: bool = was_inside) -> bool:
-            rect = track.rect_between(k, share)
-            return bool(overlapping(np.array([rect]), region)[0]) != was
+        def flips(shares: np.ndarray, k: int = int(k), was: bool = was_inside) -> np.ndarray:
+            return overlapping(track.rects_between(k, shares), region) != was  # type: ignore[no-any-return]
 
         time, distance = track.refine(int(k), flips)
         events.append(LaneEvent(leave if was_inside else enter, lane, time, distance))

@@ -1,31 +1,40 @@
 """extend(): add new non-egos to a test-case so that it becomes strictly more complex.
 
 Steps: poses of the ego and the new cars (Step 1, one SUMO process), their events, the
-order of events (Step 2, clingo, answer sets drawn one at a time), speed curves for every
-symbolic car (Step 3, z3), trajectories sampled from the curves, and verification by the
-checker: the solvability certificate passes the new test-case; the complexity certificate
-passes the old one and fails the new one only by a new non-ego's right-of-way; no new car
-collides with anything. Only a verified test-case is returned.
+order of events with event times (Step 2, clingo and clingo-dl, answer sets drawn one at a
+time), speed curves for every symbolic car (Step 3, z3), trajectories sampled from the
+curves and checked against the motion invariants, and verification by the checker: the
+solvability certificate passes the new test-case; the complexity certificate passes the
+old one and fails the new one only by a new non-ego's right-of-way; no new car collides
+with anything. Only a verified test-case is returned.
+
+The search is limited by counts (answer sets, and the solvers' own work limits), never by
+a clock: the same request gives the same bytes on an idle and on a saturated machine. The
+budget in seconds only stops a call that runs too long, with an error that says so.
 """
 
 from __future__ import annotations
 
 import hashlib
-import itertools
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from service.core.check import check_testcase
+from service.core.check import Judge, check_testcase
 from service.core.collisions import Motion, first_collision
 from service.core.errors import (
+    BudgetExceeded,
     InvalidInput,
     InvalidTestCase,
     NoMoreComplexTestCase,
     NoneFound,
 )
 from service.core.events import EventKind, LaneEvent, compute_events
+from service.core.invariants import ROUNDING, motion_fault
+from service.core.kinematics import Bounds
+from service.core.linear import GRID
 from service.core.network import Intersection, Route
 from service.core.ordering import (
     CarKind,
@@ -33,10 +42,13 @@ from service.core.ordering import (
     Ordering,
     OrderingCar,
     OrderingSearch,
+    SearchLimitReached,
+    headways,
+    stand_distance,
     stop_symbol,
     timed_events,
 )
-from service.core.poses import PoseSample, PoseTrack, generate_poses
+from service.core.poses import DRIVE_BUDGET, PoseSample, PoseTrack, generate_poses
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -49,15 +61,15 @@ from service.core.timing import (
     TimingFailure,
     TimingProblem,
     TimingSolution,
-    solve_complete,
     solve_timing,
 )
 
 STEP1_SPEED = 8.0  # m/s: Step 1 drives at this speed; it sets only how dense the poses are
 PLATOON_SPACING = 15.0  # metres between new cars that start on the same fork
-HEADWAY = 2.0  # seconds between a car and the one behind it on the same fork, at each event
-STOP_BEFORE_ENTRY = 0.5  # metres before entering the junction where a stopping car stands
-NONLINEAR_SHARE = 1.0  # seconds at most for the nonlinear step of one answer set
+MAX_ORDERS = 60  # answer sets one extension tries at most: a count, the same on any machine
+# Step 2 first proposes orders that 70 % of the bounds can time (they leave the curves room),
+# then, when those are exhausted, every order the full bounds allow.
+SEARCH_SHARES = (0.7, 1.0)
 
 Progress = Callable[[str], None]
 
@@ -80,6 +92,31 @@ class Extension:
     timing_problem: TimingProblem | None = None  # the Step 3 problem that was solved
 
 
+class _Deadline:
+    """The wall-clock budget of one call: it only ever stops the call, with a clear error."""
+
+    def __init__(self, budget: float, routes: Sequence[str], seed: int) -> None:
+        self.budget = budget
+        self.end = time.monotonic() + budget
+        self.routes = list(routes)
+        self.seed = seed
+
+    def left(self) -> float:
+        return self.end - time.monotonic()
+
+    def check(self, tried: Sequence[Attempt], where: str, expired: bool = False) -> None:
+        if self.left() > 0 and not expired:
+            return
+        raise NoneFound(
+            f"budget exhausted: the budget of {self.budget:g} s ran out during {where}, "
+            f"after {len(tried)} answer sets; the same request with a larger budget gives "
+            "the result it would have given (the search does not depend on the clock)",
+            routes=self.routes,
+            seed=self.seed,
+            budget_exhausted=True,
+        )
+
+
 def extend_testcase(
     old: TestCase,
     routes: Sequence[str],
@@ -88,9 +125,13 @@ def extend_testcase(
     start_distance: float | None = None,
     progress: Progress | None = None,
     intersection: Intersection | None = None,
+    max_orders: int = MAX_ORDERS,
 ) -> Extension:
-    """A strictly more complex, solvable test-case with new non-egos on ``routes``."""
-    deadline = time.monotonic() + budget
+    """A strictly more complex, solvable test-case with new non-egos on ``routes``.
+
+    At most ``max_orders`` answer sets of Step 2 are tried; ``budget`` (seconds) only
+    stops a call that takes longer (NoneFound with ``budget_exhausted``)."""
+    deadline = _Deadline(budget, routes, seed)
     say = progress or (lambda _: None)
     seconds: dict[str, float] = {}
     junction = intersection or load_testcase_intersection(old)
@@ -101,141 +142,175 @@ def extend_testcase(
     starts = _starts(old, new_routes, start_distance)
 
     clock = time.monotonic()
-    tracks = generate_poses(
-        junction,
-        [(ego_route, old.ego.start.distance), *list(zip(new_routes, starts, strict=True))],
-        STEP1_SPEED,
-        old.duration,
-        old.timestep,
-        old.ego.length,
-        old.ego.width,
-        budget=max(1.0, min(60.0, deadline - time.monotonic())),
-    )
+    attempts: list[Attempt] = []
+    drive_budget = min(DRIVE_BUDGET, deadline.left())
+    try:
+        tracks = generate_poses(
+            junction,
+            [(ego_route, old.ego.start.distance), *list(zip(new_routes, starts, strict=True))],
+            STEP1_SPEED,
+            old.duration,
+            old.timestep,
+            old.ego.length,
+            old.ego.width,
+            budget=max(drive_budget, 0.01),
+        )
+    except BudgetExceeded:
+        if drive_budget < DRIVE_BUDGET:  # the call's own budget ran out, not SUMO's
+            deadline.check(attempts, "Step 1", expired=True)
+        raise
     ego_track, new_tracks = tracks[0], dict(zip(ids, tracks[1:], strict=True))
+    tracks_of = {**new_tracks, "ego": ego_track, "illegal": ego_track}
     seconds["poses"] = time.monotonic() - clock
     say(f"step 1 poses: {len(tracks)} drives in {seconds['poses']:.2f} s")
+    deadline.check(attempts, "Step 1")
 
-    if time.monotonic() >= deadline:
-        raise NoneFound(
-            f"none found within the budget of {budget:g} s: Step 1 used all of it",
-            routes=list(routes),
-            seed=seed,
-            budget_exhausted=True,
-        )
     cars = _ordering_cars(old, junction, ego_track, new_tracks, new_routes, ids)
-    clock = time.monotonic()
-    limits = Limits(old.duration, old.params.a_min, old.params.a_max, old.params.v_max)
-    search = OrderingSearch(junction, cars, old.params.m, seed, limits)
-    seconds["ordering"] = time.monotonic() - clock
-    attempts: list[Attempt] = []
-    seconds["timing"] = seconds["verification"] = 0.0
-    proven = True  # every answer set so far was shown impossible, not merely not found
-    while time.monotonic() < deadline:
+    seconds["ordering"] = seconds["timing"] = seconds["verification"] = 0.0
+    tried: list[Ordering] = []
+    ruled_out: list[Sequence[tuple[str, Any, Any]]] = []
+    exhausted = False
+    for share in SEARCH_SHARES:
         clock = time.monotonic()
-        ordering = search.next_ordering()
+        search = OrderingSearch(junction, cars, old.params.m, seed, _limits(old, share=share))
+        for ordering in tried:
+            search.block(ordering)
+        for relations in ruled_out:
+            search.forbid(relations)
         seconds["ordering"] += time.monotonic() - clock
-        if ordering is None:
+        exhausted = False
+        while len(attempts) < max_orders:
+            deadline.check(attempts, "Step 2")
+            clock = time.monotonic()
+            try:
+                drawn = search.next_ordering()
+            except SearchLimitReached as limit:
+                attempts.append(Attempt(len(attempts), f"ordering: {limit}"))
+                break
+            seconds["ordering"] += time.monotonic() - clock
+            if drawn is None:
+                exhausted = True
+                break
+            ordering = drawn
+            tried.append(ordering)
+            number = len(attempts)
+            deadline.check(attempts, "Step 3")
+            clock = time.monotonic()
+            problem = _timing_problem(old, junction, cars, ordering, tracks_of)
+            result = solve_timing(problem)
+            seconds["timing"] += time.monotonic() - clock
+            if isinstance(result, TimingFailure):
+                if result.core:
+                    ruled_out.append([ordering.relations[i] for i in result.core])
+                    search.forbid(ruled_out[-1])
+                attempts.append(Attempt(number, f"timing: {result.reason}"))
+                say(f"step 2/3 answer set {number + 1}: {result.reason}")
+                continue
+            clock = time.monotonic()
+            outcome, candidate = _judge(
+                old, ordering, result, tracks_of, junction, (new_routes, ids), seed, number + 1
+            )
+            seconds["verification"] += time.monotonic() - clock
+            if candidate is not None:
+                attempts.append(Attempt(number, f"verified ({result.method})"))
+                say(f"step 2/3 answer set {number + 1}: verified ({result.method})")
+                return Extension(candidate, attempts, seconds, problem)
+            attempts.append(Attempt(number, outcome))
+            say(f"step 2/3 answer set {number + 1}: {outcome}")
+        if not exhausted:
             break
-        clock = time.monotonic()
-        result, problem = _solve_variants(
-            old, junction, cars, ordering, {**new_tracks, "ego": ego_track}, deadline
-        )
-        seconds["timing"] += time.monotonic() - clock
-        if isinstance(result, TimingFailure):
-            if result.core:
-                search.forbid([ordering.relations[i] for i in result.core])
-            proven = proven and result.proved
-            attempts.append(Attempt(ordering.index, f"timing: {result.reason}"))
-            say(f"step 2/3 answer set {ordering.index + 1}: {result.reason}")
-            continue
-        clock = time.monotonic()
-        samples = {
-            car: _sample(
-                curve.at,
-                (ego_track if car in ("ego", "illegal") else new_tracks[car]),
-                old.duration,
-                old.timestep,
-            )
-            for car, curve in result.curves.items()
-        }
-        candidate = _candidate(
-            old,
-            junction,
-            ordering,
-            samples,
-            new_routes,
-            ids,
-            seed,
-            result.method,
-            len(attempts) + 1,
-        )
-        problem_found = verify_extension(old, candidate, junction, ids)
-        seconds["verification"] += time.monotonic() - clock
-        if problem_found is None:
-            attempts.append(Attempt(ordering.index, f"verified ({result.method} timing)"))
-            say(f"step 2/3 answer set {ordering.index + 1}: verified ({result.method} timing)")
-            return Extension(candidate, attempts, seconds, problem)
-        proven = False
-        attempts.append(Attempt(ordering.index, f"verification: {problem_found}"))
-        say(f"step 2/3 answer set {ordering.index + 1}: {problem_found}")
-    out_of_time = time.monotonic() >= deadline
-    if not out_of_time and (not attempts or proven):
-        reason = (
-            search.explain_unsatisfiable()
-            if not attempts
-            else (
-                f"all {len(attempts)} orders of events that meet the rules are physically "
-                "impossible (no speed profile within the bounds realises them)"
-            )
-        )
-        raise NoMoreComplexTestCase(
-            f"no more complex test-case exists for these routes: {reason}", routes=list(routes)
-        )
-    tried = "; ".join(f"#{a.index + 1}: {a.outcome}" for a in attempts[:8])
-    within = f"within the budget of {budget:g} s" if out_of_time else "among all orders"
-    raise NoneFound(
-        f"none found {within}: {len(attempts)} answer sets tried"
-        + (f" ({tried})" if tried else ""),
-        routes=list(routes),
-        seed=seed,
-        budget_exhausted=out_of_time,
+    raise _not_found(old, junction, cars, seed, routes, attempts, exhausted)
+
+
+def _limits(old: TestCase, margin: float | None = None, share: float = 1.0) -> Limits:
+    """What Step 2 bounds the timing with: ``share`` of the test-case's speed and
+    acceleration bounds, and the safety margin of every relation."""
+    params = old.params
+    return Limits(
+        old.duration,
+        Bounds(params.v_max, params.a_max, params.a_min).scaled(share),
+        params.v_run,
+        _margin(old) if margin is None else margin,
     )
 
 
-def _solve_variants(
+def _margin(old: TestCase) -> float:
+    """The safety margin of every order relation: two time steps, at least 0.1 s."""
+    return max(2 * old.timestep, 0.1)
+
+
+def _not_found(
     old: TestCase,
     junction: Intersection,
     cars: Sequence[OrderingCar],
-    ordering: Ordering,
-    tracks: dict[str, PoseTrack],
-    deadline: float,
-) -> tuple[TimingSolution | TimingFailure, TimingProblem]:
-    """Step 3 for one answer set: the linear steps on the problem as it stands, then with
-    the solvability certificate, then every symbolic car without a sign standing before
-    the line; last the nonlinear step on the problem as it stands.
+    seed: int,
+    routes: Sequence[str],
+    attempts: Sequence[Attempt],
+    exhausted: bool,
+) -> NoMoreComplexTestCase | NoneFound:
+    """Why the search ended without a result. "No more complex test-case exists" only when
+    even without any safety margin no order of events has consistent times: the whole
+    search space is then empty."""
+    tried = "; ".join(f"#{a.index + 1}: {a.outcome}" for a in attempts[:8])
+    detail = f" ({tried})" if tried else ""
+    if not exhausted:
+        return NoneFound(
+            f"none found among the first {len(attempts)} answer sets{detail}",
+            routes=list(routes),
+            seed=seed,
+        )
+    bare = OrderingSearch(junction, cars, old.params.m, seed, _limits(old, margin=0.0))
+    if not bare.satisfiable():
+        return NoMoreComplexTestCase(
+            f"no more complex test-case exists for these routes: {bare.explain_unsatisfiable()}",
+            routes=list(routes),
+        )
+    if not attempts:
+        return NoneFound(
+            "none found: orders of events exist only without the safety margin of "
+            f"{_margin(old):g} s on every relation, too close to call",
+            routes=list(routes),
+            seed=seed,
+        )
+    return NoneFound(
+        f"none found among all {len(attempts)} orders of events{detail}",
+        routes=list(routes),
+        seed=seed,
+    )
 
-    Only the problem as it stands may rule the order out: the linear timing step's core
-    rests on necessary conditions that hold for any motion (the stands of the variants
-    only tighten them), and the nonlinear step's on the paper's formulation. The variants
-    with stands only add chances."""
-    base = _timing_problem(old, junction, cars, ordering, tracks)
-    result = solve_timing(base, deadline - time.monotonic())
-    if isinstance(result, TimingSolution) or result.proved or result.core:
-        return result, base
-    free = frozenset(c.car for c in cars if c.kind is not CarKind.OLD)
-    for waiting in (frozenset({"ego"}), free):
-        left = deadline - time.monotonic()
-        if left <= 0:
-            return result, base
-        problem = _timing_problem(old, junction, cars, ordering, tracks, waiting)
-        attempt = solve_timing(problem, left)
-        if isinstance(attempt, TimingSolution):
-            return attempt, problem
-    complete = solve_complete(base, min(NONLINEAR_SHARE, deadline - time.monotonic()))
-    if isinstance(complete, TimingFailure):
-        reason = f"{result.reason}; {complete.reason}"
-        return TimingFailure(reason, complete.core, complete.proved), base
-    return complete, base
+
+def _judge(
+    old: TestCase,
+    ordering: Ordering,
+    timing: TimingSolution,
+    tracks: dict[str, PoseTrack],
+    junction: Intersection,
+    added: tuple[Sequence[Route], Sequence[str]],
+    seed: int,
+    tried: int,
+) -> tuple[str, TestCase | None]:
+    """The candidate of one answer set, when its samples keep the motion invariants and the
+    checker verifies it; else what is wrong with it."""
+    routes, ids = added
+    samples = {
+        car: [_rounded(s) for s in _sample(curve.at, tracks[car], old.duration, old.timestep)]
+        for car, curve in timing.curves.items()
+    }
+    for car, rows in samples.items():
+        start = old.ego.start.speed if car in ("ego", "illegal") else None
+        fault = motion_fault(rows, old.params, old.timestep, start)
+        if fault is not None:
+            return f"curves: {car} {fault}", None
+    try:
+        candidate = _candidate(
+            old, junction, ordering, samples, routes, ids, seed, timing.method, tried
+        )
+    except InvalidTestCase as error:  # our own fault, never the caller's input
+        return f"internal: the candidate is not a valid test-case ({error})", None
+    problem = verify_extension(old, candidate, junction, ids)
+    if problem is not None:
+        return f"verification: {problem}", None
+    return "verified", candidate
 
 
 def _validate(old: TestCase, junction: Intersection, routes: Sequence[str]) -> list[Route]:
@@ -356,50 +431,39 @@ def _ordering_cars(
     return cars
 
 
-def _plan(
-    car: OrderingCar,
-    ordering: Ordering,
-    track: PoseTrack,
-    old: TestCase,
-    stop_sign: bool,
-    wait: bool = False,
-) -> CarPlan:
-    """The knots of one symbolic car; with ``wait``, a car without a stop sign stands
-    before the line (yielding needs no sign; no rule counts that stand)."""
+def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: bool) -> CarPlan:
+    """The knots of one symbolic car: the events the order speaks of, arriving, entering and
+    leaving its own lane, and a stand just before the line where it stops at its sign."""
     knots: list[Knot] = []
     arrival = entry = None
     used = {str(s) for _, a, b in ordering.relations for s in (a, b)}
+    stops = car.car in ordering.stops
     for timed in timed_events(car):
         symbol = str(timed.symbol)
         if knots and knots[-1].symbol == symbol:
             continue
-        if timed.event.kind is EventKind.ARRIVED:
+        kind = timed.event.kind
+        if kind is EventKind.ARRIVED:
             arrival = len(knots)
-        if timed.event.kind is EventKind.ENTERED:
-            stops = car.car in ordering.stops
-            if stops or (wait and not stop_sign):
-                stand = max(
-                    timed.event.distance - STOP_BEFORE_ENTRY,
-                    knots[-1].distance + 0.1 if knots else 0.1,
-                )
-                knots.append(Knot(str(stop_symbol(car.car)) if stops else None, stand, stop=True))
-                knots.append(Knot(None, stand, stop=True))
+        if kind is EventKind.ENTERED:
+            stand = stand_distance(car)
+            if stops and stand is not None:
+                knots.append(Knot(str(stop_symbol(car.car)), _on_grid(stand), stop=True))
+                knots.append(Knot(None, _on_grid(stand), stop=True))
             entry = len(knots)
-        if symbol in used or timed.event.kind in (EventKind.ARRIVED, EventKind.ENTERED):
-            knots.append(Knot(symbol, timed.event.distance))
-        elif timed.event.kind is EventKind.LEFT_LANE and timed.event.lane == car.lane:
-            knots.append(Knot(symbol, timed.event.distance))  # leaving its own lane: exit
+        own_exit = kind is EventKind.LEFT_LANE and timed.event.lane == car.lane
+        if symbol in used or kind in (EventKind.ARRIVED, EventKind.ENTERED) or own_exit:
+            knots.append(Knot(symbol, _on_grid(timed.event.distance)))
     runs = None
-    if stop_sign and car.car not in ordering.stops and arrival is not None and entry is not None:
+    if stop_sign and not stops and arrival is not None and entry is not None:
         runs = (arrival, entry)
-    start_speed = old.ego.start.speed if car.kind is CarKind.CERTIFICATE else None
-    return CarPlan(
-        car.car,
-        tuple(knots),
-        track.samples[-1].distance,
-        start_speed,
-        runs,
-    )
+    return CarPlan(car.car, tuple(knots), track.samples[-1].distance, car.start_speed, runs)
+
+
+def _on_grid(distance: float) -> float:
+    """A knot distance on Step 3's micrometre grid, rounded up: the curve passes the event
+    (at most a micrometre earlier) when the knot says."""
+    return math.ceil(distance * GRID - 1e-6) / GRID
 
 
 def _timing_problem(
@@ -408,7 +472,6 @@ def _timing_problem(
     cars: Sequence[OrderingCar],
     ordering: Ordering,
     tracks: dict[str, PoseTrack],
-    waiting: frozenset[str] = frozenset(),
 ) -> TimingProblem:
     plans = []
     fixed = []
@@ -416,18 +479,21 @@ def _timing_problem(
         if car.kind is CarKind.OLD:
             fixed += [(str(t.symbol), t.event.time) for t in timed_events(car)]
             continue
-        track = tracks["ego" if car.kind is CarKind.CERTIFICATE else car.car]
         sign = junction.forks[car.fork].stop_sign
-        plans.append(_plan(car, ordering, track, old, sign, car.car in waiting))
-    gaps = _headways(plans, cars)
+        plans.append(_plan(car, ordering, tracks[car.car], sign))
+    knotted = {k.symbol for p in plans for k in p.knots}
     return TimingProblem(
         cars=tuple(plans),
         fixed=tuple(fixed),
         relations=tuple((kind, str(a), str(b)) for kind, a, b in ordering.relations),
-        gaps=tuple(gaps),
+        gaps=tuple(
+            (str(a), str(b), gap)
+            for a, b, gap in headways(cars)
+            if str(a) in knotted and str(b) in knotted
+        ),
         duration=old.duration,
         m=old.params.m,
-        margin=max(2 * old.timestep, 0.1),
+        margin=_margin(old),
         a_min=old.params.a_min,
         a_max=old.params.a_max,
         v_stop=old.params.v_stop,
@@ -436,34 +502,17 @@ def _timing_problem(
     )
 
 
-def _headways(
-    plans: Sequence[CarPlan], cars: Sequence[OrderingCar]
-) -> list[tuple[str, str, float]]:
-    """New cars of one fork drive the same path: at every event both have a knot for, the
-    one behind comes HEADWAY seconds after the one ahead."""
-    by_fork: dict[str, list[OrderingCar]] = {}
-    for car in cars:
-        if car.kind is CarKind.NEW:
-            by_fork.setdefault(car.fork, []).append(car)
-    knots = {p.car: {k.symbol for k in p.knots if k.symbol} for p in plans}
-    gaps = []
-    for group in by_fork.values():
-        for leader, follower in itertools.pairwise(group):
-            for timed in timed_events(leader):
-                ahead = str(timed.symbol)
-                behind = ahead.replace(f'"{leader.car}"', f'"{follower.car}"', 1)
-                if ahead in knots[leader.car] and behind in knots[follower.car]:
-                    gaps.append((ahead, behind, HEADWAY))
-    return gaps
-
-
 def _sample(
     at: Callable[[float], tuple[float, float]], track: PoseTrack, duration: float, timestep: float
 ) -> list[PoseSample]:
-    samples = []
+    samples: list[PoseSample] = []
     for k in range(round(duration / timestep) + 1):
         t = round(k * timestep, 9)
         distance, speed = at(t)
+        if -ROUNDING < speed < 0:
+            speed = 0.0  # float noise of a standing car
+        if samples and samples[-1].distance - ROUNDING < distance < samples[-1].distance:
+            distance = samples[-1].distance  # float noise, not a car backing up
         x, y, heading = track.pose_at(distance)
         samples.append(PoseSample(t, x, y, heading, speed, distance))
     return samples
@@ -491,7 +540,7 @@ def _candidate(
                 "route": {"fork": route.fork, "exit": route.exit},
                 "length": old.ego.length,
                 "width": old.ego.width,
-                "trajectory": [_rounded(s) for s in trajectory],
+                "trajectory": [asdict(s) for s in trajectory],
                 "events": [
                     {
                         "kind": e.kind.value,
@@ -505,8 +554,8 @@ def _candidate(
             }
         )
     document["certificates"] = {
-        "complexity": [_rounded(s) for s in samples["illegal"]],
-        "solvability": [_rounded(s) for s in samples["ego"]],
+        "complexity": [asdict(s) for s in samples["illegal"]],
+        "solvability": [asdict(s) for s in samples["ego"]],
     }
     document["provenance"] = {
         "parent": hashlib.sha256(dump_testcase(old).encode()).hexdigest(),
@@ -524,10 +573,11 @@ def _candidate(
     return parse_testcase(document)
 
 
-def _rounded(sample: PoseSample) -> dict[str, float]:
-    data = asdict(sample)
-    data["heading"] = round(data["heading"], 6) % 360.0
-    return {key: round(value, 6) for key, value in data.items()}
+def _rounded(sample: PoseSample) -> PoseSample:
+    """The sample as it is stored: six decimals (a micrometre), heading in [0, 360)."""
+    data = {key: round(value, 6) + 0.0 for key, value in asdict(sample).items()}  # no -0.0
+    data["heading"] = data["heading"] % 360.0
+    return PoseSample(**data)
 
 
 def verify_extension(
@@ -535,15 +585,19 @@ def verify_extension(
 ) -> str | None:
     """None when the candidate is verified, else what is wrong."""
     assert new.certificates is not None
+    old_judge = Judge(old, junction)
+    new_judge = Judge(new, junction, known=old_judge)
     solvability = [PoseSample(**s.model_dump()) for s in new.certificates.solvability]
-    complexity = [PoseSample(**s.model_dump()) for s in new.certificates.complexity]
-    verdict = check_testcase(new, solvability, "solvability", junction)
+    verdict = new_judge.verdict(solvability, "solvability")
     if not verdict.passed:
         return "solvability certificate fails the new test-case: " + "; ".join(verdict.reasons)
-    verdict = check_testcase(old, complexity, "complexity", junction)
+    complexity = old_judge.ego_car(
+        [PoseSample(**s.model_dump()) for s in new.certificates.complexity]
+    )
+    verdict = old_judge.verdict(complexity, "complexity")
     if not verdict.passed:
         return "complexity certificate fails the old test-case: " + "; ".join(verdict.reasons)
-    verdict = check_testcase(new, complexity, "complexity", junction)
+    verdict = new_judge.verdict(complexity, "complexity")
     if verdict.passed:
         return "complexity certificate passes the new test-case"
     if not verdict.goal_reached or verdict.collisions:

@@ -1,9 +1,14 @@
-"""Step 2: choose the order of events with clingo (asp/extension.lp over the rule set).
+"""Step 2: choose the order of events with clingo and clingo-dl (asp/extension.lp, time_dl.lp).
 
 Old non-egos keep their numeric times (their mutual order is given as facts); new non-egos
 and the two certificate egos get time symbols, and clingo chooses the perceptible order of
 every pair of their events that matters to a rule or to the no-collision requirement, and
-whether each stops at a stop sign. Answer sets are drawn lazily, one at a time.
+whether each stops at a stop sign. Every time symbol is also an integer time in ms under
+difference constraints (clingo-dl): old cars' numbers, each symbolic car's least travel
+times between its events (service.core.kinematics), the duration, and every chosen relation
+with its safety margin. So each answer set comes with event times that meet the necessary
+conditions of a speed profile, and an order whose times are inconsistent is never proposed.
+Answer sets are drawn lazily, one at a time; search is limited by counts, never by a clock.
 """
 
 from __future__ import annotations
@@ -15,8 +20,11 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 
 import clingo
+import clingo.ast
+from clingodl import ClingoDLTheory
 
 from service.core.events import EventKind, LaneEvent
+from service.core.kinematics import SAME, Bounds, least_gaps, stand_before
 from service.core.network import Intersection
 from service.core.rules import (
     REAL_LTE,
@@ -32,15 +40,20 @@ from service.core.rules import (
     rule_set_file,
     time_symbol,
 )
-from service.core.timing import DWELL, fastest
 
 OLD = Predicate("old", 1)
 NEW = Predicate("new", 1)
 CERTIFICATE = Predicate("certificate", 1)
 STOP_TIME = Predicate("stopTime", 2)
 NOMINAL = Predicate("nominal", 2)
-EARLIEST = Predicate("earliest", 2)
-LATEST = Predicate("latest", 2)
+OLD_TIME = Predicate("oldTime", 3)
+SYMBOLIC_TIME = Predicate("symbolicTime", 1)
+MIN_GAP = Predicate("minGap", 3)
+MIN_GAP_STOPPED = Predicate("minGapStopped", 4)
+MAX_GAP_RUNNING = Predicate("maxGapRunning", 4)
+HEADWAY = Predicate("headway", 3)
+HORIZON = Predicate("horizon", 1)
+START = clingo.Number(0)  # the zero of clingo-dl's time line: t = 0
 GROUPS = ("complexity", "solvability", "noCollision")
 GROUP_EXPLANATIONS = {
     "complexity": "no order of events lets an ego pass the old test-case and still violate "
@@ -48,6 +61,15 @@ GROUP_EXPLANATIONS = {
     "solvability": "no order of events leaves the new test-case solvable",
     "noCollision": "every order that works needs two cars in each other's lanes at once",
 }
+HEADWAY_SECONDS = 2.0  # a new car behind another on the same fork comes this much later
+STOP_DELAY = 4.0  # seconds a stop at a sign adds to a car's nominal schedule
+
+
+SOLVE_LIMIT = 200_000  # conflicts clingo may spend on one answer set: a count, not a clock
+
+
+class SearchLimitReached(Exception):
+    """Step 2 spent its work limit on one answer set without deciding it."""
 
 
 class CarKind(StrEnum):
@@ -70,37 +92,12 @@ class OrderingCar:
 
 @dataclass(frozen=True)
 class Limits:
-    """What bounds every symbolic car's timing (the test-case's parameters)."""
+    """What bounds every symbolic car's timing: the test-case's parameters and the margin."""
 
     duration: float
-    a_min: float
-    a_max: float
-    v_max: float
-
-
-def _time_bounds(
-    car: OrderingCar, timed: Sequence[TimedEvent], stop_sign: bool, limits: Limits
-) -> list[Fact]:
-    """earliest/latest of each symbol: no faster than v_max and a_max allow from the start
-    (a certificate must also stop at a sign: braking, standing, pulling away), never after
-    the end of the duration."""
-    facts = []
-    entry = [t.event.distance for t in timed if t.event.kind is EventKind.ENTERED]
-    stand = entry[0] - 0.5 if (entry and stop_sign and car.kind is CarKind.CERTIFICATE) else None
-    start = car.start_speed if car.start_speed is not None else limits.v_max
-    for t in timed:
-        distance = t.event.distance
-        if stand is not None and distance > stand:  # reach the stand, stand, pull away
-            early = (
-                fastest(stand, start, limits.a_max, limits.v_max)
-                + DWELL
-                + fastest(distance - stand, 0.0, limits.a_max, limits.v_max)
-            )
-        else:
-            early = fastest(distance, start, limits.a_max, limits.v_max)
-        facts.append(EARLIEST(t.symbol, math.floor(early * 1000)))
-        facts.append(LATEST(t.symbol, math.ceil(limits.duration * 1000)))
-    return facts
+    bounds: Bounds
+    v_run: float
+    margin: float  # seconds every relation with a symbolic time keeps beyond m
 
 
 def stop_symbol(car: str) -> clingo.Symbol:
@@ -109,33 +106,106 @@ def stop_symbol(car: str) -> clingo.Symbol:
 
 @dataclass(frozen=True)
 class Ordering:
-    """One answer set: the chosen relations between time symbols and the chosen stops."""
+    """One answer set: the chosen relations, the chosen stops, and event times (seconds,
+    from clingo-dl) that meet every difference constraint."""
 
     index: int
     relations: tuple[tuple[str, clingo.Symbol, clingo.Symbol], ...]  # ("lessThan"|"equal", s, t)
     stops: frozenset[str]
     violated: tuple[tuple[str, str], ...] = field(default=())  # (new car, rule) by "illegal"
+    times: tuple[tuple[str, float], ...] = field(default=())  # (symbol, seconds)
 
     def describe(self) -> list[str]:
         return [f"{kind}({a},{b})" for kind, a, b in self.relations]
 
 
+ONE_PLACE = 0.01  # metres: a symbolic car's events this close share one time symbol
+
+
 def timed_events(car: OrderingCar) -> list[TimedEvent]:
-    """The car's events with time symbols; a symbolic car's events at one distance share one."""
+    """The car's events with time symbols; a symbolic car's events within ONE_PLACE of the
+    first of them share one (a car passes a centimetre in a blink; Step 3 plans it as one
+    point, at the first event's distance)."""
     timed: list[TimedEvent] = []
     index = -1
-    previous: float | None = None
+    first: float | None = None
     for event in car.events:
         if event.kind is EventKind.EXITED:
             continue
-        if car.kind is CarKind.OLD or previous is None or event.distance > previous + 1e-6:
+        if car.kind is CarKind.OLD or first is None or event.distance > first + ONE_PLACE:
             index += 1
-        previous = event.distance
+            first = event.distance
         timed.append(TimedEvent(car.car, time_symbol(car.car, index), event))
     return timed
 
 
-STOP_DELAY = 4.0  # seconds a stop at a sign adds to a car's nominal schedule
+def _points(timed: Sequence[TimedEvent]) -> list[tuple[clingo.Symbol, float]]:
+    """A symbolic car's distinct time symbols with their (first event's) distances."""
+    found: dict[clingo.Symbol, float] = {}
+    for t in timed:
+        found.setdefault(t.symbol, t.event.distance)
+    return list(found.items())
+
+
+def _first(timed: Sequence[TimedEvent], kind: EventKind) -> TimedEvent | None:
+    return next((t for t in timed if t.event.kind is kind), None)
+
+
+def _gap_facts(
+    points: Sequence[tuple[clingo.Symbol | None, float]],
+    start_speed: float | None,
+    bounds: Bounds,
+) -> list[tuple[clingo.Symbol, clingo.Symbol, int]]:
+    """(S, T, ms) for consecutive named points (the start is START): T at least ms after S.
+    Unnamed points (the end of a stand) add their gaps to the next named one."""
+    distances = [0.0] + [d for _, d in points]
+    gaps = least_gaps(distances, start_speed, bounds)
+    found = []
+    behind, carried = START, 0.0
+    for (symbol, _), gap in zip(points, gaps, strict=True):
+        carried += gap
+        if symbol is None:
+            continue
+        found.append((behind, symbol, math.floor(carried * 1000)))
+        behind, carried = symbol, 0.0
+    return found
+
+
+def stand_distance(car: OrderingCar) -> float | None:
+    """Where the car stands when it stops at its sign: just before it enters the junction
+    and after every event before that; None when it cannot stop there (no arrival first)."""
+    entered = next((e for e in car.events if e.kind is EventKind.ENTERED), None)
+    if entered is None:
+        return None
+    before = [e.distance for e in car.events if e.distance < entered.distance - SAME]
+    arrived = any(e.kind is EventKind.ARRIVED for e in car.events if e.distance in before)
+    return stand_before(entered.distance, max(before)) if arrived else None
+
+
+def _time_facts(
+    car: OrderingCar, timed: Sequence[TimedEvent], stop_sign: bool, limits: Limits
+) -> list[Fact]:
+    """Difference-constraint facts of a symbolic car: least gaps between its consecutive
+    symbols however it drives, the stronger ones when it stops at its sign (braking to the
+    stand, standing, pulling away), and the longest gap from arriving to entering when it
+    runs the sign (at least v_run all the way)."""
+    points: list[tuple[clingo.Symbol | None, float]] = list(_points(timed))
+    facts = [MIN_GAP(a, b, g) for a, b, g in _gap_facts(points, car.start_speed, limits.bounds)]
+    facts += [SYMBOLIC_TIME(s) for s, _ in points if s is not None]
+    arrived, entered = _first(timed, EventKind.ARRIVED), _first(timed, EventKind.ENTERED)
+    stand = stand_distance(car)
+    if not stop_sign or arrived is None or entered is None or stand is None:
+        return facts
+    stop = stop_symbol(car.car)
+    facts += [SYMBOLIC_TIME(stop), STOP_TIME(car.car, stop)]
+    behind = [p for p in points if p[1] < stand]
+    stopping = [*behind, (stop, stand), (None, stand), *points[len(behind) :]]
+    stopped_gaps = _gap_facts(stopping, car.start_speed, limits.bounds)
+    facts += [MIN_GAP_STOPPED(car.car, a, b, g) for a, b, g in stopped_gaps]
+    run = entered.event.distance - arrived.event.distance
+    longest = math.ceil(run / limits.v_run * 1000)
+    facts.append(MAX_GAP_RUNNING(car.car, arrived.symbol, entered.symbol, longest))
+    return facts
 
 
 def _nominal(car: OrderingCar, timed: Sequence[TimedEvent], stop_sign: bool) -> list[Fact]:
@@ -150,6 +220,25 @@ def _nominal(car: OrderingCar, timed: Sequence[TimedEvent], stop_sign: bool) -> 
     if entry:
         facts.append(NOMINAL(stop_symbol(car.car), round((entry[0].time + 1.0) * 1000)))
     return facts
+
+
+def headways(cars: Sequence[OrderingCar]) -> list[tuple[clingo.Symbol, clingo.Symbol, float]]:
+    """New cars that start on one fork drive one after the other: at every event both have
+    (same kind, same lane), the one behind comes HEADWAY_SECONDS after the one ahead.
+    (S, T, seconds): T at least that long after S."""
+    by_fork: dict[str, list[OrderingCar]] = {}
+    for car in cars:
+        if car.kind is CarKind.NEW:
+            by_fork.setdefault(car.fork, []).append(car)
+    found = []
+    for group in by_fork.values():
+        for leader, follower in itertools.pairwise(group):
+            behind = {(t.event.kind, t.event.lane): t.symbol for t in timed_events(follower)}
+            for ahead in timed_events(leader):
+                symbol = behind.get((ahead.event.kind, ahead.event.lane))
+                if symbol is not None:
+                    found.append((ahead.symbol, symbol, HEADWAY_SECONDS))
+    return found
 
 
 def ordering_facts(
@@ -175,22 +264,27 @@ def ordering_facts(
         if car.kind is CarKind.OLD:
             old_timed += timed
             for t in timed:
-                facts.append(EARLIEST(t.symbol, math.floor(t.event.time * 1000)))
-                facts.append(LATEST(t.symbol, math.ceil(t.event.time * 1000)))
+                ms = t.event.time * 1000
+                facts.append(OLD_TIME(t.symbol, math.floor(ms), math.ceil(ms)))
             continue
-        facts += _time_bounds(car, timed, intersection.forks[car.fork].stop_sign, limits)
-        facts.append(STOP_TIME(car.car, stop_symbol(car.car)))
-        facts += _nominal(car, timed, intersection.forks[car.fork].stop_sign)
+        stop_sign = intersection.forks[car.fork].stop_sign
+        facts += _time_facts(car, timed, stop_sign, limits)
+        facts += _nominal(car, timed, stop_sign)
         distinct = list(dict.fromkeys(t.symbol for t in timed))
         facts += [TIME(s) for s in distinct]
         facts += [REAL_LTE(a, b) for a, b in itertools.pairwise(distinct)]
     facts += perceptible_order(old_timed, m)
     facts += [NOMINAL(t.symbol, round(t.event.time * 1000)) for t in old_timed]
+    facts += [HEADWAY(a, b, round(gap * 1000)) for a, b, gap in headways(cars)]
+    facts.append(HORIZON(math.floor((limits.duration - limits.margin) * 1000)))
     return facts, symbols
 
 
+RULE_FILES = ("extension.lp", "time_dl.lp")
+
+
 class OrderingSearch:
-    """Answer sets of Step 2, drawn one at a time."""
+    """Answer sets of Step 2, drawn one at a time, each with its event times."""
 
     def __init__(
         self,
@@ -202,6 +296,7 @@ class OrderingSearch:
     ) -> None:
         self.cars = {car.car: car for car in cars}
         self.facts, self.symbols = ordering_facts(intersection, cars, m, limits)
+        self.theory = ClingoDLTheory()  # type: ignore[no-untyped-call]
         self.control = clingo.Control(
             [
                 "--models=0",
@@ -209,15 +304,16 @@ class OrderingSearch:
                 "--heuristic=Domain",
                 f"--seed={seed}",
                 "--rand-freq=0.02",
+                f"--solve-limit={SOLVE_LIMIT}",
                 f"--const=m_ms={round(m * 1000)}",
+                f"--const=margin_ms={round(limits.margin * 1000)}",
             ]
         )
-        for path in (
-            rule_set_file(intersection.control),
-            asp_dir() / "time_axioms.lp",
-            asp_dir() / "extension.lp",
-        ):
-            self.control.load(str(path))
+        self.theory.register(self.control)
+        files = [str(rule_set_file(intersection.control))]
+        files += [str(asp_dir() / name) for name in RULE_FILES]
+        with clingo.ast.ProgramBuilder(self.control) as builder:
+            clingo.ast.parse_files(files, lambda ast: self.theory.rewrite_ast(ast, builder.add))
         with self.control.backend() as backend:
             for fact in self.facts:
                 backend.add_rule([backend.add_atom(fact)])
@@ -231,21 +327,46 @@ class OrderingSearch:
     def _enforce(self, group: str, value: bool) -> None:
         self.control.assign_external(clingo.Function("enforce", [clingo.Function(group)]), value)
 
+    def _solve(self) -> tuple[list[clingo.Symbol], dict[str, float]] | None:
+        """The first answer set of the program as it stands, with clingo-dl's times."""
+        self.theory.prepare(self.control)
+        with self.control.solve(yield_=True, on_model=self.theory.on_model) as handle:
+            model = next(iter(handle), None)
+            if model is None:
+                if handle.get().unknown:
+                    raise SearchLimitReached(
+                        f"Step 2 spent its limit of {SOLVE_LIMIT} conflicts without an answer"
+                    )
+                return None
+            atoms = model.symbols(atoms=True)
+            times = {
+                str(name): value / 1000.0
+                for name, value in self.theory.assignment(model.thread_id)
+                if isinstance(value, int)
+            }
+        return atoms, times
+
+    def satisfiable(self) -> bool:
+        return self._solve() is not None
+
     def next_ordering(self) -> Ordering | None:
         """The next answer set, or None when there is none left. Each is drawn afresh and
         then blocked, so what Step 3 learns (``forbid``) prunes the search that follows."""
-        with self.control.solve(yield_=True) as handle:
-            model = next(iter(handle), None)
-            if model is None:
-                return None
-            ordering = self._ordering(self.drawn, model.symbols(atoms=True))
+        found = self._solve()
+        if found is None:
+            return None
+        ordering = self._ordering(self.drawn, *found)
         self.drawn += 1
+        self.block(ordering)
+        return ordering
+
+    def block(self, ordering: Ordering) -> None:
+        """Rule out this answer set (its relations and stops) from the search that follows."""
         literals = [f"{kind}({a},{b})" for kind, a, b in ordering.relations]
         for car in sorted(self.symbolic):
             stop = f'stoppedAtForkAtTime("{car}",_,{stop_symbol(car)})'
             literals.append(stop if car in ordering.stops else f"not {stop}")
         self._add_constraint(literals)
-        return ordering
 
     def forbid(self, relations: Sequence[tuple[str, clingo.Symbol, clingo.Symbol]]) -> None:
         """Rule out every answer set with all of these relations (they cannot hold together)."""
@@ -257,7 +378,9 @@ class OrderingSearch:
         self.control.add(name, [], ":- " + ", ".join(literals) + ".")
         self.control.ground([(name, [])])
 
-    def _ordering(self, index: int, atoms: Sequence[clingo.Symbol]) -> Ordering:
+    def _ordering(
+        self, index: int, atoms: Sequence[clingo.Symbol], times: dict[str, float]
+    ) -> Ordering:
         relations = []
         stops = set()
         violated = []
@@ -274,13 +397,14 @@ class OrderingSearch:
             elif atom.match("violatesRightOfForRule", 3) and atom.arguments[0].string == "illegal":
                 violated.append((atom.arguments[1].string, str(atom.arguments[2])))
         relations.sort(key=lambda r: (r[0], str(r[1]), str(r[2])))
-        return Ordering(index, tuple(relations), frozenset(stops), tuple(sorted(violated)))
+        chosen = tuple(sorted(times.items()))
+        return Ordering(index, tuple(relations), frozenset(stops), tuple(sorted(violated)), chosen)
 
     def explain_unsatisfiable(self) -> str:
         """Which requirement could not be met: the first group whose release makes it SAT."""
         for group in GROUPS:
             self._enforce(group, False)
-            satisfiable = self.control.solve().satisfiable
+            satisfiable = self.satisfiable()
             self._enforce(group, True)
             if satisfiable:
                 return GROUP_EXPLANATIONS[group]

@@ -20,7 +20,7 @@ from typing import Any
 from shapely.geometry import LineString
 from shapely.geometry import Point as ShapelyPoint
 
-from service.core.budget import run_with_budget
+from service.core.budget import WarmWorker
 from service.core.errors import InvalidInput, SimulationFailed
 from service.core.network import Intersection, Route, read_network
 from service.core.network.lanes import (
@@ -302,6 +302,12 @@ def _drop_skipped(raw: list[PoseSample], plan: DrivePlan) -> list[PoseSample]:
     return samples
 
 
+DRIVER = WarmWorker()  # one warm SUMO process per process: libsumo loads once
+# Drives are deterministic: keep them, by plan and the network file's modification time.
+DRIVEN: dict[tuple[DrivePlan, int], tuple[PoseSample, ...]] = {}
+DRIVEN_KEPT = 256
+
+
 def generate_poses(
     intersection: Intersection,
     requests: list[tuple[Route, float]],
@@ -312,13 +318,22 @@ def generate_poses(
     width: float = 1.8,
     budget: float = DRIVE_BUDGET,
 ) -> list[PoseTrack]:
-    """Step 1 for (route, start distance) pairs, in one killable SUMO process."""
+    """Step 1 for (route, start distance) pairs, in one killable SUMO process. A drive is a
+    function of its plan (network file, lanes, start, speed, steps), so a plan driven
+    before in this process is not driven again."""
     plans = [
         plan_drive(intersection, route, start, speed, duration, timestep, length, width)
         for route, start in requests
     ]
-    driven = run_with_budget(drive, (plans,), budget, "the SUMO drive (Step 1)")
+    version = intersection.network_file.stat().st_mtime_ns
+    missing = list(dict.fromkeys(plan for plan in plans if (plan, version) not in DRIVEN))
+    if missing:
+        driven = DRIVER.call(drive, (missing,), budget, "the SUMO drive (Step 1)")
+        for plan, samples in zip(missing, driven, strict=True):
+            if len(DRIVEN) >= DRIVEN_KEPT:
+                DRIVEN.pop(next(iter(DRIVEN)))
+            DRIVEN[plan, version] = tuple(samples)
     return [
-        PoseTrack(route.id, length, width, start, tuple(samples))
-        for (route, start), samples in zip(requests, driven, strict=True)
+        PoseTrack(route.id, length, width, start, DRIVEN[plan, version])
+        for (route, start), plan in zip(requests, plans, strict=True)
     ]

@@ -1,42 +1,49 @@
 """Step 3: event times and composite cubic Bezier time-to-distance curves, with z3.
 
 Each symbolic car's distance travelled d(t) is a composite cubic Bezier curve whose time
-control points sit at thirds of each segment, so d is a cubic in t on every segment. Knots:
-t = 0 (d = 0), every event the order speaks of, a stand-still pair at a chosen stop, and
-the duration (d free up to the end of the car's poses). Constraints (design section 4):
-ordered intermediate control distances (the car never backs up, so it makes no new events),
-acceleration within [a_min, a_max] at both ends of every segment (it is linear in t, so
-that bounds it everywhere), slope continuity at every knot, speed at most v_max (through
-the derivative's control values), at most v_stop at a stop, at least v_run from arriving to
-entering when running a sign, the ego's start speed for the certificates, and every chosen
-order relation with a safety margin.
+control points sit at thirds of each piece, so d is a cubic in t on every piece. Knots:
+t = 0 (d = 0), every event the order speaks of (and arriving, entering and leaving its own
+lane), a stand-still pair where it stops at its sign, and the duration. Between two knots
+the curve has free knots at most ``PIECE`` seconds apart, so one segment can brake, stand
+and go again wherever the order needs it.
 
-Fast method first: a linear program for the knot times (z3 over linear real arithmetic)
-with only necessary kinematic conditions (no segment faster than v_max on average, braking
-to a stand and pulling away no quicker than the acceleration bounds allow), smoothest
-schedule first. When the times are infeasible, the relations in z3's unsatisfiable core are
-returned: no curve can realise them, so Step 2 may rule them out for good. Then the curves:
-each knot's speed is chosen from a grid, which turns every bound of a segment into an exact
-set of durations, so knot times and speeds are found together (linear arithmetic and
-Booleans); failing that, control points by a linear program per car with the planned times
-fixed. The complete nonlinear formulation (times and control points together, as in the
-paper) is ``solve_complete``: a child process that is killed at its budget.
+Two kinds of linear program (z3 over linear real arithmetic, exact rationals):
+
+1. the plan: the knot times of every car at once, keeping every order relation with its
+   margin, the headways, and the necessary kinematic conditions of service.core.kinematics
+   with a share of the bounds in reserve (``SHARES``: the curves then have room), smoothest
+   first (the pace changes least from knot to knot);
+2. the curves, one car at a time with the plan's knot times fixed: every piece's end
+   distance and speed, so that the controls are in order (the car never backs up and makes
+   no new event), the acceleration stays within the bounds at both ends of every piece (it
+   is linear in between), the speed within v_max, zero at a stand, at least v_run while
+   running a sign, the certificates' start speed; smoothest first (least peak acceleration,
+   then least acceleration and jerk).
+
+When the plan is infeasible even with the full bounds, the relations of z3's unsatisfiable
+core go back to Step 2: no speed profile can realise them together. Every z3 call is limited
+by a count of z3's own work (``rlimit``), never by a clock: the same problem gives the same
+curves on an idle and on a saturated machine.
 """
 
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
-import time
 from dataclasses import dataclass
 from fractions import Fraction
+from typing import Any
 
-import z3
+from service.core.kinematics import SAME, Bounds, duration_range, least_gaps, speed_caps
+from service.core.linear import Linear, LinearProgram, combine, rational, total, values
 
-from service.core.budget import run_with_budget
-from service.core.errors import BudgetExceeded
-
-DWELL = 0.5  # seconds a stopping car stands still at least
+PIECE = 2.0  # seconds: the longest piece of a curve (free knots between events)
+SHARES = (0.7, 0.85)  # shares of the bounds a plan may use (the curves keep the rest)
+WORK = 4_000_000  # z3 rlimit of one linear program (a count of z3's work, not seconds)
+CLEARANCE = 0.01  # metres a free knot keeps from the knots around it (events stay sharp)
+STOP_LEAD = 0.1  # seconds before a stand when a stopping car is still faster than v_stop
+TICK = 2e-4  # seconds at least between two knots (plans are rounded to 0.1 ms)
 
 
 @dataclass(frozen=True)
@@ -74,10 +81,14 @@ class TimingProblem:
     v_run: float
     v_max: float
 
+    @property
+    def bounds(self) -> Bounds:
+        return Bounds(self.v_max, self.a_max, self.a_min)
+
 
 @dataclass(frozen=True)
 class Curve:
-    """A composite cubic Bezier d(t): knot times and distances, two controls a segment."""
+    """A composite cubic Bezier d(t): piece end times and distances, two controls a piece."""
 
     times: tuple[float, ...]
     distances: tuple[float, ...]
@@ -94,13 +105,13 @@ class Curve:
         u = 1.0 - s
         distance = u**3 * d0 + 3 * u * u * s * d1 + 3 * u * s * s * d2 + s**3 * d3
         speed = 3.0 * (u * u * (d1 - d0) + 2 * u * s * (d2 - d1) + s * s * (d3 - d2)) / h
-        return distance, max(speed, 0.0)
+        return distance, speed
 
 
 @dataclass(frozen=True)
 class TimingSolution:
     curves: dict[str, Curve]
-    method: str  # "linear" or "nonlinear"
+    method: str  # how the plan was made: "linear, 70 % of the bounds" and the like
 
 
 @dataclass(frozen=True)
@@ -112,308 +123,125 @@ class TimingFailure:
     proved: bool = False  # shown impossible (the core may be empty), not merely not found
 
 
-def _value(model: z3.ModelRef, term: z3.ArithRef) -> float:
-    value = model.eval(term, model_completion=True)
-    if z3.is_rational_value(value):
-        return float(value.as_fraction())
-    return float(value.approx(20).as_fraction())  # algebraic numbers from nlsat
+class _Plan:
+    """The linear program of the plan: a time variable per knot, the relations between
+    them (labelled ``rel:I``, I the relation's index), the necessary kinematic conditions
+    with a share of the bounds, and the pace changes to keep small."""
 
-
-def _real(x: float, ctx: z3.Context) -> z3.RatNumRef:
-    return z3.RealVal(Fraction(x).limit_denominator(10**9), ctx)
-
-
-class _Times:
-    """z3 variables for knot times, and the relations between them."""
-
-    def __init__(self, problem: TimingProblem, ctx: z3.Context) -> None:
+    def __init__(self, problem: TimingProblem, share: float) -> None:
         self.problem = problem
-        self.ctx = ctx
-        self.var: dict[str, z3.ArithRef] = {}
-        self.knots: dict[str, list[z3.ArithRef]] = {}
-        for car in problem.cars:
-            self.knots[car.car] = [z3.Real(f"T_{car.car}_{k}", ctx) for k in range(len(car.knots))]
-            for knot, term in zip(car.knots, self.knots[car.car], strict=True):
+        self.program = LinearProgram(WORK)
+        self.var: dict[str, Linear] = {}
+        self.knots: dict[str, list[str]] = {}
+        for number, car in enumerate(problem.cars):
+            names = [f"T{number}_{k}" for k in range(len(car.knots))]
+            self.knots[car.car] = names
+            for knot, name in zip(car.knots, names, strict=True):
+                term = self.program.variable(name)
                 if knot.symbol is not None:
                     self.var[knot.symbol] = term
         self.fixed = dict(problem.fixed)
+        self._order()
+        self.cost = total([self._kinematics(number, car, share)
+                           for number, car in enumerate(problem.cars)])  # fmt: skip
 
-    def term(self, symbol: str) -> z3.ArithRef:
-        if symbol in self.var:
-            return self.var[symbol]
-        return _real(self.fixed[symbol], self.ctx)
+    def term(self, symbol: str) -> Linear:
+        return self.var[symbol] if symbol in self.var else Linear.of(self.fixed[symbol])
 
-    def order(self) -> list[z3.BoolRef]:
-        return [constraint for constraint, _ in self.labelled_order()]
-
-    def labelled_order(self) -> list[tuple[z3.BoolRef, str]]:
-        """The order relations (labelled ``rel:I``, I their index) and headways."""
-        p = self.problem
-        found = []
+    def _order(self) -> None:
+        p, program = self.problem, self.program
         for index, (kind, a, b) in enumerate(p.relations):
             if a not in self.var and b not in self.var:
                 continue
-            label = f"rel:{index}"
+            label = f"rel{index}"
             if kind == "lessThan":
-                found.append((self.term(b) - self.term(a) >= p.m + p.margin, label))
+                program.at_least(self.term(b) - self.term(a), p.m + p.margin, label)
             else:
-                found.append((self.term(b) - self.term(a) <= p.m - p.margin, label))
-                found.append((self.term(a) - self.term(b) <= p.m - p.margin, label))
+                program.at_most(self.term(b) - self.term(a), p.m - p.margin, label)
+                program.at_most(self.term(a) - self.term(b), p.m - p.margin, label)
         for a, b, gap in p.gaps:
-            found.append((self.term(b) - self.term(a) >= gap, f"headway:{a}:{b}"))
-        return found
+            program.at_least(self.term(b) - self.term(a), gap)
 
-
-COMFORT = 0.7  # share of the speed and acceleration bounds the first timing plan uses
-EDGE = 0.9  # orders that need more than this share are left alone
-
-
-def _speed_caps(car: CarPlan, problem: TimingProblem, share: float) -> list[float]:
-    """The highest speed the car can have at the start and at each knot: v_max, what it can
-    gain from its start speed or from a stand-still behind it, and what it can still brake
-    away before a stand-still ahead of it."""
-    top, speed_up, slow_down = share * problem.v_max, share * problem.a_max, -share * problem.a_min
-    distances = [0.0] + [k.distance for k in car.knots]
-    stands = [k.distance for k in car.knots if k.stop]
-    caps = []
-    for j, distance in enumerate(distances):
-        cap = top
-        if car.start_speed is not None:
-            cap = min(cap, math.sqrt(car.start_speed**2 + 2 * speed_up * distance))
-            if j == 0:
-                cap = car.start_speed
-        for stand in stands:
-            gap = distance - stand
-            cap = min(cap, math.sqrt(2 * (speed_up if gap >= 0 else slow_down) * abs(gap)))
-        caps.append(cap)
-    return caps
-
-
-def _kinematics(
-    problem: TimingProblem, times: _Times, share: float
-) -> tuple[list[z3.BoolRef], list[z3.ArithRef]]:
-    """Conditions on knot times with ``share`` of the speed and acceleration bounds, and the
-    pace changes to keep small. With share 1.0 they are necessary conditions: between any
-    two knots a car needs at least the time it takes to cover the distance from the highest
-    speed it can have at the first (accelerating at most a_max), and to arrive no faster
-    than it can have at the second (braking at most a_min), never above v_max."""
-    found: list[z3.BoolRef] = []
-    cost: list[z3.ArithRef] = []
-    top, speed_up, slow_down = share * problem.v_max, share * problem.a_max, -share * problem.a_min
-    for car in problem.cars:
-        terms = [_real(0.0, times.ctx), *times.knots[car.car]]
+    def _kinematics(self, number: int, car: CarPlan, share: float) -> Linear:
+        p, program = self.problem, self.program
+        terms = [Linear(), *(Linear({name: Fraction(1)}) for name in self.knots[car.car])]
         distances = [0.0] + [k.distance for k in car.knots]
-        caps = _speed_caps(car, problem, share)
-        found += [t <= problem.duration - problem.margin for t in terms[1:]]
-        for i in range(len(terms)):
-            for k in range(i + 1, len(terms)):
-                gap = distances[k] - distances[i]
-                if gap <= 1e-9:
-                    if k == i + 1:
-                        found.append(terms[k] - terms[i] >= DWELL)
-                    continue
-                least = max(
-                    fastest(gap, caps[i], speed_up, top), fastest(gap, caps[k], slow_down, top)
-                )
-                found.append(terms[k] - terms[i] >= least)
+        for j, gap in enumerate(least_gaps(distances, car.start_speed, p.bounds.scaled(share))):
+            program.at_least(terms[j + 1] - terms[j], max(gap, TICK))
+        for term in terms[1:]:
+            program.at_most(term, p.duration - p.margin)
+        if car.run is not None:
+            first, last = car.run
+            run = car.knots[last].distance - car.knots[first].distance
+            program.at_most(terms[last + 1] - terms[first + 1], run / p.v_run)
         paces = [
-            (terms[j] - terms[j - 1]) * (1.0 / (distances[j] - distances[j - 1]))
+            (terms[j] - terms[j - 1]) * rational(1.0 / (distances[j] - distances[j - 1]))
             for j in range(1, len(terms))
-            if distances[j] - distances[j - 1] > 1e-9
+            if distances[j] - distances[j - 1] > SAME
         ]
+        cost = []
         if car.start_speed is not None and car.start_speed > 0.5 and paces:
-            deviation = z3.Real(f"start_{car.car}", times.ctx)
-            found += [
-                deviation >= paces[0] - 1.0 / car.start_speed,
-                deviation >= 1.0 / car.start_speed - paces[0],
-            ]
-            cost.append(deviation * 4)
-        for k in range(1, len(paces)):
-            change = z3.Real(f"change_{car.car}_{k}", times.ctx)
-            found += [change >= paces[k] - paces[k - 1], change >= paces[k - 1] - paces[k]]
-            cost.append(change)
-    return found, cost
+            cost.append(program.magnitude(paces[0] - rational(1.0 / car.start_speed)) * 4)
+        cost += [program.magnitude(b - a) for a, b in itertools.pairwise(paces)]
+        return total(cost)
+
+    def continuity(self, previous: dict[str, list[float]], share: float) -> None:
+        """Average speeds of neighbouring segments may differ by no more than the bounds
+        can change the speed between their middles (a stand counts as speed 0, the start
+        as the start speed). The average speed D / h is linearised around ``previous``, a
+        plan of the same knots, so that the program stays linear."""
+        up, down = share * self.problem.a_max, -share * self.problem.a_min
+        for car in self.problem.cars:
+            names, before = self.knots[car.car], [0.0, *previous[car.car]]
+            terms = [Linear(), *(Linear({name: Fraction(1)}) for name in names)]
+            distances = [0.0] + [k.distance for k in car.knots]
+            start = Linear.of(car.start_speed) if car.start_speed is not None else None
+            speeds: list[tuple[Linear, Linear, Linear]] = []  # (speed, half before, after)
+            if start is not None:
+                speeds.append((start, Linear(), Linear()))
+            for j in range(1, len(terms)):
+                gap, span = distances[j] - distances[j - 1], terms[j] - terms[j - 1]
+                if gap <= SAME:
+                    speeds.append((Linear(), Linear(), Linear()))
+                    continue
+                guess = max(before[j] - before[j - 1], TICK)
+                average = combine((Fraction(0), span), (-rational(gap / guess**2), span))
+                average = average + rational(2 * gap / guess)
+                speeds.append((average, span * Fraction(1, 2), span * Fraction(1, 2)))
+            for (first, _, after), (second, ahead, _) in itertools.pairwise(speeds):
+                reach = after + ahead
+                self.program.at_most(second - first - reach * up, 0)
+                self.program.at_most(first - second - reach * down, 0)
 
 
-def _plan_times(
-    problem: TimingProblem, timeout_ms: int, ctx: z3.Context
-) -> tuple[dict[str, list[float]] | None, list[int], bool]:
-    """The linear timing step: knot times, smoothest first, within a share of the bounds
-    (COMFORT, then EDGE). Else None, the indices of the relations in an unsatisfiable
-    core, and whether that is a proof: the order is impossible with the full bounds (the
-    conditions are necessary), or it is possible only at their very edge, where no curve
-    with a margin exists in practice (a core of the EDGE conditions, not a proof)."""
-    times = _Times(problem, ctx)
-    for share in (COMFORT, EDGE):
-        kinematics, cost = _kinematics(problem, times, share)
-        optimizer = z3.Optimize(ctx=ctx)
-        optimizer.set("timeout", max(timeout_ms, 1))
-        optimizer.add(*times.order(), *kinematics)
-        if cost:
-            optimizer.minimize(z3.Sum(cost))
-        if optimizer.check() == z3.sat:
-            model = optimizer.model()
-            planned = {c: [_value(model, t) for t in terms] for c, terms in times.knots.items()}
-            return planned, [], False
-    for share, proof in ((1.0, True), (EDGE, False)):
-        core = _order_core(times, _kinematics(problem, times, share)[0], timeout_ms)
-        if core is not None:
-            return None, core, proof
-    return None, [], False
-
-
-def _order_core(times: _Times, kinematics: list[z3.BoolRef], timeout_ms: int) -> list[int] | None:
-    """Indices of order relations that cannot hold together with ``kinematics``; None when
-    they can (or z3 cannot tell)."""
-    solver = z3.Solver(ctx=times.ctx)
-    solver.set("timeout", max(timeout_ms, 1))
-    solver.add(*kinematics)
-    labels = {}
-    for k, (constraint, label) in enumerate(times.labelled_order()):
-        flag = z3.Bool(f"track_{k}", times.ctx)
-        labels[str(flag)] = label
-        solver.assert_and_track(constraint, flag)
-    if solver.check() != z3.unsat:
+def plan_times(
+    problem: TimingProblem, share: float, previous: dict[str, list[float]] | None = None
+) -> dict[str, list[float]] | None:
+    """The knot times of every car with ``share`` of the bounds, smoothest first; with
+    ``previous`` (a plan of the same problem), speeds kept continuous around it. None when
+    there are none (or z3's work limit was reached). Rounded to 0.1 ms: the curves' pieces
+    then have short rational lengths."""
+    plan = _Plan(problem, share)
+    if previous is not None:
+        plan.continuity(previous, share)
+    plan.program.minimize(plan.cost)
+    solution = plan.program.solve()
+    if solution is None:
         return None
-    core = {labels[str(flag)] for flag in solver.unsat_core()}
-    return sorted(int(label[4:]) for label in core if label.startswith("rel:"))
+    return {
+        car: [round(t, 4) for t in values(solution, names)] for car, names in plan.knots.items()
+    }
 
 
-def fastest(distance: float, start_speed: float, accel: float, top: float) -> float:
-    """Least time to cover ``distance`` from ``start_speed`` accelerating at most ``accel``
-    up to ``top`` (braking to a stand is the same, backwards in time)."""
-    if start_speed >= top:
-        return distance / top
-    ramp = (top * top - start_speed * start_speed) / (2 * accel)
-    if distance <= ramp:
-        return (-start_speed + math.sqrt(start_speed**2 + 2 * accel * distance)) / accel
-    return (top - start_speed) / accel + (distance - ramp) / top
+SPEED_GRID = (0.0, 0.1, 0.2, 0.3, 0.45, 0.6, 0.75, 0.9, 1.0)  # shares of the plan's v_max
 
 
-def _segment_constraints(
-    problem: TimingProblem,
-    car: CarPlan,
-    times: list[z3.ArithRef | float],
-    controls: list[tuple[z3.ArithRef, z3.ArithRef]],
-    end: z3.ArithRef,
-) -> list[z3.BoolRef]:
-    """Constraints of design section 4 on one car's curve, multiplied out by the segment
-    length h (and h squared): linear when the times are numbers, the paper's quadratic
-    form when they are variables."""
-    p = problem
-    distances: list[z3.ArithRef | float] = [0.0] + [k.distance for k in car.knots] + [end]
-    found: list[z3.BoolRef] = []
-    for j, (c1, c2) in enumerate(controls):
-        d0, d3 = distances[j], distances[j + 1]
-        h = times[j + 1] - times[j]
-        found += [d0 <= c1, c1 <= c2, c2 <= d3]
-        start_acc = 6 * (d0 - 2 * c1 + c2)
-        end_acc = 6 * (c1 - 2 * c2 + d3)
-        hh = h * h
-        found += [p.a_min * hh <= start_acc, start_acc <= p.a_max * hh]
-        found += [p.a_min * hh <= end_acc, end_acc <= p.a_max * hh]
-        for rise in (c1 - d0, c2 - c1, d3 - c2):
-            found.append(3 * rise <= p.v_max * h)
-        if car.run and car.run[0] < j <= car.run[1]:
-            found += [
-                3 * (c1 - d0) >= p.v_run * h,
-                3 * (c2 - c1) >= p.v_run * h,
-                3 * (d3 - c2) >= p.v_run * h,
-            ]
-        if j + 1 < len(controls):
-            n1, _ = controls[j + 1]
-            h_next = times[j + 2] - times[j + 1]
-            found.append((d3 - c2) * h_next == (n1 - d3) * h)
-        if j < len(car.knots) and car.knots[j].stop:
-            found.append(3 * (d3 - c2) <= p.v_stop * h)
-    if car.start_speed is not None:
-        c1, _ = controls[0]
-        found.append(3 * c1 == car.start_speed * (times[1] - times[0]))
-    found += [end >= (car.knots[-1].distance if car.knots else 0.0), end <= car.reach]
-    return found
-
-
-def _fit_curve(
-    problem: TimingProblem, car: CarPlan, knot_times: list[float], timeout_ms: int, ctx: z3.Context
-) -> Curve | None:
-    """The linear step for one car: control points with the knot times fixed."""
-    times = [0.0, *knot_times, problem.duration]
-    controls = [(z3.Real(f"c1_{j}", ctx), z3.Real(f"c2_{j}", ctx)) for j in range(len(times) - 1)]
-    end = z3.Real("end", ctx)
-    optimizer = z3.Optimize(ctx=ctx)
-    optimizer.set("timeout", max(timeout_ms, 1))
-    optimizer.add(*_segment_constraints(problem, car, times, controls, end))
-    distances: list[z3.ArithRef | float] = [0.0] + [k.distance for k in car.knots] + [end]
-    effort: list[z3.ArithRef] = []
-    for j, (c1, c2) in enumerate(controls):
-        h2 = (times[j + 1] - times[j]) ** 2
-        for acc in (distances[j] - 2 * c1 + c2, c1 - 2 * c2 + distances[j + 1]):
-            size = z3.Real(f"effort_{j}_{len(effort)}", ctx)
-            optimizer.add(size >= acc * (1.0 / h2), size >= -acc * (1.0 / h2))
-            effort.append(size)
-    optimizer.minimize(z3.Sum(effort))
-    if optimizer.check() != z3.sat:
-        return None
-    model = optimizer.model()
-    return Curve(
-        times=tuple(times),
-        distances=tuple([0.0] + [k.distance for k in car.knots] + [_value(model, end)]),
-        controls=tuple((_value(model, a), _value(model, b)) for a, b in controls),
-    )
-
-
-def _roots(a: float, b: float, c: float) -> tuple[float, float] | None:
-    """Real roots of a h^2 + b h + c (a != 0), smaller first."""
-    disc = b * b - 4 * a * c
-    if disc < 0:
-        return None
-    low, high = (-b - math.sqrt(disc)) / (2 * a), (-b + math.sqrt(disc)) / (2 * a)
-    return (low, high) if low <= high else (high, low)
-
-
-SPEED_GRID = (0.0, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.85, 1.0)  # shares of v_max
-
-
-def _durations(
-    gap: float, v0: float, v1: float, problem: TimingProblem, runs: bool
-) -> list[tuple[float, float]]:
-    """Every duration h (as closed intervals) for which the segment with end speeds v0, v1
-    (controls at d0 + v0 h/3 and d1 - v1 h/3) keeps every bound of design section 4."""
-    if gap <= 1e-9:
-        return [(DWELL, math.inf)] if v0 == 0 and v1 == 0 else []
-    low, high = 1e-3, math.inf
-    if v0 + v1 > 0:
-        high = 3 * gap / (v0 + v1)  # controls in order: the car never backs up
-    low = max(low, 3 * gap / (problem.v_max + v0 + v1))  # middle speed at most v_max
-    if runs:
-        high = min(high, 3 * gap / (v0 + v1 + problem.v_run))
-    brake, push = -problem.a_min, problem.a_max
-    # start acceleration 6 gap / h^2 - 2 (2 v0 + v1) / h, end 2 (v0 + 2 v1) / h - 6 gap / h^2
-    for size, b in ((push, 2 * (2 * v0 + v1)), (brake, 2 * (v0 + 2 * v1))):
-        roots = _roots(size, b, -6 * gap)  # size h^2 + b h - 6 gap >= 0
-        if roots is not None:
-            low = max(low, roots[1])
-    if low > high:
-        return []
-    intervals = [(low, high)]
-    for size, b in ((brake, 2 * (2 * v0 + v1)), (push, 2 * (v0 + 2 * v1))):
-        roots = _roots(size, -b, 6 * gap)  # size h^2 - b h + 6 gap >= 0: not between roots
-        if roots is None or roots[0] >= roots[1]:
-            continue
-        kept = []
-        for a, z in intervals:
-            if a <= roots[0]:
-                kept.append((a, min(z, roots[0])))
-            if z >= roots[1]:
-                kept.append((max(a, roots[1]), z))
-        intervals = kept
-    return intervals
-
-
-def _speed_options(car: CarPlan, problem: TimingProblem) -> list[list[float]]:
-    """The speeds each knot (the start first) may take: the grid under what it can reach,
-    zero at a stand, the start speed where fixed, at least v_run while running a sign."""
-    caps = _speed_caps(car, problem, 1.0)
+def _speed_options(car: CarPlan, problem: TimingProblem, bounds: Bounds) -> list[list[float]]:
+    """The speeds each point (the start, then every knot) may take in a grid plan: the grid
+    up to the highest speed the car can have there, zero at a stand, the start speed where
+    it is fixed, at least v_run where it runs a sign."""
+    distances = [0.0] + [k.distance for k in car.knots]
+    caps = speed_caps(distances, car.start_speed, bounds)
     options = []
     for j, cap in enumerate(caps):
         if j == 0 and car.start_speed is not None:
@@ -421,206 +249,221 @@ def _speed_options(car: CarPlan, problem: TimingProblem) -> list[list[float]]:
         elif j > 0 and car.knots[j - 1].stop:
             options.append([0.0])
         else:
-            speeds = sorted({share * problem.v_max for share in SPEED_GRID} | {cap})
-            least = problem.v_run if car.run and car.run[0] <= j - 1 <= car.run[1] else 0.0
-            options.append([v for v in speeds if least <= v <= cap + 1e-9])
+            floor = problem.v_run if car.run and car.run[0] <= j - 1 <= car.run[1] else 0.0
+            grid = sorted({share * bounds.v_max for share in SPEED_GRID} | {cap})
+            options.append([v for v in grid if floor <= v <= cap + 1e-9])
     return options
 
 
-def _fit_on_speed_grid(
-    problem: TimingProblem, timeout_ms: int, ctx: z3.Context
-) -> dict[str, Curve] | None:
-    """Curves whose knot speeds come from a grid: for each pair of end speeds, every bound
-    is an exact set of segment durations, so one linear problem with a choice of speed per
-    knot (z3, linear arithmetic and Booleans) finds knot times and speeds together."""
-    times = _Times(problem, ctx)
-    solver = z3.Solver(ctx=ctx)
-    solver.set("timeout", max(timeout_ms, 1))
-    solver.add(*times.order())
-    chosen: dict[str, list[list[tuple[float, z3.BoolRef]]]] = {}
-    for car in problem.cars:
-        terms = [_real(0.0, ctx), *times.knots[car.car]]
+def plan_on_speed_grid(problem: TimingProblem, share: float, core: bool = False) -> Any:
+    """Knot times chosen together with knot speeds from a grid. For two end speeds, the
+    durations one segment can take form an interval (kinematics.duration_range), so with a
+    speed chosen at every knot each segment can be driven by construction: a mixed-integer
+    program over the plan's relations (any solution; the curves are smoothed afterwards).
+    None when there is none (or z3 ran out of work). With ``core``, instead: the indices of
+    relations that no grid plan can keep together, or None."""
+    plan = _Plan(problem, share)
+    program = plan.program
+    bounds = problem.bounds.scaled(share)
+    for number, car in enumerate(problem.cars):
+        options = _speed_options(car, problem, bounds)
+        if not all(options):
+            return [] if core else None
+        chosen = [program.choice(f"s{number}_{j}", len(o)) if len(o) > 1 else [""]
+                  for j, o in enumerate(options)]  # fmt: skip
+        terms = [Linear(), *(Linear({name: Fraction(1)}) for name in plan.knots[car.car])]
         distances = [0.0] + [k.distance for k in car.knots]
-        picks: list[list[tuple[float, z3.BoolRef]]] = []
-        for j, speeds in enumerate(_speed_options(car, problem)):
-            if not speeds:
-                return None
-            if len(speeds) == 1:
-                picks.append([(speeds[0], z3.BoolVal(True, ctx))])
-                continue
-            flags = [z3.Bool(f"v_{car.car}_{j}_{i}", ctx) for i in range(len(speeds))]
-            solver.add(z3.PbEq([(f, 1) for f in flags], 1))
-            picks.append(list(zip(speeds, flags, strict=True)))
         for j in range(1, len(terms)):
-            h = terms[j] - terms[j - 1]
-            solver.add(terms[j] <= problem.duration - problem.margin)
-            runs = bool(car.run and car.run[0] < j <= car.run[1])
-            for v0, f0 in picks[j - 1]:
-                for v1, f1 in picks[j]:
-                    spans = _durations(distances[j] - distances[j - 1], v0, v1, problem, runs)
-                    inside = [
-                        z3.And(h >= lo, h <= hi) if hi < math.inf else h >= lo for lo, hi in spans
-                    ]
-                    solver.add(
-                        z3.Implies(
-                            z3.And(f0, f1), z3.Or(inside) if inside else z3.BoolVal(False, ctx)
-                        )
-                    )
-        chosen[car.car] = picks
-    if solver.check() != z3.sat:
+            floor = problem.v_run if car.run and car.run[0] + 1 < j <= car.run[1] + 1 else 0.0
+            span = terms[j] - terms[j - 1]
+            for (a, v0), (b, v1) in itertools.product(
+                zip(chosen[j - 1], options[j - 1], strict=True),
+                zip(chosen[j], options[j], strict=True),
+            ):
+                window = duration_range(distances[j] - distances[j - 1], v0, v1, bounds, floor)
+                condition = [name for name in (a, b) if name]
+                if window is None:
+                    if not condition:
+                        return [] if core else None
+                    program.when(condition, None, span, None)
+                elif condition:
+                    longest = window[1] if window[1] < math.inf else None
+                    program.when(condition, window[0], span, longest)
+                else:
+                    program.at_least(span, window[0])
+                    if window[1] < math.inf:
+                        program.at_most(span, window[1])
+    if core:
+        labels = program.conflict()
+        return None if labels is None else sorted({int(label[3:]) for label in labels})
+    solution = program.solve()
+    if solution is None:
         return None
-    model = solver.model()
-    curves = {}
-    for car in problem.cars:
-        knot_times = [_value(model, t) for t in times.knots[car.car]]
-        speeds = [
-            next(v for v, f in pick if z3.is_true(model.eval(f, model_completion=True)))
-            for pick in chosen[car.car]
-        ]
-        curve = _close_curve(problem, car, knot_times, speeds, timeout_ms, ctx)
-        if curve is None:
-            return None
-        curves[car.car] = curve
-    return curves
+    return {
+        car: [round(t, 4) for t in values(solution, names)] for car, names in plan.knots.items()
+    }
 
 
-def _close_curve(
-    problem: TimingProblem,
-    car: CarPlan,
-    knot_times: list[float],
-    speeds: list[float],
-    timeout_ms: int,
-    ctx: z3.Context,
-) -> Curve | None:
-    """The curve through the knots with the given speeds, and a last segment to the end of
-    the duration (its end distance and second control found by a small linear program)."""
+def order_core(problem: TimingProblem) -> list[int] | None:
+    """Indices of order relations that cannot hold together under the full bounds (a
+    proof: the conditions are necessary); None when they can, or z3 cannot tell."""
+    core = _Plan(problem, 1.0).program.conflict()
+    return None if core is None else sorted({int(label[3:]) for label in core})
+
+
+@dataclass(frozen=True)
+class _Boundary:
+    """A piece end of a curve: its time, and its distance when it is a knot (else free
+    within ``low``..``high``), its speed when fixed."""
+
+    t: Fraction
+    distance: float | None
+    low: float
+    high: float
+    speed: float | None
+    least_speed: float = 0.0
+
+
+def _boundaries(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -> list[_Boundary]:
+    """Piece ends: the start, the knots, and free knots at most PIECE apart between them.
+    Before a stand, the car keeps above v_stop from its previous knot until STOP_LEAD
+    before the stand, so that its stop begins when it is planned (the checker's stop is
+    the first moment at v_stop or below), not while it creeps up to the line."""
+    times = [Fraction(0), *(rational(t) for t in knot_times), rational(problem.duration)]
     distances = [0.0] + [k.distance for k in car.knots]
-    moments = [0.0, *knot_times]
+    stopped = [False] + [k.stop for k in car.knots]
+    found = [_Boundary(times[0], 0.0, 0.0, 0.0, car.start_speed)]
+    for j in range(1, len(times)):
+        last = j == len(times) - 1  # the end of the duration: the distance is free
+        low = distances[j - 1]
+        high = car.reach if last else distances[j]
+        stand = not last and high - low <= SAME
+        clearance = 0.0 if stand else min(CLEARANCE, (high - low) / 4)
+        stops_here = not last and stopped[j] and not stopped[j - 1]
+        lead = rational(STOP_LEAD) if stops_here and times[j] - times[j - 1] > STOP_LEAD else 0
+        floor = problem.v_stop if lead else 0.0
+        if floor and found[-1].speed is None:
+            previous = found[-1]
+            found[-1] = _Boundary(previous.t, previous.distance, previous.low, previous.high,
+                                  previous.speed, floor)  # fmt: skip
+        span = times[j] - lead - times[j - 1]
+        pieces = 1 if stand else max(1, math.ceil(span / rational(PIECE)))
+        for k in range(1, pieces + (1 if lead else 0)):
+            t = times[j - 1] + span * Fraction(k, pieces)
+            found.append(_Boundary(t, None, low + clearance, high - clearance, None, floor))
+        if last:
+            found.append(_Boundary(times[j], None, low + clearance, high, None))
+        else:
+            found.append(_Boundary(times[j], high, high, high, 0.0 if stopped[j] else None))
+    return found
+
+
+def fit_curve(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -> Curve | None:
+    """The smoothest curve of one car through its knots at the planned times; None when the
+    bounds allow none (or z3's work limit was reached)."""
+    points = _boundaries(problem, car, knot_times)
+    program = LinearProgram(WORK)
+    d: list[Linear] = []
+    v: list[Linear] = []
+    for k, point in enumerate(points):
+        if point.distance is not None:
+            d.append(Linear.of(point.distance))
+        else:
+            d.append(program.variable(f"d{k}", point.low, point.high))
+        if point.speed is not None:
+            v.append(Linear.of(point.speed))
+        else:
+            v.append(program.variable(f"v{k}", point.least_speed, problem.v_max))
+    running = _running_span(car, knot_times)
+    peak = program.variable("peak")
+    one = Fraction(1)
+    cost: list[Linear] = [peak * 10]
+    for k in range(len(points) - 1):
+        h = points[k + 1].t - points[k].t
+        d0, d1, v0, v1 = d[k], d[k + 1], v[k], v[k + 1]
+        # Controls c1 = d0 + v0 h / 3 and c2 = d1 - v1 h / 3, multiplied out.
+        program.at_least(combine((one, d1), (-one, d0), (-h / 3, v0), (-h / 3, v1)), 0)
+        middle = combine((3 / h, d1), (-3 / h, d0), (-one, v0), (-one, v1))
+        program.at_most(middle, problem.v_max)
+        start = combine((6 / h**2, d1), (-6 / h**2, d0), (-4 / h, v0), (-2 / h, v1))
+        end = combine((-6 / h**2, d1), (6 / h**2, d0), (2 / h, v0), (4 / h, v1))
+        for acceleration in (start, end):
+            program.at_least(acceleration, problem.a_min)
+            program.at_most(acceleration, problem.a_max)
+            program.at_most(acceleration - peak, 0)
+            program.at_least(acceleration + peak, 0)
+            cost.append(program.magnitude(acceleration) * (h / 2))
+        if running is not None and running[0] <= points[k].t and points[k + 1].t <= running[1]:
+            for speed in (v0, v1, middle):
+                program.at_least(speed, problem.v_run)
+        if points[k].least_speed and points[k + 1].least_speed:
+            program.at_least(middle, min(points[k].least_speed, points[k + 1].least_speed))
+    program.minimize(total(cost))
+    solution = program.solve()
+    if solution is None:
+        return None
+    distances = [_evaluate(term, solution) for term in d]
+    speeds = [_evaluate(term, solution) for term in v]
+    times = [float(p.t) for p in points]
     controls = []
-    for j in range(1, len(moments)):
-        h = moments[j] - moments[j - 1]
+    for k in range(len(points) - 1):
+        third = (times[k + 1] - times[k]) / 3
         controls.append(
-            (distances[j - 1] + speeds[j - 1] * h / 3, distances[j] - speeds[j] * h / 3)
+            (distances[k] + speeds[k] * third, distances[k + 1] - speeds[k + 1] * third)
         )
-    h = problem.duration - moments[-1]
-    last, v = distances[-1], speeds[-1]
-    c1 = last + v * h / 3
-    c2, end = z3.Real("c2", ctx), z3.Real("end", ctx)
-    solver = z3.Optimize(ctx=ctx)
-    solver.set("timeout", max(timeout_ms, 1))
-    hh = h * h
-    solver.add(c1 <= c2, c2 <= end, end <= car.reach, c1 <= car.reach)
-    solver.add(
-        problem.a_min * hh <= 6 * (last - 2 * c1 + c2),
-        6 * (last - 2 * c1 + c2) <= problem.a_max * hh,
-    )
-    solver.add(
-        problem.a_min * hh <= 6 * (c1 - 2 * c2 + end), 6 * (c1 - 2 * c2 + end) <= problem.a_max * hh
-    )
-    solver.add(3 * (c2 - c1) <= problem.v_max * h, 3 * (end - c2) <= problem.v_max * h)
-    effort = z3.Real("effort", ctx)
-    solver.add(effort >= 6 * (c1 - 2 * c2 + end) - 6 * (last - 2 * c1 + c2))
-    solver.add(effort >= 6 * (last - 2 * c1 + c2) - 6 * (c1 - 2 * c2 + end))
-    solver.minimize(effort)
-    if solver.check() != z3.sat:
-        return None
-    model = solver.model()
-    controls.append((c1, _value(model, c2)))
-    return Curve(
-        times=(*moments, problem.duration),
-        distances=(*distances, _value(model, end)),
-        controls=tuple(controls),
-    )
+    return Curve(tuple(times), tuple(distances), tuple(controls))
 
 
-def solve_nonlinear(problem: TimingProblem) -> dict[str, Curve] | tuple[int, ...] | None:
-    """The complete formulation (times and controls together); run it under a budget.
-    Curves; when it is infeasible, the indices of relations in an unsatisfiable core;
-    None when z3 gives up."""
-    ctx = z3.Context()
-    times = _Times(problem, ctx)
-    solver = z3.SolverFor("QF_NRA", ctx=ctx)
-    labels = {}
-    for k, (constraint, label) in enumerate(times.labelled_order()):
-        flag = z3.Bool(f"track_{k}", ctx)
-        labels[str(flag)] = label
-        solver.assert_and_track(constraint, flag)
-    parts: dict[
-        str, tuple[list[z3.ArithRef | float], list[tuple[z3.ArithRef, z3.ArithRef]], z3.ArithRef]
-    ] = {}
-    for car in problem.cars:
-        knot_times: list[z3.ArithRef | float] = [0.0, *times.knots[car.car], problem.duration]
-        controls = [
-            (z3.Real(f"c1_{car.car}_{j}", ctx), z3.Real(f"c2_{car.car}_{j}", ctx))
-            for j in range(len(knot_times) - 1)
-        ]
-        end = z3.Real(f"end_{car.car}", ctx)
-        for j in range(1, len(knot_times)):
-            gap = knot_times[j] - knot_times[j - 1]
-            solver.add(gap >= (DWELL if j < len(knot_times) - 1 and _dwell(car, j) else 0.01))
-        for term in times.knots[car.car]:
-            solver.add(term <= problem.duration - problem.margin)
-        solver.add(*_segment_constraints(problem, car, knot_times, controls, end))
-        parts[car.car] = (knot_times, controls, end)
-    verdict = solver.check()
-    if verdict == z3.unknown:
+def _evaluate(term: Linear, solution: dict[str, Fraction]) -> float:
+    found = term.constant + sum(
+        (c * solution.get(n, Fraction(0)) for n, c in term.terms.items()), Fraction(0)
+    )
+    return float(found)
+
+
+def _running_span(car: CarPlan, knot_times: list[float]) -> tuple[Fraction, Fraction] | None:
+    if car.run is None:
         return None
-    if verdict == z3.unsat:
-        core = {labels[str(flag)] for flag in solver.unsat_core()}
-        return tuple(sorted(int(label[4:]) for label in core if label.startswith("rel:")))
-    model = solver.model()
+    return rational(knot_times[car.run[0]]), rational(knot_times[car.run[1]])
+
+
+def _fit_all(problem: TimingProblem, planned: dict[str, list[float]] | None) -> dict[str, Curve]:
+    """Every car's curve at the planned times; empty unless all of them fit."""
+    if planned is None:
+        return {}
     curves = {}
     for car in problem.cars:
-        knot_times, controls, end = parts[car.car]
-        curves[car.car] = Curve(
-            times=tuple(_value(model, t) if not isinstance(t, float) else t for t in knot_times),
-            distances=tuple([0.0] + [k.distance for k in car.knots] + [_value(model, end)]),
-            controls=tuple((_value(model, a), _value(model, b)) for a, b in controls),
-        )
+        curve = fit_curve(problem, car, planned[car.car])
+        if curve is None:
+            return {}
+        curves[car.car] = curve
     return curves
 
 
-def _dwell(car: CarPlan, j: int) -> bool:
-    return j >= 2 and car.knots[j - 1].distance - car.knots[j - 2].distance <= 1e-9
-
-
-def solve_timing(problem: TimingProblem, budget: float) -> TimingSolution | TimingFailure:
-    """The linear steps: curves for every car, or what failed (with an unsatisfiable core
-    when there is one). The nonlinear formulation is ``solve_complete``."""
-    started = time.monotonic()
-    ctx = z3.Context()  # a fresh context per problem: z3's answers do not depend on history
-    planned, core, proof = _plan_times(problem, int(budget * 1000), ctx)
-    if planned is None:
-        if proof:
-            return TimingFailure("no event times can realise this order", tuple(core), True)
-        if core:
-            return TimingFailure("this order needs the very edge of the bounds", tuple(core))
-        return TimingFailure("the linear timing step gave up")
-    direct = _fit_on_speed_grid(problem, int((budget - (time.monotonic() - started)) * 1000), ctx)
-    if direct is not None:
-        return TimingSolution(direct, "linear")
-    curves = {}
-    for car in problem.cars:
-        left = budget - (time.monotonic() - started)
-        curve = _fit_curve(problem, car, planned[car.car], int(left * 1000), ctx)
-        if curve is None:
-            break
-        curves[car.car] = curve
-    else:
-        return TimingSolution(curves, "linear")
-    return TimingFailure(f"the linear curve step failed for {car.car}")
-
-
-def solve_complete(problem: TimingProblem, budget: float) -> TimingSolution | TimingFailure:
-    """The nonlinear formulation in a child process that is killed at ``budget``."""
-    if budget <= 0.05:
-        return TimingFailure("no time left for the nonlinear step")
-    try:
-        solved = run_with_budget(solve_nonlinear, (problem,), budget, "the nonlinear timing step")
-    except BudgetExceeded:
-        return TimingFailure(f"the nonlinear step ran out of its {budget:.1f} s")
-    if solved is None:
-        return TimingFailure("the nonlinear step gave up")
-    if isinstance(solved, tuple):
-        return TimingFailure("the nonlinear step proved it infeasible", solved, True)
-    return TimingSolution(solved, "nonlinear")
+def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
+    """Curves for every car, or what failed. For each share of the bounds: the smooth plan,
+    then planned again with continuous speeds around it; then the speed-grid plan, as it is
+    and smoothed the same way. When none fits: the relations that cannot hold together, a
+    proof when even the necessary conditions rule them out, else those that no grid plan
+    within the largest share keeps (orders at the very edge of the bounds are left alone:
+    no curve with room to spare realises them)."""
+    grid = None
+    for share in SHARES:
+        smooth = plan_times(problem, share)
+        for planned in (smooth, smooth and plan_times(problem, share, smooth)):
+            curves = _fit_all(problem, planned)
+            if curves:
+                return TimingSolution(curves, f"linear, {round(share * 100)} % of the bounds")
+        grid = plan_on_speed_grid(problem, share)
+        for planned in (grid and plan_times(problem, share, grid), grid):
+            curves = _fit_all(problem, planned)
+            if curves:
+                return TimingSolution(curves, f"speed grid, {round(share * 100)} % of the bounds")
+    core = order_core(problem)
+    if core is not None:
+        return TimingFailure("no event times can realise this order", tuple(core), True)
+    if grid is None:
+        edge = plan_on_speed_grid(problem, SHARES[-1], core=True)
+        reason = f"no speed profile within {round(SHARES[-1] * 100)} % of the bounds"
+        return TimingFailure(reason, tuple(edge or ()))
+    return TimingFailure("no curves within the bounds for the planned event times")

@@ -156,7 +156,12 @@ class Work:
             progress = f"level {level + 1}/{spec.count}"
             self.jobs.record(self.item.job, self.item.position, self.owner, progress)
             routes = None if spec.steps is None else spec.steps[level]
-            current = self._extension(current, routes, spec.seed, spec.budget)
+            try:
+                current = self._extension(current, routes, spec.seed, spec.budget)
+            except ScengenError as error:  # the levels made so far are kept, and named
+                kept = f"; levels 1 to {level} are kept" if level else ""
+                message = f"level {level + 1} of {spec.count}: {error.message}{kept}"
+                raise type(error)(message, **error.context) from error
             made.append(current.id)
             self.jobs.record(self.item.job, self.item.position, self.owner, progress, made)
 

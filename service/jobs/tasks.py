@@ -9,14 +9,14 @@ nothing that a worker would have to repeat.
 from __future__ import annotations
 
 import io
-import random
 import tempfile
 import time
 import zipfile
 from pathlib import Path
 from typing import Any
 
-from service.core.errors import NoMoreComplexTestCase, NoneFound
+from service.core.chain import grow
+from service.core.errors import NoneFound
 from service.core.export import export_bundle
 from service.core.generate import extend_testcase
 from service.core.network import load_intersection
@@ -195,43 +195,19 @@ def plot_testcase(
 def extend_any(
     document: str, network_file: Path, cache_dir: Path, seed: int, budget: float
 ) -> dict[str, Any]:
-    """An extension by one car on a route the service chooses: the routes that conflict
-    with the ego's, from forks no car uses yet, tried in an order drawn from ``seed``."""
+    """An extension by one car on a route the service chooses (service.core.chain.grow):
+    the routes that conflict with the ego's, from forks no car uses yet, tried in an order
+    drawn from ``seed``, each in full; the budget only stops the call."""
     old = parse_testcase(document)
     intersection = load_testcase_intersection(old, cache_dir, network_file)
-    used = {old.ego.route.fork, *(car.route.fork for car in old.nonegos)}
-    candidates = sorted(
-        route
-        for route in intersection.conflicts[old.ego.route.id]
-        if intersection.routes[route].fork not in used
-    )
-    random.Random(seed).shuffle(candidates)
-    deadline = time.monotonic() + budget
-    outcomes = []
-    for turn, route in enumerate(candidates):
-        remaining = deadline - time.monotonic()
-        if remaining < 1.0:
-            break
-        share = remaining / (len(candidates) - turn)  # every candidate gets its turn
-        try:
-            extension = extend_testcase(old, [route], seed, share, intersection=intersection)
-        except (NoMoreComplexTestCase, NoneFound) as error:
-            outcomes.append(f"{route}: {type(error).__name__}")
-            continue
-        return {
-            "document": dump_testcase(extension.testcase),
-            "route": route,
-            "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],
-            "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
-        }
-    tried = "; ".join(outcomes) or "none"
-    if len(outcomes) == len(candidates):
-        raise NoMoreComplexTestCase(
-            f"no route that meets the ego's gave a more complex test-case (tried {tried})"
-        )
-    raise NoneFound(
-        f"none found within the budget of {budget:g} s (tried {tried})", budget_exhausted=True
-    )
+    growth = grow(old, seed, budget, intersection)
+    extension = growth.extension
+    return {
+        "document": dump_testcase(extension.testcase),
+        "route": growth.route,
+        "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],
+        "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
+    }
 
 
 def bundles(sources: list[tuple[str, str, Path]], cache_dir: Path) -> bytes:

@@ -447,18 +447,6 @@ def test_time_constraints_reject_contradictions(facts: str, why: str) -> None:
     assert control.solve().unsatisfiable, why
 
 
-def test_time_axioms_close_the_orders() -> None:
-    control = clingo.Control(["--warn=none"])
-    control.load(str(asp_dir() / "time.lp"))
-    control.load(str(asp_dir() / "time_axioms.lp"))
-    control.add("base", [], "time(a). time(b). time(c). lessThan(a,b). realLTE(b,c).")
-    control.ground([("base", [])])
-    atoms: set[str] = set()
-    control.solve(on_model=lambda model: atoms.update(map(str, model.symbols(atoms=True))))
-    assert {"lessThan(a,c)", "realLTE(a,c)", "realLTE(a,a)"} <= atoms
-    assert "lessThan(b,c)" not in atoms
-
-
 def test_perceptible_order_ties_at_exactly_m_are_ordered() -> None:
     events = [
         TimedEvent("a", time_symbol("a", 0), LaneEvent(EventKind.ENTERED, "f", 1.0, 0.0)),

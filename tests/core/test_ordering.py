@@ -1,0 +1,98 @@
+"""Step 2's event times (asp/time_dl.lp with clingo-dl) and the answer sets it draws."""
+
+from __future__ import annotations
+
+import clingo
+import clingo.ast
+import pytest
+from clingodl import ClingoDLTheory
+
+from service.core.generate import _limits, _ordering_cars, _validate
+from service.core.network import Intersection
+from service.core.ordering import OrderingSearch
+from service.core.poses import generate_poses
+from service.core.rules import asp_dir
+from service.core.testcase import new_testcase
+
+
+def satisfiable(facts: str, m_ms: int = 1000, margin_ms: int = 200) -> bool:
+    """Whether time_dl.lp with these facts has a model (times in ms)."""
+    theory = ClingoDLTheory()  # type: ignore[no-untyped-call]
+    control = clingo.Control(
+        ["--warn=none", f"--const=m_ms={m_ms}", f"--const=margin_ms={margin_ms}"]
+    )
+    theory.register(control)
+    with clingo.ast.ProgramBuilder(control) as builder:
+        add = lambda ast: theory.rewrite_ast(ast, builder.add)  # noqa: E731
+        clingo.ast.parse_files([str(asp_dir() / "time_dl.lp")], add)
+        clingo.ast.parse_string(facts, add)
+    control.ground([("base", [])])
+    theory.prepare(control)
+    return bool(control.solve(on_model=theory.on_model).satisfiable)
+
+
+@pytest.mark.parametrize(
+    ("facts", "expected", "why"),
+    [
+        ("symbolicTime(a;b;c). lessThan(a,b). lessThan(b,c). lessThan(c,a). horizon(9000).",
+         False, "a cycle of perceptible orders has no times"),
+        ("symbolicTime(a;b;c). lessThan(a,b). lessThan(b,c). horizon(9000).",
+         True, "a chain of orders has times"),
+        ("symbolicTime(a). minGap(0,a,3000). horizon(2000).",
+         False, "a car cannot reach its event before its least travel time"),
+        ("symbolicTime(a). minGap(0,a,3000). horizon(4000).", True, "within the duration"),
+        ("oldTime(o,1000,1000). symbolicTime(s). lessThan(o,s). horizon(2100).",
+         False, "after an old car's event by m plus the margin (1.2 s) is past the horizon"),
+        ("oldTime(o,1000,1000). symbolicTime(s). lessThan(o,s). horizon(2300).",
+         True, "m plus the margin fits"),
+        ("oldTime(o,5000,5000). symbolicTime(s). equal(s,o). minGap(0,s,5900). horizon(9000).",
+         False, "simultaneous means within m minus the margin (0.8 s)"),
+        ("oldTime(o,5000,5000). symbolicTime(s). equal(s,o). minGap(0,s,5700). horizon(9000).",
+         True, "0.7 s after is simultaneous"),
+        ("oldTime(o,0,0). oldTime(p,500,500). lessThan(o,p). horizon(9000).",
+         True, "old cars' facts are numbers, judged without the margin"),
+    ],
+)  # fmt: skip
+def test_difference_constraints_decide_the_times(facts: str, expected: bool, why: str) -> None:
+    assert satisfiable(facts) is expected, why
+
+
+def test_a_stop_adds_its_gaps_and_running_a_sign_bounds_the_approach() -> None:
+    base = "symbolicTime(a;e). minGap(0,a,1000). minGap(a,e,1000). horizon(9000). "
+    stopped = base + 'stoppedAtForkAtTime("v",f,s). minGapStopped("v",a,e,4000). '
+    assert satisfiable(stopped + "&diff{ e - 0 } <= 4500.") is False
+    assert satisfiable(base + 'minGapStopped("v",a,e,4000). &diff{ e - 0 } <= 4500.') is True
+    running = base + 'maxGapRunning("v",a,e,1500). &diff{ a - 0 } <= 1000. '
+    assert satisfiable(running + "&diff{ 0 - e } <= -3000.") is False
+    assert satisfiable(running + 'stoppedAtForkAtTime("v",f,s). &diff{ 0 - e } <= -3000.')
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_every_answer_set_comes_with_times_that_keep_its_relations(
+    four_way: Intersection, seed: int
+) -> None:
+    old = new_testcase("4way-stop", "S2C_1:C2W_1", duration=25.0)
+    routes = _validate(old, four_way, ["W2C_0:C2E_0", "N2C_0:C2S_0"])
+    ego_route = four_way.route(old.ego.route.id)
+    tracks = generate_poses(
+        four_way, [(ego_route, 30.0), *((r, 30.0) for r in routes)], 8.0, 25.0, 0.1
+    )
+    ids = ["car1", "car2"]
+    cars = _ordering_cars(
+        old, four_way, tracks[0], dict(zip(ids, tracks[1:], strict=True)), routes, ids
+    )
+    limits = _limits(old)
+    search = OrderingSearch(four_way, cars, old.params.m, seed, limits)
+    drawn = [search.next_ordering() for _ in range(5)]
+    assert all(ordering is not None for ordering in drawn)
+    for ordering in drawn:
+        assert ordering is not None
+        times = dict(ordering.times)
+        for kind, a, b in ordering.relations:
+            gap = times[str(b)] - times[str(a)]
+            if kind == "lessThan":
+                assert gap >= old.params.m + limits.margin - 1e-9
+            else:
+                assert abs(gap) < old.params.m - limits.margin
+        assert all(0 <= t <= old.duration - limits.margin for t in times.values())
+    assert len({o.relations for o in drawn if o is not None}) == 5  # each is new

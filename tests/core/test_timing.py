@@ -1,0 +1,217 @@
+"""Step 3 on random timing problems that are solvable by construction (hypothesis).
+
+Each problem comes from real motions: every car drives a random profile of constant
+accelerations within the bounds (some stop and stand on the way); its knots are points of
+that drive, and the order relations are read off the drive's own times with room to spare.
+So a speed profile exists for every problem, and the checks are:
+
+- whatever curves Step 3 returns keep every invariant: distance never decreases, speed in
+  [0, v_max], acceleration in [a_min, a_max] (finely differenced), the start speed, standing
+  where a knot says, at least v_run where the car runs a sign, and every order relation
+  holds between the times the curves pass their knots, with the margin;
+- Step 3 never claims a proof that such a problem is impossible.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from service.core.invariants import motion_fault
+from service.core.kinematics import DWELL
+from service.core.testcase import Params
+from service.core.timing import (
+    CarPlan,
+    Curve,
+    Knot,
+    TimingFailure,
+    TimingProblem,
+    TimingSolution,
+    solve_timing,
+)
+
+PARAMS = Params()
+DURATION = 20.0
+MARGIN = 0.2
+STEP = 0.05  # seconds: the drives are integrated this finely
+
+
+@dataclass(frozen=True)
+class Drive:
+    """A car's real motion, sampled every STEP: times, distances and speeds."""
+
+    times: list[float]
+    distances: list[float]
+    speeds: list[float]
+
+    def time_at(self, distance: float) -> float:
+        """When the drive first reaches ``distance`` (linear between samples)."""
+        for k in range(1, len(self.distances)):
+            if self.distances[k] >= distance:
+                d0, d1 = self.distances[k - 1], self.distances[k]
+                share = 0.0 if d1 == d0 else (distance - d0) / (d1 - d0)
+                return self.times[k - 1] + share * STEP
+        return math.inf
+
+
+@st.composite
+def drives(draw: st.DrawFn, start_speed: float | None, stop: bool) -> tuple[Drive, float | None]:
+    """A motion within the bounds and the distance where it stands (when it stops)."""
+    v = start_speed if start_speed is not None else draw(st.floats(0.0, PARAMS.v_max))
+    t, d = 0.0, 0.0
+    times, distances, speeds = [0.0], [0.0], [v]
+    stand_at = draw(st.floats(4.0, 12.0)) if stop else math.inf
+    stood: float | None = None
+    while t < DURATION + 1.0:
+        accel = draw(st.floats(PARAMS.a_min * 0.9, PARAMS.a_max * 0.9))
+        for _ in range(draw(st.integers(10, 60))):
+            if stood is None and t >= stand_at:
+                brake = -PARAMS.a_min * 0.8
+                while v > 0:  # brake to a stand, then stand
+                    v = max(0.0, v - brake * STEP)
+                    t, d = t + STEP, d + v * STEP
+                    times.append(t), distances.append(d), speeds.append(v)
+                stood = round(d, 6)  # knots sit on Step 3's micrometre grid
+                for _ in range(round(draw(st.floats(DWELL + 0.5, 3.0)) / STEP)):
+                    t += STEP
+                    times.append(t), distances.append(d), speeds.append(0.0)
+                accel = PARAMS.a_max * 0.8
+            v = min(max(v + accel * STEP, 0.0), PARAMS.v_max)
+            t, d = t + STEP, d + v * STEP
+            times.append(t), distances.append(d), speeds.append(v)
+    return Drive(times, distances, speeds), stood
+
+
+@st.composite
+def problems(draw: st.DrawFn) -> tuple[TimingProblem, dict[str, Drive]]:
+    """A timing problem that the drives it was read from solve."""
+    cars, drives_of, symbols = [], {}, {}
+    for number in range(draw(st.integers(1, 3))):
+        name = f"car{number}"
+        certificate = draw(st.booleans())
+        start = 8.0 if certificate else None
+        drive, stood = draw(drives(start, stop=draw(st.booleans())))
+        moments = sorted(draw(st.lists(st.floats(0.5, DURATION - MARGIN - 0.5), min_size=2,
+                                       max_size=5, unique=True)))  # fmt: skip
+        points: list[float] = []
+        for moment in moments:  # points the drive passes in time, a centimetre apart at least
+            point = math.floor(drive.distances[round(moment / STEP)] * 1000) / 1000
+            late = drive.time_at(point) > DURATION - MARGIN - 0.05
+            if point > 0.5 and not late and all(abs(point - p) >= 0.01 for p in points):
+                points.append(point)
+        points = sorted(p for p in points if stood is None or abs(p - stood) > 0.5)
+        knots = [Knot(f"{name}:{k}", p) for k, p in enumerate(points)]
+        if stood is not None and drive.time_at(stood) < DURATION - MARGIN - DWELL:
+            place = sum(1 for k in knots if k.distance < stood)
+            stand = [Knot(f"{name}:stop", stood, stop=True), Knot(None, stood, stop=True)]
+            knots[place:place] = stand
+        if not knots:
+            continue
+        for knot in knots:
+            if knot.symbol is not None:
+                symbols[knot.symbol] = drive.time_at(knot.distance)
+        reach = drive.distances[-1]
+        cars.append(CarPlan(name, tuple(knots), reach, start, None))
+        drives_of[name] = drive
+    fixed = tuple((f"old:{k}", draw(st.floats(1.0, DURATION - 1.0))) for k in range(2))
+    known = {**symbols, **dict(fixed)}
+    relations = []
+    names = sorted(known)
+    for a in names:
+        for b in names:
+            if a >= b or a.split(":")[0] == b.split(":")[0] or not draw(st.booleans()):
+                continue
+            gap = known[b] - known[a]
+            room = PARAMS.m + MARGIN + 0.1
+            if gap >= room:
+                relations.append(("lessThan", a, b))
+            elif -gap >= room:
+                relations.append(("lessThan", b, a))
+            elif abs(gap) <= PARAMS.m - MARGIN - 0.1:
+                relations.append(("equal", a, b))
+    problem = TimingProblem(
+        cars=tuple(cars), fixed=fixed, relations=tuple(relations), gaps=(),
+        duration=DURATION, m=PARAMS.m, margin=MARGIN, a_min=PARAMS.a_min,
+        a_max=PARAMS.a_max, v_stop=PARAMS.v_stop, v_run=PARAMS.v_run, v_max=PARAMS.v_max,
+    )  # fmt: skip
+    return problem, drives_of
+
+
+def crossing(curve: Curve, distance: float) -> float:
+    """When the curve first reaches ``distance`` (bisection; it never backs up)."""
+    low, high = 0.0, curve.times[-1]
+    if curve.at(high)[0] < distance - 1e-9:
+        return math.inf
+    for _ in range(60):
+        middle = (low + high) / 2
+        if curve.at(middle)[0] >= distance - 1e-9:
+            high = middle
+        else:
+            low = middle
+    return high
+
+
+def assert_invariants(problem: TimingProblem, car: CarPlan, curve: Curve) -> None:
+    fine = 0.01
+    samples = [curve.at(k * fine) for k in range(round(DURATION / fine) + 1)]
+    for (d0, v0), (d1, v1) in itertools.pairwise(samples):
+        assert d1 >= d0 - 1e-9, "backs up"
+        assert -1e-6 <= v1 <= problem.v_max + 1e-6, "speed outside [0, v_max]"
+        assert problem.a_min - 0.05 <= (v1 - v0) / fine <= problem.a_max + 0.05, "acceleration"
+    if car.start_speed is not None:
+        assert abs(samples[0][1] - car.start_speed) < 1e-6
+    assert samples[-1][0] <= car.reach + 1e-6
+
+    @dataclass(frozen=True)
+    class Row:
+        t: float
+        speed: float
+        distance: float
+
+    rows: list[Row] = []
+    for k in range(round(DURATION / 0.1) + 1):  # as the generator samples and stores it
+        distance, speed = curve.at(k * 0.1)
+        if rows and rows[-1].distance - 1e-6 < distance < rows[-1].distance:
+            distance = rows[-1].distance
+        rows.append(Row(round(k * 0.1, 9), round(max(speed, 0.0), 6), round(distance, 6)))
+    assert motion_fault(rows, PARAMS, 0.1, car.start_speed) is None
+    for first, second in zip(car.knots, car.knots[1:], strict=False):
+        if first.stop and second.stop:  # a stand: faster than v_stop until just before it
+            begin = crossing(curve, first.distance)
+            assert curve.at(begin - 0.1 - 1e-3)[1] > problem.v_stop - 1e-6
+            assert abs(curve.at(begin + DWELL / 2)[1]) < 1e-6
+
+
+@settings(
+    max_examples=30,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+@given(problems())
+def test_step3_keeps_every_invariant_on_solvable_problems(
+    case: tuple[TimingProblem, dict[str, Drive]],
+) -> None:
+    problem, _ = case
+    result = solve_timing(problem)
+    if isinstance(result, TimingFailure):
+        assert not result.proved, f"claimed impossible, yet the drives solve it: {result.reason}"
+        return
+    assert isinstance(result, TimingSolution)
+    times: dict[str, float] = dict(problem.fixed)
+    for car in problem.cars:
+        curve = result.curves[car.car]
+        assert_invariants(problem, car, curve)
+        for knot in car.knots:
+            if knot.symbol is not None:
+                times[knot.symbol] = crossing(curve, knot.distance)
+    for kind, a, b in problem.relations:
+        gap = times[b] - times[a]
+        if kind == "lessThan":
+            assert gap >= problem.m + problem.margin - 1e-3, (kind, a, b, gap)
+        else:
+            assert abs(gap) <= problem.m - problem.margin + 1e-3, (kind, a, b, gap)
