@@ -43,6 +43,7 @@ from service.core.ordering import (
     OrderingCar,
     OrderingSearch,
     SearchLimitReached,
+    event_groups,
     headways,
     stand_distance,
     stop_symbol,
@@ -432,28 +433,28 @@ def _ordering_cars(
 
 
 def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: bool) -> CarPlan:
-    """The knots of one symbolic car: the events the order speaks of, arriving, entering and
-    leaving its own lane, and a stand just before the line where it stops at its sign."""
+    """The knots of one symbolic car: the points (time symbols) the order speaks of, where
+    it arrives, enters and leaves its own lane, and a stand just before the point where it
+    enters when it stops at its sign."""
     knots: list[Knot] = []
     arrival = entry = None
     used = {str(s) for _, a, b in ordering.relations for s in (a, b)}
     stops = car.car in ordering.stops
-    for timed in timed_events(car):
-        symbol = str(timed.symbol)
-        if knots and knots[-1].symbol == symbol:
-            continue
-        kind = timed.event.kind
-        if kind is EventKind.ARRIVED:
-            arrival = len(knots)
-        if kind is EventKind.ENTERED:
+    for group in event_groups(car):
+        symbol, kinds = str(group[0].symbol), {t.event.kind for t in group}
+        if EventKind.ENTERED in kinds:
             stand = stand_distance(car)
             if stops and stand is not None:
                 knots.append(Knot(str(stop_symbol(car.car)), _on_grid(stand), stop=True))
                 knots.append(Knot(None, _on_grid(stand), stop=True))
             entry = len(knots)
-        own_exit = kind is EventKind.LEFT_LANE and timed.event.lane == car.lane
-        if symbol in used or kind in (EventKind.ARRIVED, EventKind.ENTERED) or own_exit:
-            knots.append(Knot(symbol, _on_grid(timed.event.distance)))
+        if EventKind.ARRIVED in kinds:
+            arrival = len(knots)
+        own_exit = any(
+            t.event.kind is EventKind.LEFT_LANE and t.event.lane == car.lane for t in group
+        )
+        if symbol in used or kinds & {EventKind.ARRIVED, EventKind.ENTERED} or own_exit:
+            knots.append(Knot(symbol, _on_grid(group[0].event.distance)))
     runs = None
     if stop_sign and not stops and arrival is not None and entry is not None:
         runs = (arrival, entry)

@@ -24,7 +24,7 @@ import clingo.ast
 from clingodl import ClingoDLTheory
 
 from service.core.events import EventKind, LaneEvent
-from service.core.kinematics import SAME, Bounds, least_gaps, stand_before
+from service.core.kinematics import Bounds, least_gaps, stand_before
 from service.core.network import Intersection
 from service.core.rules import (
     REAL_LTE,
@@ -171,15 +171,29 @@ def _gap_facts(
     return found
 
 
+def event_groups(car: OrderingCar) -> list[list[TimedEvent]]:
+    """The car's timed events by time symbol, in order (one group per point of its drive)."""
+    groups: dict[clingo.Symbol, list[TimedEvent]] = {}
+    for timed in timed_events(car):
+        groups.setdefault(timed.symbol, []).append(timed)
+    return list(groups.values())
+
+
 def stand_distance(car: OrderingCar) -> float | None:
-    """Where the car stands when it stops at its sign: just before it enters the junction
-    and after every event before that; None when it cannot stop there (no arrival first)."""
-    entered = next((e for e in car.events if e.kind is EventKind.ENTERED), None)
-    if entered is None:
+    """Where the car stands when it stops at its sign: just before the point where it enters
+    the junction, after every point before that; None when it cannot stop there (it has
+    not arrived at an earlier point)."""
+    groups = event_groups(car)
+    entry = next(
+        (k for k, g in enumerate(groups) if any(t.event.kind is EventKind.ENTERED for t in g)),
+        None,
+    )
+    if entry is None:
         return None
-    before = [e.distance for e in car.events if e.distance < entered.distance - SAME]
-    arrived = any(e.kind is EventKind.ARRIVED for e in car.events if e.distance in before)
-    return stand_before(entered.distance, max(before)) if arrived else None
+    earlier = [t.event for group in groups[:entry] for t in group]
+    if not any(e.kind is EventKind.ARRIVED for e in earlier):
+        return None
+    return stand_before(groups[entry][0].event.distance, max(e.distance for e in earlier))
 
 
 def _time_facts(

@@ -20,6 +20,7 @@ from service.core.errors import (
     UnknownRoute,
 )
 from service.core.generate import Extension, extend_testcase
+from service.core.invariants import motion_fault
 from service.core.poses import PoseSample
 from service.core.testcase import TestCase, dump_testcase, new_testcase, parse_testcase
 
@@ -113,6 +114,41 @@ def test_four_way_car_from_the_left(tmp_path: Path) -> None:
     start = new_testcase("4way-stop", "S2C_1:C2W_1", duration=25.0)
     new = extend_testcase(start, ["W2C_0:C2E_0"], seed=0, budget=120).testcase
     assert_strictly_more_complex(start, new)
+
+
+UNSEEN = Path(__file__).parents[1] / "data" / "junctions"
+
+
+@pytest.mark.parametrize(
+    ("junction", "ego", "route"),
+    [
+        ("skewed-allway", "ENE2C_0:C2SSW_0", "WSW2C_0:C2ENE_0"),
+        ("skewed-allway", "N2C_0:C2ENE_0", "SSW2C_0:C2N_0"),
+        ("y-uneven", "ESE2C_0:C2SW_0", "N2C_0:C2ESE_0"),
+        ("y-uneven", "N2C_0:C2ESE_0", "SW2C_0:C2N_0"),
+    ],
+)
+def test_junctions_no_constant_was_tuned_on_get_verified_extensions(
+    junction: str, ego: str, route: str
+) -> None:
+    start = new_testcase(UNSEEN / f"{junction}.net.xml", ego, junction="C", duration=30.0)
+    extension = extend_testcase(start, [route], seed=0, budget=120)
+    assert_strictly_more_complex(start, extension.testcase)
+    assert_motion_invariants(extension.testcase)
+
+
+def assert_motion_invariants(testcase: TestCase) -> None:
+    """Every generated trajectory keeps the invariants, judged on its samples alone."""
+    assert testcase.certificates is not None
+    generated = [n.trajectory for n in testcase.nonegos if n.added_in == max_level(testcase)]
+    generated += [testcase.certificates.solvability, testcase.certificates.complexity]
+    for index, rows in enumerate(generated):
+        start = testcase.ego.start.speed if index >= len(generated) - 2 else None
+        assert motion_fault(rows, testcase.params, testcase.timestep, start) is None
+
+
+def max_level(testcase: TestCase) -> int:
+    return max(n.added_in for n in testcase.nonegos)
 
 
 def test_routes_that_never_meet_the_ego_have_no_extension() -> None:

@@ -7,9 +7,16 @@ import clingo.ast
 import pytest
 from clingodl import ClingoDLTheory
 
+from service.core.events import EventKind, LaneEvent
 from service.core.generate import _limits, _ordering_cars, _validate
 from service.core.network import Intersection
-from service.core.ordering import OrderingSearch
+from service.core.ordering import (
+    CarKind,
+    OrderingCar,
+    OrderingSearch,
+    event_groups,
+    stand_distance,
+)
 from service.core.poses import generate_poses
 from service.core.rules import asp_dir
 from service.core.testcase import new_testcase
@@ -96,3 +103,27 @@ def test_every_answer_set_comes_with_times_that_keep_its_relations(
                 assert abs(gap) < old.params.m - limits.margin
         assert all(0 <= t <= old.duration - limits.margin for t in times.values())
     assert len({o.relations for o in drawn if o is not None}) == 5  # each is new
+
+
+def test_a_stopping_car_stands_before_every_event_of_the_point_where_it_enters() -> None:
+    # On a skewed junction the rectangle touches connecting lanes a hair before the junction
+    # polygon: one point of the drive, and the stand must come before all of it.
+    events = (
+        LaneEvent(EventKind.ARRIVED, "f", 2.5, 20.0),
+        LaneEvent(EventKind.ENTERED_LANE, ":C_3_0", 3.75, 29.99698),
+        LaneEvent(EventKind.ENTERED, "f", 3.75, 29.99699),
+        LaneEvent(EventKind.ENTERED_LANE, ":C_2_0", 4.0, 32.17),
+    )
+    car = OrderingCar("ego", CarKind.CERTIFICATE, "f", ":C_3_0", events, 8.0)
+    stand = stand_distance(car)
+    assert stand is not None and 20.0 < stand < 29.99698
+    assert [len(group) for group in event_groups(car)] == [1, 2, 1]
+
+
+def test_a_car_that_enters_where_it_arrives_cannot_stop_before_the_line() -> None:
+    events = (
+        LaneEvent(EventKind.ARRIVED, "f", 0.0, 0.0),
+        LaneEvent(EventKind.ENTERED, "f", 0.0, 0.001),
+    )
+    car = OrderingCar("car1", CarKind.NEW, "f", ":C_0_0", events)
+    assert stand_distance(car) is None
