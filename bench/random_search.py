@@ -48,12 +48,12 @@ import argparse
 import hashlib
 import math
 import random
-import resource
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from bench.cpu import cpu_seconds
 from service.core.collisions import Motion, first_collision
 from service.core.events import EventKind, compute_events
 from service.core.generate import verify_extension
@@ -79,12 +79,6 @@ P_STOP_NEW_AT_SIGN = 0.5  # a non-ego is not judged: it may stop or run the sign
 P_STOP_NO_SIGN = 1.0 / 3.0  # a stand before the line where there is no sign (yielding)
 CHUNK = 20  # trials between two looks at the CPU budget
 DEFAULT_BUDGET = 60.0  # CPU seconds per task in main()
-
-
-def cpu_seconds() -> float:
-    """CPU time of this process plus that of its finished children (SUMO for Step 1)."""
-    children = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return time.process_time() + children.ru_utime + children.ru_stime
 
 
 @dataclass(frozen=True)

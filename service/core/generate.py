@@ -437,7 +437,7 @@ def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: boo
     it arrives, enters and leaves its own lane, and a stand just before the point where it
     enters when it stops at its sign."""
     knots: list[Knot] = []
-    arrival = entry = None
+    arrival = entry = leaves = None
     used = {str(s) for _, a, b in ordering.relations for s in (a, b)}
     stops = car.car in ordering.stops
     for group in event_groups(car):
@@ -453,12 +453,16 @@ def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: boo
         own_exit = any(
             t.event.kind is EventKind.LEFT_LANE and t.event.lane == car.lane for t in group
         )
+        if own_exit:
+            leaves = len(knots)
         if symbol in used or kinds & {EventKind.ARRIVED, EventKind.ENTERED} or own_exit:
             knots.append(Knot(symbol, _on_grid(group[0].event.distance)))
     runs = None
     if stop_sign and not stops and arrival is not None and entry is not None:
         runs = (arrival, entry)
-    return CarPlan(car.car, tuple(knots), track.samples[-1].distance, car.start_speed, runs)
+    inside = (entry, leaves) if entry is not None and leaves is not None else None
+    reach = track.samples[-1].distance
+    return CarPlan(car.car, tuple(knots), reach, car.start_speed, runs, inside)
 
 
 def _on_grid(distance: float) -> float:

@@ -43,6 +43,8 @@ SHARES = (0.7, 0.85)  # shares of the bounds a plan may use (the curves keep the
 WORK = 4_000_000  # z3 rlimit of one linear program (a count of z3's work, not seconds)
 CLEARANCE = 0.01  # metres a free knot keeps from the knots around it (events stay sharp)
 STOP_LEAD = 0.1  # seconds before a stand when a stopping car is still faster than v_stop
+INSIDE_WEIGHT = Fraction(1, 10)  # plan cost of a second inside the junction beyond three times
+# the least time to cross it and two seconds (pace changes cost seconds per metre)
 TICK = 2e-4  # seconds at least between two knots (plans are rounded to 0.1 ms)
 
 
@@ -64,6 +66,7 @@ class CarPlan:
     reach: float  # how far its poses go: the end distance must not pass it
     start_speed: float | None  # fixed for the certificates, free for new non-egos
     run: tuple[int, int] | None  # knot indices between which it runs a stop sign
+    inside: tuple[int, int] | None = None  # knot indices of entering and leaving its lane
 
 
 @dataclass(frozen=True)
@@ -180,6 +183,13 @@ class _Plan:
             if distances[j] - distances[j - 1] > SAME
         ]
         cost = []
+        if car.inside is not None:  # cross briskly: wait before the line, not inside
+            entry, leave = car.inside
+            gaps = least_gaps(distances, car.start_speed, p.bounds.scaled(share))
+            comfortable = 3 * sum(gaps[entry + 1 : leave + 1]) + 2.0
+            lingering = program.variable(f"linger{number}", 0)
+            program.at_least(lingering - (terms[leave + 1] - terms[entry + 1]), -comfortable)
+            cost.append(lingering * INSIDE_WEIGHT)
         if car.start_speed is not None and car.start_speed > 0.5 and paces:
             cost.append(program.magnitude(paces[0] - rational(1.0 / car.start_speed)) * 4)
         cost += [program.magnitude(b - a) for a, b in itertools.pairwise(paces)]
@@ -441,29 +451,31 @@ def _fit_all(problem: TimingProblem, planned: dict[str, list[float]] | None) -> 
 
 
 def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
-    """Curves for every car, or what failed. For each share of the bounds: the smooth plan,
-    then planned again with continuous speeds around it; then the speed-grid plan, as it is
-    and smoothed the same way. When none fits: the relations that cannot hold together, a
-    proof when even the necessary conditions rule them out, else those that no grid plan
-    within the largest share keeps (orders at the very edge of the bounds are left alone:
-    no curve with room to spare realises them)."""
-    grid = None
+    """Curves for every car, or what failed. First the smooth plan with the comfortable
+    share of the bounds, and again with continuous speeds around it; then speed-grid plans
+    (as they are and smoothed), first with the comfortable share, then the largest. When
+    none fits: the relations that cannot hold together, a proof when even the necessary
+    conditions rule them out, else those that no grid plan within the largest share keeps
+    (orders at the very edge of the bounds are left alone: no curve with room to spare
+    realises them)."""
+    comfortable, largest = SHARES[0], SHARES[-1]
+    smooth = plan_times(problem, comfortable)
+    for planned in (smooth, smooth and plan_times(problem, comfortable, smooth)):
+        curves = _fit_all(problem, planned)
+        if curves:
+            return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
+    edge = plan_on_speed_grid(problem, largest)
+    if edge is None:
+        core = order_core(problem) if smooth is None else None
+        if core is not None:
+            return TimingFailure("no event times can realise this order", tuple(core), True)
+        unreachable = plan_on_speed_grid(problem, largest, core=True)
+        reason = f"no speed profile within {round(largest * 100)} % of the bounds"
+        return TimingFailure(reason, tuple(unreachable or ()))
     for share in SHARES:
-        smooth = plan_times(problem, share)
-        for planned in (smooth, smooth and plan_times(problem, share, smooth)):
-            curves = _fit_all(problem, planned)
-            if curves:
-                return TimingSolution(curves, f"linear, {round(share * 100)} % of the bounds")
-        grid = plan_on_speed_grid(problem, share)
+        grid = edge if share == largest else plan_on_speed_grid(problem, share)
         for planned in (grid and plan_times(problem, share, grid), grid):
             curves = _fit_all(problem, planned)
             if curves:
                 return TimingSolution(curves, f"speed grid, {round(share * 100)} % of the bounds")
-    core = order_core(problem)
-    if core is not None:
-        return TimingFailure("no event times can realise this order", tuple(core), True)
-    if grid is None:
-        edge = plan_on_speed_grid(problem, SHARES[-1], core=True)
-        reason = f"no speed profile within {round(SHARES[-1] * 100)} % of the bounds"
-        return TimingFailure(reason, tuple(edge or ()))
     return TimingFailure("no curves within the bounds for the planned event times")
