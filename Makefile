@@ -6,6 +6,7 @@ STAMP := $(VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled
 
 .PHONY: help install system-tools test lint format nets run demo openapi bench bench-api bench-jobs \
+	bench-generator \
 	coverage clean
 
 help:
@@ -15,6 +16,7 @@ help:
 	@echo "make lint     ruff and mypy --strict"
 	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
 	@echo "make bench    time the checker, the generator, the API and batch jobs (docs/benchmarks.md)"
+	@echo "make bench-generator   only the generator: targets, chain growth, Step 2 theories"
 	@echo "make bench-api / bench-jobs   one of those benchmarks"
 	@echo "make demo     describe the 4-way stop, write a test-case, drive and judge an ego"
 	@echo "make coverage extend every conflicting route pair of the bundled intersections"
@@ -66,10 +68,19 @@ demo: $(STAMP)
 		--controller cruise; echo "scengen check exited with $$? (1: the ego failed)"
 
 bench: $(STAMP)
+	$(BIN)/pip install --quiet '.[bench]'
 	$(BIN)/python -m bench.bench_check
 	$(BIN)/python -m bench.bench_generate
+	$(BIN)/python -m bench.bench_chains
+	$(BIN)/python -m bench.bench_ordering
 	$(BIN)/python -m bench.bench_api
 	$(BIN)/python -m bench.bench_jobs
+
+bench-generator: $(STAMP)
+	$(BIN)/pip install --quiet '.[bench]'
+	$(BIN)/python -m bench.bench_generate
+	$(BIN)/python -m bench.bench_chains
+	$(BIN)/python -m bench.bench_ordering
 
 bench-api: $(STAMP)
 	$(BIN)/python -m bench.bench_api
