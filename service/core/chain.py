@@ -2,9 +2,9 @@
 
 Each level adds one new car on a route that conflicts with the ego's, from a fork no car
 uses yet (following in one lane is not modelled), trying such routes in an order drawn
-from the seed. Every choice depends only on the test-case and the seed: a route is tried in
-full (the generator's search is limited by counts), and the next one only when the first
-has no extension; the time budget only stops the call.
+from the seed. Every choice depends only on the test-case and the seed: a route gets up to
+ROUTE_ORDERS answer sets (a count, not a clock), and the next route its turn only when the
+first has no extension; the time budget only stops the call.
 """
 
 from __future__ import annotations
@@ -18,6 +18,8 @@ from service.core.errors import NoMoreComplexTestCase, NoneFound
 from service.core.generate import Extension, Progress, extend_testcase
 from service.core.network import Intersection
 from service.core.testcase import TestCase, load_testcase_intersection
+
+ROUTE_ORDERS = 20  # answer sets one route gets before the next route's turn (a count)
 
 
 def candidate_routes(old: TestCase, intersection: Intersection) -> list[str]:
@@ -61,7 +63,9 @@ def grow(
         if left <= 0:
             raise _exhausted(budget, outcomes, seed)
         try:
-            extension = extend_testcase(old, [route], seed, left, None, progress, junction)
+            extension = extend_testcase(
+                old, [route], seed, left, None, progress, junction, max_orders=ROUTE_ORDERS
+            )
         except NoMoreComplexTestCase as error:
             outcomes.append(f"{route}: {error}")
             continue

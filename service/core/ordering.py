@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import random
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
@@ -63,6 +64,7 @@ GROUP_EXPLANATIONS = {
 }
 HEADWAY_SECONDS = 2.0  # a new car behind another on the same fork comes this much later
 STOP_DELAY = 4.0  # seconds a stop at a sign adds to a car's nominal schedule
+NOMINAL_SPREAD = 6.0  # seconds a new car's nominal schedule is late by at most (seeded)
 
 
 SOLVE_LIMIT = 200_000  # conflicts clingo may spend on one answer set: a count, not a clock
@@ -222,17 +224,25 @@ def _time_facts(
     return facts
 
 
-def _nominal(car: OrderingCar, timed: Sequence[TimedEvent], stop_sign: bool) -> list[Fact]:
+def _nominal(
+    car: OrderingCar, timed: Sequence[TimedEvent], stop_sign: bool, seed: int
+) -> list[Fact]:
     """Plausible times of a symbolic car's events: Step 1's constant speed, delayed after
-    the stop line by STOP_DELAY where the car has a stop sign."""
+    the stop line by STOP_DELAY where the car has a stop sign; a new car's schedule is
+    also late by up to NOMINAL_SPREAD seconds, drawn from the seed (so that other seeds
+    try other orders first)."""
     entry = [t.event for t in timed if t.event.kind is EventKind.ENTERED]
     delay_from = entry[0].distance if (entry and stop_sign) else float("inf")
+    late = 0.0
+    if car.kind is CarKind.NEW:  # a string seed is hashed with SHA-512: the same everywhere
+        late = random.Random(f"{seed}:{car.car}").uniform(0.0, NOMINAL_SPREAD)
     facts = []
     for t in timed:
-        delay = STOP_DELAY if t.event.distance >= delay_from - 1e-6 else 0.0
+        delay = late + (STOP_DELAY if t.event.distance >= delay_from - 1e-6 else 0.0)
         facts.append(NOMINAL(t.symbol, round((t.event.time + delay) * 1000)))
     if entry:
-        facts.append(NOMINAL(stop_symbol(car.car), round((entry[0].time + 1.0) * 1000)))
+        stop = entry[0].time + late + 1.0
+        facts.append(NOMINAL(stop_symbol(car.car), round(stop * 1000)))
     return facts
 
 
@@ -256,7 +266,11 @@ def headways(cars: Sequence[OrderingCar]) -> list[tuple[clingo.Symbol, clingo.Sy
 
 
 def ordering_facts(
-    intersection: Intersection, cars: Sequence[OrderingCar], m: float, limits: Limits
+    intersection: Intersection,
+    cars: Sequence[OrderingCar],
+    m: float,
+    limits: Limits,
+    seed: int = 0,
 ) -> tuple[list[clingo.Symbol], dict[clingo.Symbol, TimedEvent]]:
     """Facts of Step 2 and the events behind every time symbol."""
     facts = geometry_facts(intersection)
@@ -283,7 +297,7 @@ def ordering_facts(
             continue
         stop_sign = intersection.forks[car.fork].stop_sign
         facts += _time_facts(car, timed, stop_sign, limits)
-        facts += _nominal(car, timed, stop_sign)
+        facts += _nominal(car, timed, stop_sign, seed)
         distinct = list(dict.fromkeys(t.symbol for t in timed))
         facts += [TIME(s) for s in distinct]
         facts += [REAL_LTE(a, b) for a, b in itertools.pairwise(distinct)]
@@ -309,7 +323,7 @@ class OrderingSearch:
         limits: Limits,
     ) -> None:
         self.cars = {car.car: car for car in cars}
-        self.facts, self.symbols = ordering_facts(intersection, cars, m, limits)
+        self.facts, self.symbols = ordering_facts(intersection, cars, m, limits, seed)
         self.theory = ClingoDLTheory()  # type: ignore[no-untyped-call]
         self.control = clingo.Control(
             [

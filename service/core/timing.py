@@ -452,26 +452,29 @@ def _fit_all(problem: TimingProblem, planned: dict[str, list[float]] | None) -> 
 
 def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     """Curves for every car, or what failed. First the smooth plan with the comfortable
-    share of the bounds, and again with continuous speeds around it; then speed-grid plans
-    (as they are and smoothed), first with the comfortable share, then the largest. When
-    none fits: the relations that cannot hold together, a proof when even the necessary
+    share of the bounds; when its curves do not fit and a speed-grid plan exists within the
+    largest share, the smooth plan again with continuous speeds around it, then speed-grid
+    plans (smoothed and as they are), the comfortable share first. When no grid plan
+    exists: the relations that cannot hold together, a proof when even the necessary
     conditions rule them out, else those that no grid plan within the largest share keeps
     (orders at the very edge of the bounds are left alone: no curve with room to spare
     realises them)."""
     comfortable, largest = SHARES[0], SHARES[-1]
     smooth = plan_times(problem, comfortable)
-    for planned in (smooth, smooth and plan_times(problem, comfortable, smooth)):
-        curves = _fit_all(problem, planned)
-        if curves:
-            return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
+    curves = _fit_all(problem, smooth)
+    if curves:
+        return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
     edge = plan_on_speed_grid(problem, largest)
-    if edge is None:
+    if edge is None:  # no grid plan: an order at the very edge of the bounds, or beyond
         core = order_core(problem) if smooth is None else None
         if core is not None:
             return TimingFailure("no event times can realise this order", tuple(core), True)
         unreachable = plan_on_speed_grid(problem, largest, core=True)
         reason = f"no speed profile within {round(largest * 100)} % of the bounds"
         return TimingFailure(reason, tuple(unreachable or ()))
+    curves = _fit_all(problem, smooth and plan_times(problem, comfortable, smooth))
+    if curves:
+        return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
     for share in SHARES:
         grid = edge if share == largest else plan_on_speed_grid(problem, share)
         for planned in (grid and plan_times(problem, share, grid), grid):
