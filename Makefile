@@ -68,7 +68,7 @@ demo: $(STAMP)
 		--controller cruise; echo "scengen check exited with $$? (1: the ego failed)"
 
 bench: $(STAMP)
-	$(BIN)/pip install --quiet '.[bench]'
+	$(BIN)/pip install --quiet -e '.[test,bench]'
 	$(BIN)/python -m bench.bench_check
 	$(BIN)/python -m bench.bench_generate
 	$(BIN)/python -m bench.bench_chains
@@ -77,7 +77,7 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.bench_jobs
 
 bench-generator: $(STAMP)
-	$(BIN)/pip install --quiet '.[bench]'
+	$(BIN)/pip install --quiet -e '.[test,bench]'
 	$(BIN)/python -m bench.bench_generate
 	$(BIN)/python -m bench.bench_chains
 	$(BIN)/python -m bench.bench_ordering
