@@ -437,17 +437,33 @@ def _running_span(car: CarPlan, knot_times: list[float]) -> tuple[Fraction, Frac
     return rational(knot_times[car.run[0]]), rational(knot_times[car.run[1]])
 
 
-def _fit_all(problem: TimingProblem, planned: dict[str, list[float]] | None) -> dict[str, Curve]:
-    """Every car's curve at the planned times; empty unless all of them fit."""
-    if planned is None:
-        return {}
-    curves = {}
-    for car in problem.cars:
-        curve = fit_curve(problem, car, planned[car.car])
-        if curve is None:
+class _Fitter:
+    """Every car's curve at planned times, remembered within one problem: a car whose knot
+    times did not change is not fitted again, and the car that failed last is tried first
+    (plans that differ mostly keep the same car's trouble)."""
+
+    def __init__(self, problem: TimingProblem) -> None:
+        self.problem = problem
+        self.order = [car.car for car in problem.cars]
+        self.cars = {car.car: car for car in problem.cars}
+        self.fitted: dict[tuple[str, tuple[float, ...]], Curve | None] = {}
+
+    def fit_all(self, planned: dict[str, list[float]] | None) -> dict[str, Curve]:
+        """Every car's curve; empty unless all of them fit."""
+        if planned is None:
             return {}
-        curves[car.car] = curve
-    return curves
+        curves = {}
+        for name in self.order:
+            key = (name, tuple(planned[name]))
+            if key not in self.fitted:
+                self.fitted[key] = fit_curve(self.problem, self.cars[name], planned[name])
+            curve = self.fitted[key]
+            if curve is None:
+                self.order.remove(name)
+                self.order.insert(0, name)
+                return {}
+            curves[name] = curve
+        return {car.car: curves[car.car] for car in self.problem.cars}
 
 
 def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
@@ -460,8 +476,9 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     (orders at the very edge of the bounds are left alone: no curve with room to spare
     realises them)."""
     comfortable, largest = SHARES[0], SHARES[-1]
+    fitter = _Fitter(problem)
     smooth = plan_times(problem, comfortable)
-    curves = _fit_all(problem, smooth)
+    curves = fitter.fit_all(smooth)
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
     edge = plan_on_speed_grid(problem, largest)
@@ -472,13 +489,13 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
         unreachable = plan_on_speed_grid(problem, largest, core=True)
         reason = f"no speed profile within {round(largest * 100)} % of the bounds"
         return TimingFailure(reason, tuple(unreachable or ()))
-    curves = _fit_all(problem, smooth and plan_times(problem, comfortable, smooth))
+    curves = fitter.fit_all(smooth and plan_times(problem, comfortable, smooth))
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
     for share in SHARES:
         grid = edge if share == largest else plan_on_speed_grid(problem, share)
         for planned in (grid and plan_times(problem, share, grid), grid):
-            curves = _fit_all(problem, planned)
+            curves = fitter.fit_all(planned)
             if curves:
                 return TimingSolution(curves, f"speed grid, {round(share * 100)} % of the bounds")
     return TimingFailure("no curves within the bounds for the planned event times")
