@@ -2,9 +2,11 @@
 
 Each level adds one new car on a route that conflicts with the ego's, from a fork no car
 uses yet (following in one lane is not modelled), trying such routes in an order drawn
-from the seed. Every choice depends only on the test-case and the seed: a route gets up to
-ROUTE_ORDERS answer sets (a count, not a clock), and the next route its turn only when the
-first has no extension; the time budget only stops the call.
+from the seed. Every choice depends only on the test-case and the seed: first every route
+gets up to ROUTE_ORDERS answer sets (a count, not a clock), in that order; when none of
+them gave an extension, those that were not exhausted get the generator's full MAX_ORDERS
+(starting over: the search is deterministic, so the first ROUTE_ORDERS are tried again).
+The time budget only stops the call.
 """
 
 from __future__ import annotations
@@ -15,11 +17,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from service.core.errors import NoMoreComplexTestCase, NoneFound
-from service.core.generate import Extension, Progress, extend_testcase
+from service.core.generate import MAX_ORDERS, Extension, Progress, extend_testcase
 from service.core.network import Intersection
 from service.core.testcase import TestCase, load_testcase_intersection
 
-ROUTE_ORDERS = 20  # answer sets one route gets before the next route's turn (a count)
+ROUTE_ORDERS = 20  # answer sets one route gets in the first round (a count)
 
 
 def candidate_routes(old: TestCase, intersection: Intersection) -> list[str]:
@@ -58,24 +60,30 @@ def grow(
     end = time.monotonic() + budget
     outcomes: list[str] = []
     proven = True
-    for route in candidates:
-        left = end - time.monotonic()
-        if left <= 0:
-            raise _exhausted(budget, outcomes, seed)
-        try:
-            extension = extend_testcase(
-                old, [route], seed, left, None, progress, junction, max_orders=ROUTE_ORDERS
-            )
-        except NoMoreComplexTestCase as error:
-            outcomes.append(f"{route}: {error}")
-            continue
-        except NoneFound as error:
-            if error.context.get("budget_exhausted"):
-                raise _exhausted(budget, outcomes, seed) from None
-            proven = False
-            outcomes.append(f"{route}: {error}")
-            continue
-        return Growth(extension, route, tuple(outcomes))
+    for orders in (ROUTE_ORDERS, MAX_ORDERS):
+        retry = []
+        for route in candidates:
+            left = end - time.monotonic()
+            if left <= 0:
+                raise _exhausted(budget, outcomes, seed)
+            try:
+                extension = extend_testcase(
+                    old, [route], seed, left, None, progress, junction, max_orders=orders
+                )
+            except NoMoreComplexTestCase as error:
+                outcomes.append(f"{route}: {error}")
+                continue
+            except NoneFound as error:
+                if error.context.get("budget_exhausted"):
+                    raise _exhausted(budget, outcomes, seed) from None
+                if orders < MAX_ORDERS:
+                    retry.append(route)
+                    continue
+                proven = False
+                outcomes.append(f"{route}: {error}")
+                continue
+            return Growth(extension, route, tuple(outcomes))
+        candidates = retry
     tried = "; ".join(outcomes) or "no route conflicts with the ego's from a free fork"
     if proven:
         raise NoMoreComplexTestCase(f"no new car makes this test-case more complex ({tried})")
