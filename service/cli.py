@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from service.core.check import check_testcase
-from service.core.controllers import controller_names, resolve_driver
+from service.core.controllers import CertificateDriver, controller_names, resolve_driver
 from service.core.errors import (
     InvalidInput,
     ScengenError,
@@ -234,7 +234,7 @@ def _parser() -> argparse.ArgumentParser:
 
     plot = commands.add_parser(
         "plot",
-        help="draw a test-case (and optionally an evaluation) to PNG or SVG",
+        help="draw a test-case (and optionally an evaluation) to PNG or SVG, or animate it to GIF",
         description="Draws the intersection with every car's path, the certificates (green "
         "solvability, red complexity) and a time-distance panel with the events. With "
         "--controller, the ego's path from that evaluation and its verdict instead.",
@@ -622,30 +622,113 @@ def _testcase_files(paths: Sequence[Path]) -> list[Path]:
 
 def _run_evaluate(args: argparse.Namespace) -> int:
     controllers = args.controller or ["sumo"]
-    for name in controllers:
-        resolve_driver(name)  # bad names fail before any replay
-    testcases = [(path, read_testcase(path)) for path in _testcase_files(args.testcases)]
+    drivers = [resolve_driver(name) for name in controllers]  # bad names fail before any replay
+    files = _testcase_files(args.testcases)
+    if len(files) == 1 and len(controllers) == 1:  # one verdict: errors are the command's
+        testcase = read_testcase(files[0])
+        verdict = evaluate_controller(testcase, controllers[0], _intersection(testcase, args),
+                                      args.budget).verdict  # fmt: skip
+        verdict = dataclasses.replace(verdict, testcase=files[0].stem)
+        return _report_evaluations(args, [verdict], [], [], [])
     rows = [["test-case", *controllers]]
-    verdicts = []
-    for path, testcase in testcases:
+    verdicts: list[Verdict] = []
+    skipped: list[tuple[str, str]] = []  # (test-case, controller): a certificate it lacks
+    problems: list[tuple[str, str, ScengenError]] = []  # (test-case, controller, why)
+    steps = StepProgress(len(files) * len(controllers), "evaluations")
+    for path in files:
+        try:
+            testcase = read_testcase(path)
+            junction = _intersection(testcase, args)
+        except ScengenError as error:  # this file cannot be evaluated: its row says why
+            rows.append([path.stem, *(["ERROR (below)"] * len(controllers))])
+            problems.append((path.stem, "", error))
+            for name in controllers:
+                steps.step(f"{path.stem} / {name}: error")
+            continue
         row = [path.stem]
-        junction = _intersection(testcase, args)
-        for name in controllers:
-            verdict = evaluate_controller(testcase, name, junction, args.budget).verdict
+        for name, driver in zip(controllers, drivers, strict=True):
+            if isinstance(driver, CertificateDriver) and testcase.certificates is None:
+                row.append("(none)")
+                skipped.append((path.stem, name))
+                steps.step(f"{path.stem} / {name}: (none)")
+                continue
+            try:
+                verdict = evaluate_controller(testcase, name, junction, args.budget).verdict
+            except ScengenError as error:
+                row.append("ERROR (below)")
+                problems.append((path.stem, name, error))
+                steps.step(f"{path.stem} / {name}: error")
+                continue
             verdict = dataclasses.replace(verdict, testcase=path.stem)
             verdicts.append(verdict)
             row.append("pass" if verdict.passed else "FAIL: " + _short(verdict))
+            steps.step(f"{path.stem} / {name}: {'pass' if verdict.passed else 'FAIL'}")
         rows.append(row)
+    steps.close()
+    return _report_evaluations(args, verdicts, skipped, problems, rows)
+
+
+def _report_evaluations(
+    args: argparse.Namespace,
+    verdicts: Sequence[Verdict],
+    skipped: Sequence[tuple[str, str]],
+    problems: Sequence[tuple[str, str, ScengenError]],
+    rows: Sequence[Sequence[str]],
+) -> int:
+    """Print the verdicts (one, a table, or JSON), write JUnit, and the overall exit code:
+    0 all passed (cells without a certificate to replay do not count), 1 some failed, and,
+    when some could not be evaluated at all, 2 if each of those was bad input, else 3."""
     if args.junit:
-        args.junit.write_text(junit_report(verdicts))
+        errors = [(f"{t} / {c}" if c else t, str(e)) for t, c, e in problems]
+        skips = [f"{t} / {c}" for t, c in skipped]
+        args.junit.write_text(junit_report(verdicts, errors=errors, skipped=skips))
     if args.json:
         json.dump([v.to_dict() for v in verdicts], sys.stdout, indent=2)
         print()
-    elif len(verdicts) == 1:
+    elif not rows:
         _print_verdict(verdicts[0])
     else:
         _print_table(rows)
+    for testcase, controller, error in problems:  # after the table (stderr with --json)
+        where = f"{testcase} / {controller}" if controller else testcase
+        print(f"ERROR {where}: {error}", file=sys.stderr if args.json else sys.stdout)
+    if rows:
+        failed = sum(1 for v in verdicts if not v.passed)
+        print(f"{len(verdicts) - failed} passed, {failed} failed, {len(skipped)} without a "
+              f"certificate to replay, {len(problems)} could not be evaluated",
+              file=sys.stderr)  # fmt: skip
+    if problems:
+        codes = {exit_code(error) for _, _, error in problems}
+        return EXIT_BAD_INPUT if codes == {EXIT_BAD_INPUT} else EXIT_FAILED
     return EXIT_OK if all(v.passed for v in verdicts) else EXIT_FAILED_CHECK
+
+
+class StepProgress:
+    """Progress of a known number of steps on stderr: a bar on a terminal, otherwise a line
+    every ``lines_every`` steps and at the last (CI logs keep every line)."""
+
+    def __init__(self, total: int, unit: str, lines_every: int = 1) -> None:
+        self.total, self.done, self.started = total, 0, time.monotonic()
+        self.lines_every = lines_every
+        self.bar = None
+        if sys.stderr.isatty():
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit=f" {unit}", file=sys.stderr, leave=False)
+
+    def step(self, message: str) -> None:
+        self.done += 1
+        if self.bar is not None:
+            self.bar.set_postfix_str(message, refresh=False)
+            self.bar.update()
+        elif self.done % self.lines_every == 0 or self.done == self.total:
+            elapsed = time.monotonic() - self.started
+            print(f"[{elapsed:6.2f} s] {self.done}/{self.total} {message}", file=sys.stderr,
+                  flush=True)  # fmt: skip
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
 
 
 def _run_export(args: argparse.Namespace) -> int:
@@ -672,7 +755,16 @@ def _run_plot(args: argparse.Namespace) -> int:
         if args.controller:
             trajectory = evaluate_controller(testcase, args.controller, junction).trajectory
             label = f"ego: {args.controller}"
-        animate_testcase(testcase, junction, args.output, trajectory, label)
+        frames: list[StepProgress] = []
+
+        def drawn(frame: int, total: int) -> None:  # matplotlib counts the frames it saves
+            if not frames:
+                frames.append(StepProgress(total, "frames", lines_every=10))
+            frames[0].step(f"frame {frame + 1} of {total}")
+
+        animate_testcase(testcase, junction, args.output, trajectory, label, progress=drawn)
+        for bar in frames:
+            bar.close()
     elif args.controller:
         evaluation = evaluate_controller(testcase, args.controller, junction)
         plot_testcase(testcase, junction, args.output, evaluation.trajectory,

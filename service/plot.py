@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -208,9 +208,11 @@ def animate_testcase(
     ego: Sequence[PoseSample] = (),
     ego_label: str = "",
     every: float = 0.5,
+    progress: Callable[[int, int], None] | None = None,
 ) -> None:
     """A GIF of the cars moving (one frame every ``every`` seconds of the test-case): every
-    non-ego, and the ego (an evaluation's trajectory, else the solvability certificate)."""
+    non-ego, and the ego (an evaluation's trajectory, else the solvability certificate).
+    ``progress(frame, frames)`` hears of each frame as it is saved."""
     from matplotlib.animation import FuncAnimation, PillowWriter
 
     cars: list[tuple[str, str, Sequence[PoseSample], float, float]] = []
@@ -256,5 +258,5 @@ def animate_testcase(
         return [title, *(p for pair in patches for p in pair)]
 
     animation = FuncAnimation(figure, draw, frames=frames, blit=False)
-    animation.save(str(path), writer=PillowWriter(fps=round(1 / every)))
+    animation.save(str(path), writer=PillowWriter(fps=round(1 / every)), progress_callback=progress)
     plt.close(figure)

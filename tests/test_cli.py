@@ -279,6 +279,48 @@ def test_evaluate_prints_a_table_and_writes_junit(tmp_path: Path) -> None:
     assert 'tests="4"' in report and 'failures="2"' in report
 
 
+def test_an_evaluation_table_finishes_whatever_its_cells(tmp_path: Path) -> None:
+    """A certificate the test-case lacks reads (none) and counts as neither pass nor fail;
+    a file that cannot be evaluated is named in its row and below the table, and the rest
+    of the table goes on; the exit code says what happened overall; progress on stderr."""
+    y0, y1 = tmp_path / "y0.json", tmp_path / "y1.json"
+    assert cli.main(["new", "y-uncontrolled", "--ego", "N2C_0:C2SE_0", "--duration", "25",
+                     "-o", str(y0)]) == 0  # fmt: skip
+    assert cli.main(["extend", str(y0), "--add", "SW2C_0:C2N_0", "-o", str(y1)]) == 0
+    certificates = ["--controller", "sumo", "--controller", "certificate:solvability"]
+    result = run("evaluate", str(y0), str(y1), *certificates)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert [line.split() for line in result.stdout.splitlines()] == [
+        ["test-case", "sumo", "certificate:solvability"],
+        ["y0", "pass", "(none)"],
+        ["y1", "pass", "pass"],
+    ]
+    assert "[" in result.stderr and "4/4 y1 / certificate:solvability: pass" in result.stderr
+    assert "3 passed, 0 failed, 1 without a certificate to replay" in result.stderr
+
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"network": "4way-stop"}')
+    upstream = tmp_path / "town07.json"  # the ego's default start lies in an upstream junction
+    assert cli.main(["new", str(TOWN07), "--junction", "358", "--control", "right_before_left",
+                     "--ego=-40_0:35_0", "-o", str(upstream)]) == 0  # fmt: skip
+    junit = tmp_path / "report.xml"
+    result = run("evaluate", str(y0), str(broken), str(upstream), str(y1), *certificates,
+                 "--junit", str(junit))  # fmt: skip
+    assert result.returncode == 2, result.stdout + result.stderr
+    rows = [line.split() for line in result.stdout.splitlines()]
+    assert rows[1:5] == [
+        ["y0", "pass", "(none)"],
+        ["broken", "ERROR", "(below)", "ERROR", "(below)"],
+        ["town07", "ERROR", "(below)", "(none)"],
+        ["y1", "pass", "pass"],
+    ]
+    below = result.stdout.splitlines()[5:]
+    assert below[0].startswith("ERROR broken: invalid test-case")
+    assert any(line.startswith("ERROR town07 / sumo: the ego starts inside") for line in below)
+    report = junit.read_text()
+    assert 'tests="7"' in report and 'errors="2"' in report and 'skipped="2"' in report
+
+
 def test_evaluate_one_passing_controller_exits_0(tmp_path: Path) -> None:
     testcase = tmp_path / "left.json"
     assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0

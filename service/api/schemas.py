@@ -117,7 +117,7 @@ class Attempt(BaseModel):
 
 
 class ExtendRequest(_Body):
-    """Extend a test-case (inline, or stored by id) with new cars on ``routes``."""
+    """Extend a test-case (inline, or stored by id) with new cars on `routes`."""
 
     testcase: dict[str, Any] | None = Field(None, description="the old test-case document")
     testcase_id: str | None = Field(None, description="or the id of a stored test-case")

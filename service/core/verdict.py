@@ -113,11 +113,22 @@ class Verdict:
         return junit_report([self])
 
 
-def junit_report(verdicts: Sequence[Verdict], suite_name: str = "scengen") -> str:
-    """One JUnit test suite with a test case per verdict (test-case / controller)."""
+def junit_report(
+    verdicts: Sequence[Verdict],
+    suite_name: str = "scengen",
+    errors: Sequence[tuple[str, str]] = (),
+    skipped: Sequence[str] = (),
+) -> str:
+    """One JUnit test suite with a test case per verdict (test-case / controller), one per
+    evaluation that could not run (``errors``: name and why) and one per skipped cell."""
     failed = sum(1 for v in verdicts if not v.passed)
     suite = ET.Element(
-        "testsuite", name=suite_name, tests=str(len(verdicts)), failures=str(failed), errors="0"
+        "testsuite",
+        name=suite_name,
+        tests=str(len(verdicts) + len(errors) + len(skipped)),
+        failures=str(failed),
+        errors=str(len(errors)),
+        skipped=str(len(skipped)),
     )
     for verdict in verdicts:
         case = ET.SubElement(
@@ -129,6 +140,12 @@ def junit_report(verdicts: Sequence[Verdict], suite_name: str = "scengen") -> st
         if not verdict.passed:
             failure = ET.SubElement(case, "failure", message="; ".join(verdict.reasons))
             failure.text = "\n".join(verdict.reasons)
+    for name, why in errors:
+        case = ET.SubElement(suite, "testcase", classname="scengen.check", name=name)
+        ET.SubElement(case, "error", message=why).text = why
+    for name in skipped:
+        case = ET.SubElement(suite, "testcase", classname="scengen.check", name=name)
+        ET.SubElement(case, "skipped", message="the test-case has no certificate to replay")
     root = ET.Element("testsuites")
     root.append(suite)
     ET.indent(root)

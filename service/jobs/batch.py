@@ -1,4 +1,4 @@
-"""A batch: what a CI pipeline submits as one job (``POST /jobs``, ``scengen submit``).
+"""A batch: what a CI pipeline submits as one job (`POST /jobs`, `scengen submit`).
 
 Each item is an extension, a chain of successive extensions, or an evaluation of controllers.
 An item can start from a stored test-case, an inline document, or the last test-case an
@@ -38,7 +38,7 @@ class _Based(_Item):
 
 
 class ExtendItem(_Based):
-    """One extension: new cars on ``routes``."""
+    """One extension: new cars on `routes`."""
 
     kind: Literal["extend"]
     routes: list[str] = Field(min_length=1, max_length=6)
@@ -47,7 +47,7 @@ class ExtendItem(_Based):
 
 
 class ChainItem(_Based):
-    """Successive extensions: ``steps`` gives each level's routes; or ``levels`` lets the
+    """Successive extensions: `steps` gives each level's routes; or `levels` lets the
     service choose, at each level, a route that conflicts with the ego's."""
 
     kind: Literal["chain"]

@@ -23,6 +23,11 @@ def test_operation_ids_are_unique_and_every_operation_has_a_summary() -> None:
     assert all(op["summary"] and not op["summary"].endswith(".") for op in operations)
 
 
+def test_descriptions_are_markdown_not_restructured_text() -> None:
+    """Swagger renders descriptions as Markdown: reST's double backticks show literally."""
+    assert "``" not in openapi_document()
+
+
 def test_extend_example_names_a_real_network_and_routes() -> None:
     schema = json.loads(openapi_document())
     body = schema["paths"]["/extend"]["post"]["requestBody"]["content"]["application/json"]

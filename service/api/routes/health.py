@@ -95,7 +95,7 @@ async def get_metrics(state: State) -> PlainTextResponse:
 
 @router.get("/problems", operation_id="list_problems")
 async def list_problems() -> dict[str, dict[str, object]]:
-    """Every problem type the API answers with (the ``type`` of problem+json bodies)."""
+    """Every problem type the API answers with (the `type` of problem+json bodies)."""
     return {
         t.uri: {"title": t.title, "status": t.status, "description": t.description}
         for t in ALL_TYPES.values()

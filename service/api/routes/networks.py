@@ -106,7 +106,7 @@ async def get_network(state: State, network: str) -> NetworkPublic:
     responses={200: {"content": {"application/xml": {}}, "description": "the .net.xml"}},
 )
 async def get_network_file(state: State, network: str) -> Response:
-    """The network's .net.xml as uploaded (``scengen ... --network FILE`` takes it)."""
+    """The network's .net.xml as uploaded (`scengen ... --network FILE` takes it)."""
     record = state.network_or_404(network)
     path = await asyncio.to_thread(state.store.network_file, record.id)
     return Response(

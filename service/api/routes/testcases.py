@@ -145,7 +145,7 @@ async def get_testcase(state: State, testcase: str) -> Response:
     responses={200: {"content": {"application/json": {}}, "description": "the document"}},
 )
 async def get_testcase_document(state: State, testcase: str) -> Response:
-    """The bare test-case document, as ``scengen`` commands read it."""
+    """The bare test-case document, as `scengen` commands read it."""
     record = state.testcase_or_404(testcase)
     return Response(
         record.document,
