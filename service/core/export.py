@@ -10,13 +10,14 @@ test-case JSON, and a README with the commands.
 from __future__ import annotations
 
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from service.core.controllers import BUILT_IN, SumoDriver
 from service.core.network import Intersection
 from service.core.poses import centre_to_front
-from service.core.replay import departures, vehicle_lines, vtype_lines
+from service.core.replay import Departure, departures, vehicle_lines, vtype_lines
 from service.core.testcase import TestCase, dump_testcase, load_testcase_intersection
 
 NAME = "testcase"
@@ -73,7 +74,7 @@ def sumocfg_text(testcase: TestCase, network: str) -> str:
 """
 
 
-def readme_text(testcase: TestCase) -> str:
+def readme_text(testcase: TestCase, cars: Sequence[Departure] = ()) -> str:
     label = testcase.name or NAME
     return f"""# {label}: SUMO bundle
 
@@ -95,7 +96,28 @@ the ego's driver settings), {NAME}.rou.xml (the ego's route and start),
 ordinary vehicle, for a TraCI client that replays the non-egos itself: speed mode 0 and,
 every step, setSpeed with the distance of the step (Euler steps); use it with
 `--additional-files {NAME}.types.xml` instead of the fcd-replay device.
-"""
+""" + _inside_note(cars)
+
+
+def _inside_note(cars: Sequence[Departure]) -> str:
+    """What a bundle cannot do as the service does: insert a car inside a junction."""
+    inside = [car for car in cars if car.start_on]
+    if not inside:
+        return ""
+    lines = [
+        "",
+        "Starts inside an upstream junction: SUMO inserts no car on a junction's internal",
+        "lane, so in the route files these cars depart at the end of the lane before it, a",
+        "few metres behind their start. `scengen evaluate` moves each onto its start right",
+        "after the first step (TraCI `vehicle.moveTo`, below); do the same in a TraCI client.",
+        "Plain `sumo` cannot: there the ego starts early, and `scengen check` refuses a",
+        "trajectory that starts more than 2 m from the test-case's start.",
+        "",
+    ]
+    for car in inside:
+        lane, position = car.start_on  # type: ignore[misc]
+        lines.append(f"- `{car.id}`: `moveTo({car.id!r}, {lane!r}, {position:.3f})`")
+    return "\n".join(lines) + "\n"
 
 
 def _xml(root: str, lines: list[str]) -> str:
@@ -125,7 +147,7 @@ def export_bundle(
         f"{NAME}.fcd.xml": fcd_text(testcase, junction),
         f"{NAME}.sumocfg": sumocfg_text(testcase, network),
         f"{NAME}.json": dump_testcase(testcase),
-        "README.md": readme_text(testcase),
+        "README.md": readme_text(testcase, [ego, *others]),
     }
     written = [folder / network]
     for name, text in files.items():

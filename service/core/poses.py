@@ -65,6 +65,7 @@ class DrivePlan:
     leave_distance: float  # SUMO odometer reading at which the back has left the junction
     connecting_lanes: tuple[str, ...]  # internal lanes the car must drive through
     skip: float = 0.0  # metres driven before the start (the start lies on internal lanes)
+    start_on: tuple[str, float] | None = None  # that internal lane and the front's position
 
 
 @dataclass(frozen=True)
@@ -145,6 +146,7 @@ def plan_drive(
     connection = next(c for c in fork_lane.getOutgoing() if c.getToLane().getID() == route.exit)
     lanes = [fork_lane]
     behind = fork_lane.getLength()  # metres from the first lane's start to the stop line
+    upstream: list[str] = []  # internal lanes between the first lane and the next
     while behind < start_distance:
         incoming = straightest_predecessor(net, lanes[0], junction)
         if incoming is None:
@@ -153,7 +155,8 @@ def plan_drive(
                 f"{route.fork!r} ({behind:.1f} m)",
                 route=route.id,
             )
-        behind += sum(net.getLane(v).getLength() for v in via_chain(net, incoming))
+        upstream = via_chain(net, incoming)
+        behind += sum(net.getLane(v).getLength() for v in upstream)
         lanes.insert(0, incoming.getFromLane())
         behind += lanes[0].getLength()
     chain = via_chain(net, connection)
@@ -173,6 +176,7 @@ def plan_drive(
     # SUMO cannot insert a car on an internal lane: when the start lies inside a junction
     # upstream, depart just before it and drop the extra metres afterwards.
     skip = max(0.0, depart_pos - (lanes[0].getLength() - 0.01))
+    start_on = _internal_start(net, upstream, depart_pos - lanes[0].getLength()) if skip else None
     depart_pos -= skip
     if ahead < leave:
         raise InvalidInput(
@@ -193,7 +197,18 @@ def plan_drive(
         leave_distance=leave + skip,
         connecting_lanes=tuple(chain),
         skip=skip,
+        start_on=start_on,
     )
+
+
+def _internal_start(net: Any, lanes: list[str], into: float) -> tuple[str, float]:
+    """The internal lane ``into`` metres along ``lanes`` and the position on it."""
+    for lane in lanes:
+        length = net.getLane(lane).getLength()
+        if into <= length or lane == lanes[-1]:
+            return lane, min(max(into, 0.0), length)
+        into -= length
+    raise AssertionError("a start inside a junction needs its internal lanes")
 
 
 def _approach_line(intersection: Intersection, route: Route, length: float) -> LineString:

@@ -8,10 +8,14 @@ from pathlib import Path
 
 import pytest
 
+from service.core.chain import candidate_routes
 from service.core.errors import InvalidInput
+from service.core.export import export_bundle
 from service.core.generate import extend_testcase
+from service.core.poses import centre_to_front, plan_drive, start_front
 from service.core.replay import evaluate
-from service.core.testcase import TestCase, new_testcase
+from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
+from tests.conftest import TOWN05, TOWN07
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "controllers.md"
 
@@ -149,3 +153,36 @@ def test_a_controller_registered_by_entry_point_is_found_by_name(
     # constant speed through the junction: it reaches its exit without stopping anywhere
     assert evaluation.verdict.goal_reached
     assert min(s.speed for s in evaluation.trajectory) > 7.9
+
+
+@pytest.mark.parametrize(
+    ("network", "junction", "control", "ego"),
+    [
+        (TOWN07, "358", "right_before_left", "-40_0:35_0"),  # fork lane 26.85 m
+        (TOWN05, "2062", "allway_stop", "-27_0:-28_0"),  # the start 7.5 m into a junction
+    ],
+)
+def test_a_start_inside_an_upstream_junction_is_replayed_and_exported(
+    network: Path, junction: str, control: str, ego: str, tmp_path: Path
+) -> None:
+    """With the default start (30 m) the ego, and the new car, start on internal lanes of
+    the junction before: SUMO inserts them before it and moves them onto their start."""
+    start = new_testcase(network, ego, junction=junction, control=control, duration=25.0)
+    intersection = load_testcase_intersection(start)
+    route = intersection.route(ego)
+    assert plan_drive(intersection, route, 30.0, 8.0, 25.0, 0.1).start_on is not None
+    new = candidate_routes(start, intersection)[0]
+    extended = extend_testcase(start, [new], seed=0, budget=120).testcase
+    evaluation = evaluate(extended, "sumo", intersection)
+    assert evaluation.error is None and not evaluation.verdict.errors
+    first = evaluation.trajectory[0]
+    front = centre_to_front(first.x, first.y, first.heading, extended.ego.length)
+    expected = start_front(intersection, route, 30.0)
+    assert math.dist(front, expected) < 0.05
+    assert first.distance == 0.0
+    assert evaluate(extended, "certificate:solvability", intersection).verdict.passed
+    harder = evaluate(extended, "certificate:complexity", intersection).verdict
+    assert harder.goal_reached and not harder.collisions
+    assert {v.other for v in harder.violations} == {"car1"}
+    export_bundle(extended, tmp_path, intersection)
+    assert "moveTo('ego'" in (tmp_path / "README.md").read_text()
