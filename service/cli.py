@@ -35,6 +35,7 @@ from service.core.replay import evaluate as evaluate_controller
 from service.core.testcase import (
     TestCase,
     dump_testcase,
+    find_network_file,
     load_testcase_intersection,
     new_testcase,
     read_testcase,
@@ -309,16 +310,26 @@ def _network_file_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _intersection(testcase: TestCase, args: argparse.Namespace) -> Intersection:
+def _intersection(
+    testcase: TestCase, args: argparse.Namespace, read_from: Path | None = None
+) -> Intersection:
+    """The test-case's intersection; its network found next to the file it was read from
+    (``read_from``, default the command's TESTCASE), with --network, or among the bundled
+    ones. Says on stderr which file it used when it is not a bundled network."""
+    source = read_from or getattr(args, "testcase", None)
+    near = source.parent if isinstance(source, Path) else None
     try:
-        return load_testcase_intersection(testcase, network_file=args.network)
+        path, how = find_network_file(testcase, args.network, near)
     except UnknownNetwork as error:
-        if args.network is not None:
+        if args.network is not None or testcase.network.ref.endswith(".net.xml"):
             raise
         raise UnknownNetwork(
             f"{error}; a test-case from a server names the server's network id: pass the "
             "network's file with --network FILE (GET /networks/{id}/file)"
         ) from None
+    if how != "bundled":
+        print(f"network {testcase.network.ref}: {path} ({how})", file=sys.stderr)
+    return load_testcase_intersection(testcase, network_file=path)
 
 
 def _network_arguments(parser: argparse.ArgumentParser) -> None:
@@ -626,7 +637,8 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     files = _testcase_files(args.testcases)
     if len(files) == 1 and len(controllers) == 1:  # one verdict: errors are the command's
         testcase = read_testcase(files[0])
-        verdict = evaluate_controller(testcase, controllers[0], _intersection(testcase, args),
+        junction = _intersection(testcase, args, files[0])
+        verdict = evaluate_controller(testcase, controllers[0], junction,
                                       args.budget).verdict  # fmt: skip
         verdict = dataclasses.replace(verdict, testcase=files[0].stem)
         return _report_evaluations(args, [verdict], [], [], [])
@@ -638,7 +650,7 @@ def _run_evaluate(args: argparse.Namespace) -> int:
     for path in files:
         try:
             testcase = read_testcase(path)
-            junction = _intersection(testcase, args)
+            junction = _intersection(testcase, args, path)
         except ScengenError as error:  # this file cannot be evaluated: its row says why
             rows.append([path.stem, *(["ERROR (below)"] * len(controllers))])
             problems.append((path.stem, "", error))

@@ -222,15 +222,27 @@ class Store:
         return path
 
     def network_file_for(self, testcase: TestCase) -> Path:
-        """The local file of a test-case's network, which must be bundled or uploaded."""
-        if self.network(testcase.network.ref) is None:
-            known = [n.id for n in self.list_networks()]
-            raise UnknownNetwork(
-                f"network.ref: {testcase.network.ref!r} is neither bundled nor uploaded here; "
-                f"upload it with POST /networks first. Known networks: {choices(known)}",
-                network=testcase.network.ref,
-            )
-        return self.network_file(testcase.network.ref)
+        """The local file of a test-case's network, which must be bundled or uploaded: by
+        its id, or (a test-case made from a file, which names it by file name) by the
+        content hash of an uploaded network."""
+        ident = testcase.network.ref
+        if self.network(ident) is None:
+            with self.engine.connect() as connection:
+                same = connection.execute(
+                    sa.select(networks.c.id)
+                    .where(networks.c.sha256 == testcase.network.sha256)
+                    .order_by(networks.c.created_at, networks.c.id)
+                ).first()
+            if same is None:
+                known = [n.id for n in self.list_networks()]
+                raise UnknownNetwork(
+                    f"network.ref: {ident!r} is neither bundled nor uploaded here (no uploaded "
+                    f"network has its sha256 either); upload it with POST /networks first. "
+                    f"Known networks: {choices(known)}",
+                    network=ident,
+                )
+            ident = same.id
+        return self.network_file(ident)
 
     def keep_inline(self, document: dict[str, Any]) -> TestCaseRecord:
         """Store a test-case a client sent inline (nothing submitted is lost), after checking

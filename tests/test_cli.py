@@ -303,6 +303,7 @@ def test_an_evaluation_table_finishes_whatever_its_cells(tmp_path: Path) -> None
     upstream = tmp_path / "town07.json"  # the default start lies in an upstream junction
     assert cli.main(["new", str(TOWN07), "--junction", "358", "--control", "right_before_left",
                      "--ego=-40_0:35_0", "-o", str(upstream)]) == 0  # fmt: skip
+    (tmp_path / TOWN07.name).write_bytes(TOWN07.read_bytes())  # found next to the test-case
     junit = tmp_path / "report.xml"
     result = run("evaluate", str(y0), str(broken), str(upstream), str(y1), *certificates,
                  "--junit", str(junit))  # fmt: skip
@@ -319,6 +320,43 @@ def test_an_evaluation_table_finishes_whatever_its_cells(tmp_path: Path) -> None
     assert len(below) == 1
     report = junit.read_text()
     assert 'tests="7"' in report and 'errors="1"' in report and 'skipped="2"' in report
+
+
+def test_a_testcase_finds_its_network_next_to_it_or_with_network(tmp_path: Path) -> None:
+    """No absolute path is stored: a test-case made from a file names it by file name and
+    hash; the CLI looks next to the test-case and takes --network, and says which it used."""
+    folder = tmp_path / "suite"
+    folder.mkdir()
+    testcase = folder / "t7.json"
+    made = subprocess.run(
+        [sys.executable, "-m", "service", "new", str(TOWN07), "--junction", "358", "--control",
+         "right_before_left", "--ego=-40_0:35_0", "-o", str(testcase)],
+        cwd=tmp_path, capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert made.returncode == 0, made.stderr
+    document = json.loads(testcase.read_text())
+    assert document["network"]["ref"] == "Town07.net.xml"
+    text = testcase.read_text()
+    assert str(tmp_path) not in text and str(TOWN07.parent) not in text
+
+    def evaluate(*extra: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            [sys.executable, "-m", "service", "evaluate", str(testcase), *extra],
+            cwd=tmp_path, capture_output=True, text=True, check=False,
+        )  # fmt: skip
+
+    missing = evaluate()
+    assert missing.returncode == 2
+    assert "'Town07.net.xml'" in missing.stderr and "--network FILE" in missing.stderr
+    given = evaluate("--network", str(TOWN07))
+    assert given.returncode == 0, given.stderr
+    assert "(given with --network)" in given.stderr
+    (folder / "Town07.net.xml").write_bytes(TOWN07.read_bytes())
+    beside = evaluate()
+    assert beside.returncode == 0, beside.stderr
+    assert f"network Town07.net.xml: {folder / 'Town07.net.xml'} (next to the test-case)" in (
+        beside.stderr
+    )
 
 
 def test_evaluate_one_passing_controller_exits_0(tmp_path: Path) -> None:

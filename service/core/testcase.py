@@ -231,12 +231,61 @@ def dump_testcase(testcase: TestCase) -> str:
     )
 
 
+# Where this process has read a non-bundled network from, by content hash: a test-case
+# names such a network by its file name (no machine's paths), and a library caller that made
+# it from a path can go on without saying the path again.
+_READ_FROM: dict[str, Path] = {}
+
+
 def network_ref(network: str | Path) -> NetworkRef:
-    """How a test-case names a network: bundled short name, else the absolute path."""
+    """How a test-case names a network: a bundled short name; else the path as given when
+    it is relative (to the working directory), or the file's name: never an absolute path
+    of this machine. The content hash identifies the file wherever it is."""
     path = resolve_network(network)
+    digest = file_sha256(path)
     name = str(network)
-    ref = name if bundled_networks().get(name) == path else str(path)
-    return NetworkRef(ref=ref, sha256=file_sha256(path))
+    if bundled_networks().get(name) == path:
+        return NetworkRef(ref=name, sha256=digest)
+    _READ_FROM[digest] = path
+    given = Path(network)
+    return NetworkRef(ref=path.name if given.is_absolute() else given.as_posix(), sha256=digest)
+
+
+def find_network_file(
+    testcase: TestCase, network_file: Path | None = None, near: Path | None = None
+) -> tuple[Path, str]:
+    """The file of a test-case's network and how it was found: ``network_file`` when given
+    (its bytes must match), a bundled network, a file of that name in ``near`` (the
+    test-case's folder), the reference as a path (relative to the working directory; older
+    test-cases stored absolute paths), or a file this process made a test-case from."""
+    ref, digest = testcase.network.ref, testcase.network.sha256
+    if network_file is not None:
+        candidates = [(network_file, "given with --network")]
+    elif ref in bundled_networks():
+        candidates = [(bundled_networks()[ref], "bundled")]
+    else:
+        candidates = []
+        if near is not None:
+            candidates.append((near / Path(ref).name, "next to the test-case"))
+        candidates.append((Path(ref), "as named"))
+        if digest in _READ_FROM:
+            candidates.append((_READ_FROM[digest], "read before by this process"))
+    present = [(path, how) for path, how in candidates if path.is_file()]
+    for path, how in present:
+        if file_sha256(path) == digest:
+            return path.resolve(), how
+    if present:
+        path = present[0][0]
+        raise InvalidTestCase(
+            f"network.sha256: {ref} has changed since the test-case was made ({path}: "
+            f"expected {digest[:12]}..., found {file_sha256(path)[:12]}...)"
+        )
+    looked = ", ".join(str(path) for path, _ in candidates)
+    raise UnknownNetwork(
+        f"network {ref!r} (sha256 {digest[:12]}...) is not bundled and is not at {looked}: "
+        "pass its file with --network FILE",
+        network=ref,
+    )
 
 
 def new_testcase(
@@ -283,19 +332,14 @@ def new_testcase(
 
 
 def load_testcase_intersection(
-    testcase: TestCase, cache_dir: Path | None = None, network_file: Path | None = None
+    testcase: TestCase,
+    cache_dir: Path | None = None,
+    network_file: Path | None = None,
+    near: Path | None = None,
 ) -> Intersection:
-    """The intersection of a test-case, after checking that its network is unchanged.
-
-    ``network_file`` stands in for the reference when the test-case names a network that
-    only a server knows (an uploaded network's id); its bytes must be the same."""
-    path = resolve_network(testcase.network.ref) if network_file is None else network_file
-    if not path.is_file():
-        raise UnknownNetwork(f"network file {path} does not exist", network=str(path))
-    actual = file_sha256(path)
-    if actual != testcase.network.sha256:
-        raise InvalidTestCase(
-            f"network.sha256: {testcase.network.ref} has changed since the test-case was made "
-            f"(expected {testcase.network.sha256[:12]}..., found {actual[:12]}...)"
-        )
+    """The intersection of a test-case, after checking that its network is unchanged
+    (``find_network_file``: ``network_file`` stands in for the reference, for example when
+    the test-case names a network that only a server knows; ``near`` is the folder the
+    test-case was read from)."""
+    path, _ = find_network_file(testcase, network_file, near)
     return load_intersection(path, testcase.junction, testcase.control, cache_dir)

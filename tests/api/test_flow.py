@@ -23,7 +23,7 @@ from service.core.check import check_testcase
 from service.core.network import load_intersection
 from service.core.poses import PoseSample
 from service.core.sumo_binaries import sumo_binary
-from service.core.testcase import TestCase, parse_testcase
+from service.core.testcase import TestCase, dump_testcase, new_testcase, parse_testcase
 from tests.conftest import TOWN05
 
 pytestmark = pytest.mark.slow
@@ -242,3 +242,18 @@ def test_a_used_network_cannot_be_deleted(api: httpx.Client, town05: dict[str, A
     assert reply.status_code == 409
     assert reply.headers["content-type"] == "application/problem+json"
     assert api.delete("/networks/4way-stop").status_code == 409
+
+
+def test_a_testcase_made_from_a_file_finds_the_upload_by_its_hash(
+    api: httpx.Client, town05: dict[str, Any]
+) -> None:
+    """Made by the CLI or the library from a path, a test-case names its network by file
+    name; the server finds the uploaded network with the same content hash."""
+    local = new_testcase(TOWN05, EGO, junction="396", control="allway_stop")
+    assert local.network.ref == "Town05.net.xml"
+    document = json.loads(dump_testcase(local))
+    reply = api.post(
+        "/extend", json={"testcase": document, "routes": [CHAIN[0]], "seed": 0, "budget": 60}
+    )
+    assert reply.status_code == 201, reply.text
+    assert reply.json()["testcase"]["network"] == document["network"]
