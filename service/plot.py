@@ -39,6 +39,38 @@ def _draw_roads(axes: Axes, intersection: Intersection) -> None:
         _fill(axes, road, color="0.93", zorder=0)
 
 
+STOP_LINE = "firebrick"  # a stop sign's line; other forks' lines are grey
+
+
+def _draw_stop_lines(axes: Axes, intersection: Intersection) -> None:
+    """Each fork's line across its lane at the junction: red with a stop sign, else grey
+    (lines, so that they clash with no event marker)."""
+    for fork in intersection.forks.values():
+        x, y = fork.stop_line
+        heading = math.radians(fork.heading)  # degrees clockwise from north
+        dx, dy = math.cos(heading) * fork.width / 2, -math.sin(heading) * fork.width / 2
+        colour, width = (STOP_LINE, 2.2) if fork.stop_sign else ("0.45", 1.0)
+        axes.plot([x - dx, x + dx], [y - dy, y + dy], color=colour, linewidth=width,
+                  solid_capstyle="butt", zorder=4)  # fmt: skip
+
+
+def _back_along(line: Any, metres: float, from_end: bool = True) -> tuple[float, float]:
+    """The point ``metres`` from the end (or the start) of a line, along it."""
+    length = line.length
+    at = line.interpolate(max(length - metres, 0.0) if from_end else min(metres, length))
+    return at.x, at.y
+
+
+def _arrow(axes: Axes, samples: Sequence[PoseSample], colour: str) -> None:
+    """An arrowhead at the end of a drawn path: the direction of travel."""
+    moved = [s for s in samples if math.dist((s.x, s.y), (samples[-1].x, samples[-1].y)) > 3.0]
+    if not moved:
+        return
+    tail = moved[-1]
+    axes.annotate("", xy=(samples[-1].x, samples[-1].y), xytext=(tail.x, tail.y), zorder=5,
+                  arrowprops={"arrowstyle": "-|>", "color": colour, "lw": 1.4})  # fmt: skip
+
+
 def plot_intersection(
     intersection: Intersection,
     path: Path,
@@ -60,11 +92,17 @@ def plot_intersection(
         )  # fmt: skip
         if chosen:
             _fill(axes, lane.polygon, color=TURN_COLOURS[route.turn.value], alpha=0.15, zorder=1)
+        xs, ys = lane.centreline.xy
+        axes.annotate("", xy=(xs[-1], ys[-1]), xytext=(xs[-2], ys[-2]), zorder=2,
+                      arrowprops={"arrowstyle": "-|>", "color": TURN_COLOURS[route.turn.value],
+                                  "lw": 0.8, "alpha": 1.0 if chosen else 0.6})  # fmt: skip
+    _draw_stop_lines(axes, intersection)
     for fork in intersection.forks.values():
-        x, y = fork.stop_line
         sign = " (stop)" if fork.stop_sign else ""
-        _label_outward(axes, f" {fork.lane}{sign}", (x, y), fork.approach)
-        axes.plot([x], [y], marker="s" if fork.stop_sign else "o", color="black", zorder=4)
+        _label_outward(axes, f"{fork.lane}{sign}", _back_along(fork.approach, 1.5), fork.approach)
+    for exit_lane in intersection.exits.values():
+        start = _back_along(exit_lane.departure, 1.5, from_end=False)
+        _label_outward(axes, f"{exit_lane.lane} (exit)", start, exit_lane.departure, True)
     if track:
         step = max(1, round(1.0 / max(track[1].t - track[0].t, 1e-9))) if len(track) > 1 else 1
         shown = list(track[::step])
@@ -89,14 +127,19 @@ def plot_intersection(
     plt.close(figure)
 
 
-def _label_outward(axes: Any, text: str, at: tuple[float, float], approach: Any) -> None:
-    """A label that runs from ``at`` back along the lane's approach, away from the junction:
-    labels of lanes side by side on one arm stay apart, and none is upside down."""
-    (x0, y0), (x1, y1) = approach.coords[0], approach.coords[-1]
+def _label_outward(
+    axes: Any, text: str, at: tuple[float, float], line: Any, outward: bool = False
+) -> None:
+    """A label that runs from ``at`` away from the junction along a lane (an approach ends
+    at the junction; a departure, ``outward``, starts there): labels of lanes side by side
+    on one arm stay apart, and none is upside down."""
+    (x0, y0), (x1, y1) = line.coords[0], line.coords[-1]
+    if outward:
+        (x0, y0), (x1, y1) = (x1, y1), (x0, y0)
     angle = math.degrees(math.atan2(y0 - y1, x0 - x1))
     flipped = not -90.0 <= angle <= 90.0
     axes.text(
-        at[0], at[1], text if not flipped else text.strip() + " ", fontsize=7, zorder=4,
+        at[0], at[1], text, fontsize=7, zorder=4,
         rotation=angle + 180.0 if flipped else angle, rotation_mode="anchor",
         ha="right" if flipped else "left", va="center",
     )  # fmt: skip
@@ -123,9 +166,9 @@ def plot_testcase(
         1, 2, figsize=(15, 7.5), gridspec_kw={"width_ratios": [1, 1.1]}
     )
     _draw_roads(axes, intersection)
-    for fork in intersection.forks.values():
-        x, y = fork.stop_line
-        axes.plot([x], [y], marker="s" if fork.stop_sign else "o", color="black", ms=4, zorder=4)
+    _draw_stop_lines(axes, intersection)
+    if any(fork.stop_sign for fork in intersection.forks.values()):
+        axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
     paths: list[tuple[str, str, Sequence[PoseSample], float, float]] = []
     for k, nonego in enumerate(testcase.nonegos):
         samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
@@ -148,15 +191,22 @@ def plot_testcase(
         axes.plot([s.x for s in drawn], [s.y for s in drawn], dashed, color=colour,
                   linewidth=1.6, label=label, zorder=3)  # fmt: skip
         shown = list(drawn[::step])
-        for rect in rectangles(
+        for sample, rect in zip(shown, rectangles(
             np.array([s.x for s in shown]), np.array([s.y for s in shown]),
             np.array([s.heading for s in shown]), length, width,
-        ):  # fmt: skip
+        ), strict=True):  # fmt: skip
             xs, ys = rect.exterior.xy
             axes.plot(xs, ys, color=colour, linewidth=0.6, alpha=0.7, zorder=3)
+            if sample.t > 0:  # the time of each rectangle, beside it
+                axes.annotate(f"{sample.t:g}s", (sample.x, sample.y), xytext=(3, 3),
+                              textcoords="offset points", fontsize=5, color=colour,
+                              zorder=5)  # fmt: skip
         first = drawn[0]
-        axes.annotate(label.split(" ")[0].rstrip(":"), (first.x, first.y), fontsize=8,
-                      color=colour, zorder=5)  # fmt: skip
+        axes.plot([first.x], [first.y], "o", mfc="white", mec=colour, ms=6, zorder=5)
+        axes.annotate(label.split(" ")[0].rstrip(":"), (first.x, first.y), xytext=(4, -10),
+                      textcoords="offset points", fontsize=8, color=colour,
+                      zorder=5)  # fmt: skip
+        _arrow(axes, drawn, colour)
         panel.plot([s.t for s in drawn], [s.distance for s in drawn], dashed, color=colour,
                    label=label)  # fmt: skip
     for k, nonego in enumerate(testcase.nonegos):
@@ -170,12 +220,18 @@ def plot_testcase(
             if ref.kind in EVENT_MARKERS and ego:
                 at = min(ego, key=lambda s: abs(s.t - ref.t))
                 panel.plot([ref.t], [at.distance], EVENT_MARKERS[ref.kind], color="black", ms=6)
+    axes.plot([], [], "o", mfc="white", mec="0.3", label="start (t = 0)")
     for kind, marker in EVENT_MARKERS.items():
-        panel.plot([], [], marker, color="0.3", label=kind)
+        panel.plot([], [], marker, color="0.3", label=f"{kind} (in the car's colour)")
     minx, miny, maxx, maxy = intersection.polygon.bounds
     margin = 25.0
-    axes.set_xlim(minx - margin, maxx + margin)
-    axes.set_ylim(miny - margin, maxy + margin)
+    starts = [(drawn[0].x, drawn[0].y) for _, _, drawn, _, _ in paths if drawn]
+    low_x = min([minx - margin, *(x - 6.0 for x, _ in starts)])  # every start in view
+    low_y = min([miny - margin, *(y - 6.0 for _, y in starts)])
+    high_x = max([maxx + margin, *(x + 6.0 for x, _ in starts)])
+    high_y = max([maxy + margin, *(y + 6.0 for _, y in starts)])
+    axes.set_xlim(low_x, high_x)
+    axes.set_ylim(low_y, high_y)
     axes.set_aspect("equal")
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
