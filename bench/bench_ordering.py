@@ -30,6 +30,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
+from typing import Any
 
 import clingo
 import clingo.ast
@@ -47,10 +48,6 @@ from service.core.generate import (
 )
 from service.core.network import Intersection
 from service.core.ordering import (
-    GROUPS,
-    RULE_FILES,
-    SOLVE_LIMIT,
-    CarKind,
     Limits,
     Ordering,
     OrderingCar,
@@ -60,7 +57,6 @@ from service.core.ordering import (
     stop_symbol,
 )
 from service.core.poses import generate_poses
-from service.core.rules import asp_dir, rule_set_file
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -162,9 +158,9 @@ def parse_lpx(text: str) -> Exact:
 
 
 class LpxOrderingSearch(OrderingSearch):
-    """OrderingSearch with bench/time_lpx.lp and clingo-lpx instead of time_dl.lp and
-    clingo-dl; __init__ and _solve are copies of the project's with the theory swapped
-    (and the exact assignment kept), everything else is inherited unchanged."""
+    """The project's OrderingSearch with bench/time_lpx.lp and clingo-lpx in place of
+    time_dl.lp and clingo-dl (its theory hooks overridden; the exact assignment of every
+    answer set kept); everything else is the project's."""
 
     def __init__(
         self,
@@ -176,65 +172,36 @@ class LpxOrderingSearch(OrderingSearch):
         strict: bool = False,
         options: Sequence[tuple[str, str]] = (),
     ) -> None:
-        self.cars = {car.car: car for car in cars}
-        self.facts, self.symbols = ordering_facts(intersection, cars, m, limits)
-        self.theory = ClingoLPXTheory()  # type: ignore[no-untyped-call]
-        if strict:
-            self.theory.configure("strict", "1")
-        for name, value in options:  # clingo-lpx's own options, e.g. propagate-bounds
-            self.theory.configure(name, value)
-        self.control = clingo.Control(
-            [
-                "--models=0",
-                "--warn=none",
-                "--heuristic=Domain",
-                f"--seed={seed}",
-                "--rand-freq=0.02",
-                f"--solve-limit={SOLVE_LIMIT}",
-                f"--const=m_ms={round(m * 1000)}",
-                f"--const=margin_ms={round(limits.margin * 1000)}",
-                f"--const=strict={int(strict)}",
-            ]
-        )
-        self.theory.register(self.control)
-        files = [str(rule_set_file(intersection.control))]
-        files += [str(asp_dir() / name) for name in RULE_FILES if name != "time_dl.lp"]
-        files.append(str(TIME_LPX))
-        with clingo.ast.ProgramBuilder(self.control) as builder:
-            add = lambda ast: self.theory.rewrite_ast(ast, builder.add)  # noqa: E731
-            clingo.ast.parse_files(files, add)
-            if strict:
-                clingo.ast.parse_string(STRICT_EQUAL, add)
-        with self.control.backend() as backend:
-            for fact in self.facts:
-                backend.add_rule([backend.add_atom(fact)])
-        self.control.ground([("base", [])])
-        for group in GROUPS:
-            self._enforce(group, True)
-        self.symbolic = {c for c, car in self.cars.items() if car.kind is not CarKind.OLD}
-        self.drawn = 0
-        self.learned = 0
+        self.strict, self.lpx_options = strict, options
         self.exact: list[dict[str, Exact]] = []  # the assignment of each answer set drawn
+        super().__init__(intersection, cars, m, seed, limits)
 
-    def _solve(self) -> tuple[list[clingo.Symbol], dict[str, float]] | None:
-        self.theory.prepare(self.control)
-        with self.control.solve(yield_=True, on_model=self.theory.on_model) as handle:
-            model = next(iter(handle), None)
-            if model is None:
-                if handle.get().unknown:
-                    raise SearchLimitReached(
-                        f"Step 2 spent its limit of {SOLVE_LIMIT} conflicts without an answer"
-                    )
-                return None
-            atoms = model.symbols(atoms=True)
-            exact = {
-                str(name): parse_lpx(value.string)
-                for name, value in self.theory.assignment(model.thread_id)
-                if isinstance(value, clingo.Symbol)
-            }
+    def _theory(self) -> Any:
+        theory = ClingoLPXTheory()  # type: ignore[no-untyped-call]
+        if self.strict:
+            theory.configure("strict", "1")
+        for name, value in self.lpx_options:  # clingo-lpx's own options
+            theory.configure(name, value)
+        return theory
+
+    def _options(self) -> list[str]:
+        return [f"--const=strict={int(self.strict)}"]
+
+    def _programs(self) -> list[Path]:
+        return [*(p for p in super()._programs() if p.name != "time_dl.lp"), TIME_LPX]
+
+    def _program_text(self) -> str:
+        return STRICT_EQUAL if self.strict else ""
+
+    def _times(self, model: clingo.Model) -> dict[str, float]:
+        exact = {
+            str(name): parse_lpx(value.string)
+            for name, value in self.theory.assignment(model.thread_id)
+            if isinstance(value, clingo.Symbol)
+        }
         self.exact.append(exact)
         # Ordering.times in seconds, as the project's: the rational part (epsilon left out)
-        return atoms, {name: float(value[0]) / 1000.0 for name, value in exact.items()}
+        return {name: float(value[0]) / 1000.0 for name, value in exact.items()}
 
 
 def make_search(

@@ -19,6 +19,8 @@ import random
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
+from pathlib import Path
+from typing import Any
 
 import clingo
 import clingo.ast
@@ -324,7 +326,7 @@ class OrderingSearch:
     ) -> None:
         self.cars = {car.car: car for car in cars}
         self.facts, self.symbols = ordering_facts(intersection, cars, m, limits, seed)
-        self.theory = ClingoDLTheory()  # type: ignore[no-untyped-call]
+        self.theory = self._theory()
         self.control = clingo.Control(
             [
                 "--models=0",
@@ -335,13 +337,16 @@ class OrderingSearch:
                 f"--solve-limit={SOLVE_LIMIT}",
                 f"--const=m_ms={round(m * 1000)}",
                 f"--const=margin_ms={round(limits.margin * 1000)}",
+                *self._options(),
             ]
         )
         self.theory.register(self.control)
-        files = [str(rule_set_file(intersection.control))]
-        files += [str(asp_dir() / name) for name in RULE_FILES]
+        files = [str(rule_set_file(intersection.control)), *map(str, self._programs())]
         with clingo.ast.ProgramBuilder(self.control) as builder:
-            clingo.ast.parse_files(files, lambda ast: self.theory.rewrite_ast(ast, builder.add))
+            add = lambda ast: self.theory.rewrite_ast(ast, builder.add)  # noqa: E731
+            clingo.ast.parse_files(files, add)
+            if self._program_text():
+                clingo.ast.parse_string(self._program_text(), add)
         with self.control.backend() as backend:
             for fact in self.facts:
                 backend.add_rule([backend.add_atom(fact)])
@@ -352,11 +357,33 @@ class OrderingSearch:
         self.drawn = 0
         self.learned = 0
 
+    # The theory of the event times. bench/bench_ordering.py overrides these five to run the
+    # same search with clingo-lpx; nothing else differs between the two.
+    def _theory(self) -> Any:
+        return ClingoDLTheory()  # type: ignore[no-untyped-call]
+
+    def _options(self) -> list[str]:
+        return []
+
+    def _programs(self) -> list[Path]:
+        return [asp_dir() / name for name in RULE_FILES]
+
+    def _program_text(self) -> str:
+        return ""
+
+    def _times(self, model: clingo.Model) -> dict[str, float]:
+        """The answer set's times in seconds (clingo-dl assigns whole milliseconds)."""
+        return {
+            str(name): value / 1000.0
+            for name, value in self.theory.assignment(model.thread_id)
+            if isinstance(value, int)
+        }
+
     def _enforce(self, group: str, value: bool) -> None:
         self.control.assign_external(clingo.Function("enforce", [clingo.Function(group)]), value)
 
     def _solve(self) -> tuple[list[clingo.Symbol], dict[str, float]] | None:
-        """The first answer set of the program as it stands, with clingo-dl's times."""
+        """The first answer set of the program as it stands, with its times."""
         self.theory.prepare(self.control)
         with self.control.solve(yield_=True, on_model=self.theory.on_model) as handle:
             model = next(iter(handle), None)
@@ -366,13 +393,7 @@ class OrderingSearch:
                         f"Step 2 spent its limit of {SOLVE_LIMIT} conflicts without an answer"
                     )
                 return None
-            atoms = model.symbols(atoms=True)
-            times = {
-                str(name): value / 1000.0
-                for name, value in self.theory.assignment(model.thread_id)
-                if isinstance(value, int)
-            }
-        return atoms, times
+            return model.symbols(atoms=True), self._times(model)
 
     def satisfiable(self) -> bool:
         return self._solve() is not None
