@@ -36,7 +36,6 @@ from service.core.testcase import (
     TestCase,
     dump_testcase,
     find_network_file,
-    load_testcase_intersection,
     new_testcase,
     read_testcase,
 )
@@ -329,7 +328,7 @@ def _intersection(
         ) from None
     if how != "bundled":
         print(f"network {testcase.network.ref}: {path} ({how})", file=sys.stderr)
-    return load_testcase_intersection(testcase, network_file=path)
+    return load_intersection(path, testcase.junction, testcase.control)  # hash checked above
 
 
 def _network_arguments(parser: argparse.ArgumentParser) -> None:

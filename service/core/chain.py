@@ -4,7 +4,7 @@ Each level adds one new car on a route that conflicts with the ego's, from a for
 uses yet (following in one lane is not modelled), trying such routes in an order drawn
 from the seed. Every choice depends only on the test-case and the seed: first every route
 gets up to ROUTE_ORDERS answer sets (a count, not a clock), in that order; when none of
-them gave an extension, those that were not exhausted get the generator's full MAX_ORDERS
+them gave an extension, those whose search was cut short get the generator's full MAX_ORDERS
 (starting over: the search is deterministic, so the first ROUTE_ORDERS are tried again).
 The time budget only stops the call.
 """
@@ -76,8 +76,8 @@ def grow(
             except NoneFound as error:
                 if error.context.get("budget_exhausted"):
                     raise _exhausted(budget, outcomes, seed) from None
-                if orders < MAX_ORDERS:
-                    retry.append(route)
+                if orders < MAX_ORDERS and not error.context.get("search_exhausted"):
+                    retry.append(route)  # a longer search may find one; a finished one not
                     continue
                 proven = False
                 outcomes.append(f"{route}: {error}")

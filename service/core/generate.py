@@ -259,6 +259,7 @@ def _not_found(
             f"none found among the first {len(attempts)} answer sets{detail}",
             routes=list(routes),
             seed=seed,
+            search_exhausted=False,
         )
     bare = OrderingSearch(junction, cars, old.params.m, seed, _limits(old, margin=0.0))
     if not bare.satisfiable():
@@ -272,11 +273,13 @@ def _not_found(
             f"{_margin(old):g} s on every relation, too close to call",
             routes=list(routes),
             seed=seed,
+            search_exhausted=True,
         )
     return NoneFound(
         f"none found among all {len(attempts)} orders of events{detail}",
         routes=list(routes),
         seed=seed,
+        search_exhausted=True,
     )
 
 
