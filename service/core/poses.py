@@ -30,6 +30,8 @@ from service.core.network.lanes import (
     straightest_successor,
     via_chain,
 )
+from service.core.sumo_run import centre_to_front as centre_to_front
+from service.core.sumo_run import front_to_centre as front_to_centre
 
 Point = tuple[float, float]
 
@@ -105,18 +107,6 @@ def interpolate_heading(a: float, b: float, share: float) -> float:
     """Heading between ``a`` and ``b`` (degrees) the short way round."""
     delta = (b - a + 180.0) % 360.0 - 180.0
     return (a + share * delta) % 360.0
-
-
-def front_to_centre(x: float, y: float, heading: float, length: float) -> tuple[float, float]:
-    """The rectangle centre from SUMO's front-bumper position and heading."""
-    rad = math.radians(heading)
-    return x - math.sin(rad) * length / 2.0, y - math.cos(rad) * length / 2.0
-
-
-def centre_to_front(x: float, y: float, heading: float, length: float) -> tuple[float, float]:
-    """The front-bumper centre from the rectangle centre and heading."""
-    rad = math.radians(heading)
-    return x + math.sin(rad) * length / 2.0, y + math.cos(rad) * length / 2.0
 
 
 @functools.lru_cache(maxsize=8)

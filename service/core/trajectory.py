@@ -3,7 +3,8 @@
 JSON: a list of samples ``{t, x, y, heading[, speed, distance]}``, or an object holding one
 under ``samples`` or ``trajectory`` (so ``scengen drive --json`` output works too). SUMO FCD
 (``--fcd-output``): the vehicle's front-bumper positions are converted to rectangle centres
-with the car's length. Missing distances are the path length travelled by the centre;
+with the car's length; distances are SUMO's ``odometer`` (from the first sample) when every
+sample has one. Missing distances are the path length travelled by the centre;
 missing speeds are the distance over the following step.
 """
 
@@ -74,10 +75,18 @@ def read_fcd(text: str, vehicle: str, length: float, source: str) -> list[PoseSa
             heading = float(car.get("angle", "0")) % 360.0
             x, y = front_to_centre(float(car.get("x", "nan")), float(car.get("y", "nan")),
                                    heading, length)  # fmt: skip
-            rows.append(
-                {"t": float(step.get("time", "nan")), "x": x, "y": y, "heading": heading,
-                 "speed": float(car.get("speed", "nan"))}
-            )  # fmt: skip
+            row = {"t": float(step.get("time", "nan")), "x": x, "y": y, "heading": heading,
+                   "speed": float(car.get("speed", "nan"))}  # fmt: skip
+            if car.get("odometer") is not None:
+                row["distance"] = float(car.get("odometer", "nan"))
+            rows.append(row)
+    if len(rows) >= 2 and all("distance" in row for row in rows):
+        start = rows[0]["distance"]  # SUMO's odometer counts from the car's departure
+        for row in rows:
+            row["distance"] -= start
+    else:
+        for row in rows:
+            row.pop("distance", None)
     if len(rows) < 2:
         names = ", ".join(sorted(seen)) or "(none)"
         raise InvalidTrajectory(

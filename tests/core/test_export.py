@@ -1,23 +1,32 @@
-"""The exported SUMO bundle runs with the plain `sumo` binary and agrees with the
-in-service evaluation (real SUMO, no mocks)."""
+"""The exported SUMO bundle: its run.py reproduces the in-service evaluation, and its
+.sumocfg runs with the plain `sumo` binary (real SUMO, no mocks)."""
 
 from __future__ import annotations
 
 import math
 import subprocess
+import sys
 import xml.etree.ElementTree as ET
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
 
+from service.core.chain import candidate_routes
 from service.core.check import check_testcase
+from service.core.check import testcase_label as label_of
+from service.core.controllers import BUILT_IN
 from service.core.export import export_bundle
 from service.core.generate import extend_testcase
+from service.core.network import Intersection
 from service.core.poses import centre_to_front
-from service.core.replay import evaluate
+from service.core.replay import Evaluation, evaluate
 from service.core.sumo_binaries import sumo_binary
-from service.core.testcase import TestCase, new_testcase, read_testcase
+from service.core.testcase import TestCase, load_testcase_intersection, new_testcase, read_testcase
 from service.core.trajectory import read_trajectory
+from service.core.verdict import Verdict
+from service.examples import EXAMPLES, run_example
+from tests.conftest import TOWN05, TOWN07
 
 
 @pytest.fixture(scope="module")
@@ -78,3 +87,122 @@ def test_the_bundle_run_gets_the_in_service_verdict(bundle_run: Path, four_way: 
     assert from_bundle.passed == in_service.passed
     assert {v.rule for v in from_bundle.violations} == {v.rule for v in in_service.violations}
     assert from_bundle.goal_reached == in_service.goal_reached
+
+
+def _real_map_chain(network: Path, junction: str, control: str, ego: str) -> list[TestCase]:
+    """An ego-only test-case on a CARLA map at the default start, and one extension."""
+    start = new_testcase(network, ego, junction=junction, control=control, duration=25.0)
+    intersection = load_testcase_intersection(start)
+    new = candidate_routes(start, intersection)[0]
+    return [start, extend_testcase(start, [new], seed=0, budget=120).testcase]
+
+
+@pytest.fixture(scope="module")
+def every_case() -> list[TestCase]:
+    """Every level of every example, and two real-map chains: Town05's four-arm junction
+    396 as an all-way stop, and Town07's Y 358, whose short fork lanes put the default
+    start inside the junction before it."""
+    cases = [level for example in EXAMPLES.values() for level in run_example(example)]
+    cases += _real_map_chain(TOWN05, "396", "allway_stop", "-44_1:-9_1")
+    cases += _real_map_chain(TOWN07, "358", "right_before_left", "-40_0:35_0")
+    return cases
+
+
+RUN_EVERY_CONTROLLER = """
+import sys
+import run
+for controller in sys.argv[1:]:
+    code = run.main(["--controller", controller, "--fcd-output", controller + ".fcd.xml"])
+    assert code == 0, (controller, code)
+"""
+
+
+def test_the_bundle_runner_reproduces_the_evaluation(
+    every_case: list[TestCase], tmp_path: Path
+) -> None:
+    """For every built-in controller on every case, `python run.py` in the exported bundle
+    drives the ego along the trajectory of `scengen evaluate` (to a micrometre), so the
+    checker's verdict is the same: pass or fail, the rules broken against whom, the
+    collisions, the goal time and the ego's event times."""
+    jobs = []
+    for k, testcase in enumerate(every_case):
+        intersection = load_testcase_intersection(testcase)
+        folder = tmp_path / f"case{k}"
+        export_bundle(testcase, folder, intersection)
+        controllers = [
+            name for name in BUILT_IN
+            if testcase.certificates is not None or not name.startswith("certificate:")
+        ]  # fmt: skip
+        subprocess.run(
+            [sys.executable, "-c", RUN_EVERY_CONTROLLER, *controllers],
+            cwd=folder, check=True, capture_output=True, timeout=300,
+        )  # fmt: skip
+        jobs += [(testcase, intersection, folder, name) for name in controllers]
+    assert len(jobs) == 4 * len(every_case) + 2 * (len(every_case) - 5)  # 5 ego-only cases
+
+    def evaluated(job: tuple[TestCase, Intersection, Path, str]) -> Evaluation:
+        testcase, intersection, _, controller = job
+        return evaluate(testcase, controller, intersection)
+
+    with ThreadPoolExecutor(max_workers=2) as pool:  # each evaluation is its own process
+        evaluations = list(pool.map(evaluated, jobs))
+    outcomes = set()
+    for (testcase, intersection, folder, controller), evaluation in zip(
+        jobs, evaluations, strict=True
+    ):
+        case = f"{label_of(testcase)} / {controller}"
+        ego = read_trajectory(folder / f"{controller}.fcd.xml", "ego", testcase.ego.length)
+        assert len(ego) == len(evaluation.trajectory), case
+        for ours, theirs in zip(ego, evaluation.trajectory, strict=True):
+            assert ours.t == theirs.t, case
+            assert math.dist((ours.x, ours.y), (theirs.x, theirs.y)) < 1e-6, case
+            assert abs(ours.distance - theirs.distance) < 1e-6, case
+        bundle = check_testcase(testcase, ego, controller, intersection)
+        service = evaluation.verdict
+        assert bundle.passed == service.passed, case
+        assert _offences(bundle) == _offences(service), case
+        assert bundle.goal_reached == service.goal_reached, case
+        if service.goal_time is not None:
+            assert bundle.goal_time == pytest.approx(service.goal_time, abs=testcase.timestep)
+        assert [(e.car, e.kind, e.lane) for e in bundle.ego_events] == [
+            (e.car, e.kind, e.lane) for e in service.ego_events
+        ], case
+        for ours, theirs in zip(bundle.ego_events, service.ego_events, strict=True):
+            assert ours.t == pytest.approx(theirs.t, abs=testcase.timestep), case
+        outcomes.add((controller, service.passed))
+    # the comparison covers passes and failures of SUMO's drivers and of the certificates
+    assert {("sumo", True), ("sumo-rolling-stop", False), ("certificate:complexity", False)} <= (
+        outcomes
+    )
+
+
+def _offences(verdict: Verdict) -> set[tuple[str, str | None]]:
+    return {(v.rule, v.other) for v in verdict.violations} | {
+        ("collision", c.other) for c in verdict.collisions
+    }
+
+
+def test_run_py_runs_with_traci_and_the_sumo_binary(bundle_run: Path, four_way: TestCase) -> None:
+    """Without libsumo (`--traci`): the same trajectory as the in-process run."""
+    for flag, output in (([], "libsumo.fcd.xml"), (["--traci"], "traci.fcd.xml")):
+        result = subprocess.run(
+            [sys.executable, "run.py", "--controller", "sumo", "--fcd-output", output, *flag],
+            cwd=bundle_run, capture_output=True, text=True, timeout=120,
+        )  # fmt: skip
+        assert result.returncode == 0, result.stderr
+        assert "scengen check testcase.json --ego" in result.stdout
+    a = read_trajectory(bundle_run / "libsumo.fcd.xml", "ego", four_way.ego.length)
+    b = read_trajectory(bundle_run / "traci.fcd.xml", "ego", four_way.ego.length)
+    assert [(s.t, round(s.x, 6), round(s.y, 6)) for s in a] == [
+        (s.t, round(s.x, 6), round(s.y, 6)) for s in b
+    ]
+
+
+def test_run_py_names_the_valid_controllers(bundle_run: Path) -> None:
+    result = subprocess.run(
+        [sys.executable, "run.py", "--controller", "autopilot"],
+        cwd=bundle_run, capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert result.returncode == 2
+    assert "unknown controller 'autopilot'" in result.stderr
+    assert "sumo-cautious" in result.stderr and "certificate:complexity" in result.stderr

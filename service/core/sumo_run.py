@@ -1,0 +1,291 @@
+"""Replay a test-case in SUMO: the one loop that `scengen evaluate` runs and that every
+exported bundle ships as ``run.py``.
+
+The non-egos (and a replayed certificate) follow their trajectories exactly: speed mode 0
+and, every step, ``setSpeed`` with the distance they cover in that step (SUMO moves a car by
+its speed times the step, Euler steps). The ego is driven by SUMO's own driver with a
+controller's settings, or replays a certificate, or is left to a caller's ``on_step`` (a
+user controller). Cars that start inside an upstream junction depart just before it and are
+moved onto their start (``vehicle.moveTo``) right after the first step.
+
+This file is standalone on purpose: the standard library and SUMO's own Python modules
+(libsumo, or traci with the ``sumo`` binary) only, so that a bundle runs where only
+``eclipse-sumo`` is installed. ``service.core.export`` copies it into every bundle; keep it
+free of scengen imports.
+
+In a bundle::
+
+    python run.py [--controller NAME] [--fcd-output FILE] [--traci] [--gui]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import math
+import os
+import shutil
+import sys
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+PLAN_SCHEMA = "scengen/run/1"
+PLAN_FILE = "testcase.run.json"
+EGO = "ego"
+
+Row = dict[str, float]  # the ego at one step: t, x, y (front bumper), angle, speed, odometer
+OnStep = Callable[[Any, Row, set[str]], "str | None"]  # a caller's controller; text stops it
+
+
+def front_to_centre(x: float, y: float, heading: float, length: float) -> tuple[float, float]:
+    """The rectangle centre from SUMO's front-bumper position and heading (degrees
+    clockwise from north)."""
+    rad = math.radians(heading)
+    return x - math.sin(rad) * length / 2.0, y - math.cos(rad) * length / 2.0
+
+
+def centre_to_front(x: float, y: float, heading: float, length: float) -> tuple[float, float]:
+    """The front-bumper centre from the rectangle centre and heading."""
+    rad = math.radians(heading)
+    return x + math.sin(rad) * length / 2.0, y + math.cos(rad) * length / 2.0
+
+
+class RunFailed(Exception):
+    """SUMO could not run the plan (the ego could not be inserted, a file is wrong)."""
+
+
+def load_plan(path: Path) -> dict[str, Any]:
+    """The run plan (``testcase.run.json``): files, time step, cars, controllers."""
+    plan = json.loads(path.read_text())
+    if plan.get("schema") != PLAN_SCHEMA:
+        raise RunFailed(f"{path} is not a scengen run plan (schema {PLAN_SCHEMA})")
+    return dict(plan)
+
+
+def sumo_arguments(plan: dict[str, Any], folder: Path, types_file: Path) -> list[str]:
+    """SUMO's options for the plan (files relative to ``folder``), without the program."""
+    step = repr(float(plan["timestep"]))
+    return [
+        "-n", str(folder / plan["network"]), "-r", str(folder / plan["routes"]),
+        "--additional-files", str(types_file), "--step-length", step,
+        "--default.action-step-length", step, "--step-method.ballistic", "false",
+        "--time-to-teleport", "-1", "--collision.action", "none",
+        "--collision.check-junctions", "true", "--ignore-route-errors", "false",
+        "--no-step-log", "true", "--no-warnings", "true",
+    ]  # fmt: skip
+
+
+def write_types(
+    plan: dict[str, Any], folder: Path, controller: dict[str, Any], target: Path
+) -> Path:
+    """The plan's vehicle types with the ego's stop-line wait set by ``controller``."""
+    tree = ET.parse(folder / plan["types"])
+    for vtype in tree.getroot().iter("vType"):
+        if vtype.get("id") == f"type_{EGO}" and controller["kind"] == "sumo":
+            vtype.set("jmStopSignWait", repr(float(controller["stop_sign_wait"])))
+    tree.write(target, encoding="UTF-8", xml_declaration=True)
+    return target
+
+
+def drive(
+    traci: Any, plan: dict[str, Any], controller: dict[str, Any], on_step: OnStep | None = None
+) -> tuple[list[Row], str | None]:
+    """Run the started simulation step by step; the ego's rows and what stopped it early.
+
+    ``controller``: ``{"kind": "sumo", "speed_mode", "stop_sign_wait", "rolling_speed"}``,
+    ``{"kind": "certificate", "certificate": "solvability"|"complexity"}``, or
+    ``{"kind": "external"}`` (speed mode 0; ``on_step`` sets the ego's speed every step)."""
+    timestep = float(plan["timestep"])
+    steps = int(plan["steps"])
+    ego = plan["ego"]
+    replayed = [(car["id"], car["distances"]) for car in plan["nonegos"]]
+    if controller["kind"] == "certificate":
+        certificates = plan.get("certificates") or {}
+        if controller["certificate"] not in certificates:
+            raise RunFailed("this test-case has no certificates to replay")
+        replayed.append((EGO, certificates[controller["certificate"]]))
+    sumo_driven = controller["kind"] == "sumo"
+    moved = {car["id"]: car["start_on"] for car in (ego, *plan["nonegos"]) if car["start_on"]}
+    rows: list[Row] = []
+    rolling = False
+    odometer = 0.0  # the ego's SUMO odometer at its start
+    for step in range(steps + 1):
+        traci.simulationStep()
+        present = set(traci.vehicle.getIDList())
+        if step == 0:
+            for car, (lane, position) in moved.items():  # onto its start in the junction
+                if car in present:
+                    traci.vehicle.moveTo(car, lane, position)
+            if EGO not in present:
+                raise RunFailed("SUMO could not insert the ego at its start")
+            odometer = traci.vehicle.getDistance(EGO)
+            for car in present:
+                traci.vehicle.setLaneChangeMode(car, 0)
+                if car != EGO or not sumo_driven:
+                    traci.vehicle.setSpeedMode(car, 0)
+            if sumo_driven:
+                traci.vehicle.setSpeedMode(EGO, int(controller["speed_mode"]))
+        if EGO not in present:
+            break  # the ego reached the end of its route
+        x, y = traci.vehicle.getPosition(EGO)
+        row = {
+            "t": round(step * timestep, 9), "x": x, "y": y,
+            "angle": traci.vehicle.getAngle(EGO) % 360.0, "speed": traci.vehicle.getSpeed(EGO),
+            "odometer": traci.vehicle.getDistance(EGO) - odometer,
+        }  # fmt: skip
+        rows.append(row)
+        if step == steps:
+            break
+        for car, distances in replayed:
+            if car in present and step + 1 < len(distances):
+                gap = distances[step + 1] - distances[step]
+                traci.vehicle.setSpeed(car, max(gap, 0.0) / timestep)
+        if sumo_driven and controller.get("rolling_speed") is not None:
+            rolling = _roll(traci, plan, controller, row, rolling)
+        if on_step is not None:
+            stopped = on_step(traci, row, present)
+            if stopped is not None:
+                return rows, stopped
+    return rows, None
+
+
+def _roll(
+    traci: Any, plan: dict[str, Any], controller: dict[str, Any], row: Row, rolling: bool
+) -> bool:
+    """Keep the ego at the rolling speed or faster from arriving at the fork to passing
+    the stop line; then hand it back to SUMO's driver."""
+    speed = float(controller["rolling_speed"])
+    to_line = float(plan["ego"]["start_distance"]) - row["odometer"]
+    inside_zone = -1.0 < to_line <= float(plan["ego"]["arrival_distance"])
+    if inside_zone and traci.vehicle.getSpeed(EGO) <= speed:
+        if not rolling:
+            traci.vehicle.setSpeedMode(EGO, 0)
+        traci.vehicle.setSpeed(EGO, speed)
+        return True
+    if rolling and not inside_zone:
+        traci.vehicle.setSpeed(EGO, -1)
+        traci.vehicle.setSpeedMode(EGO, int(controller["speed_mode"]))
+        return False
+    return rolling
+
+
+def run(
+    traci: Any,
+    plan_file: Path,
+    controller: dict[str, Any],
+    on_step: OnStep | None = None,
+    program: str = "sumo",
+    extra: tuple[str, ...] = (),
+) -> tuple[list[Row], str | None]:
+    """Start SUMO (``traci`` is the libsumo or traci module) on the plan, drive, close."""
+    plan = load_plan(plan_file)
+    folder = plan_file.parent
+    with tempfile.TemporaryDirectory(prefix="scengen-run-") as scratch:
+        types = write_types(plan, folder, controller, Path(scratch) / "types.xml")
+        traci.start([program, *sumo_arguments(plan, folder, types), *extra])
+        try:
+            return drive(traci, plan, controller, on_step)
+        finally:
+            traci.close()
+
+
+def fcd_text(rows: list[Row]) -> str:
+    """The ego's rows as SUMO FCD (front bumper, angle, speed, odometer from its start)."""
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<fcd-export>"]
+    for row in rows:
+        lines.append(f'    <timestep time="{row["t"]!r}">')
+        lines.append(
+            f'        <vehicle id="{EGO}" x="{row["x"]!r}" y="{row["y"]!r}" '
+            f'angle="{row["angle"]!r}" speed="{row["speed"]!r}" odometer="{row["odometer"]!r}"/>'
+        )
+        lines.append("    </timestep>")
+    lines.append("</fcd-export>")
+    return "\n".join(lines) + "\n"
+
+
+def _program(name: str) -> str:
+    """A SUMO program: the eclipse-sumo wheel's, $SUMO_HOME/bin's, or the PATH's."""
+    homes = [os.environ.get("SUMO_HOME", "")]
+    try:
+        import sumo  # the eclipse-sumo wheel
+
+        homes.insert(0, str(sumo.SUMO_HOME))
+    except ImportError:
+        pass
+    for home in filter(None, homes):
+        candidate = Path(home) / "bin" / name
+        if candidate.exists():
+            return str(candidate)
+    found = shutil.which(name)
+    if found is None:
+        raise RunFailed(f"{name} not found: pip install eclipse-sumo, or set SUMO_HOME")
+    return found
+
+
+def _sumo(use_traci: bool, name: str) -> tuple[Any, str]:
+    """libsumo (in this process) unless told otherwise or missing; else traci and ``name``."""
+    if not use_traci:
+        try:
+            return importlib.import_module("libsumo"), name
+        except ImportError:
+            pass
+    return importlib.import_module("traci"), _program(name)
+
+
+def main(argv: list[str] | None = None) -> int:
+    here = Path(__file__).resolve().parent
+    parser = argparse.ArgumentParser(
+        description="Replay this test-case in SUMO as `scengen evaluate` does: the non-egos "
+        "follow their trajectories exactly, the ego is driven by the chosen controller; the "
+        "ego's trajectory is written as SUMO FCD for `scengen check`."
+    )
+    parser.add_argument("--plan", type=Path, default=here / PLAN_FILE, help="the run plan")
+    parser.add_argument("--controller", default="sumo", help="who drives the ego (default sumo)")
+    parser.add_argument("--fcd-output", type=Path, default=Path("run.fcd.xml"), metavar="FILE")
+    parser.add_argument("--traci", action="store_true", help="use traci and the sumo binary, "
+                        "not libsumo")  # fmt: skip
+    parser.add_argument("--gui", action="store_true", help="watch it in sumo-gui (implies --traci)")
+    args = parser.parse_args(argv)
+    try:
+        plan = load_plan(args.plan)
+    except (OSError, ValueError, RunFailed) as exc:
+        print(f"run.py: cannot read the run plan: {exc}", file=sys.stderr)
+        return 2
+    controllers = plan["controllers"]
+    if args.controller not in controllers:
+        print(f"run.py: unknown controller {args.controller!r}; valid: "
+              f"{', '.join(controllers)}", file=sys.stderr)  # fmt: skip
+        return 2
+    controller = controllers[args.controller]
+    if controller["kind"] == "certificate" and not plan.get("certificates"):
+        print(f"run.py: {args.controller} replays a certificate, but this test-case has none",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    try:
+        module, program = _sumo(args.gui or args.traci, "sumo-gui" if args.gui else "sumo")
+        extra = ("--start", "--quit-on-end") if args.gui else ()
+        rows, _ = run(module, args.plan, controller, program=program, extra=extra)
+    except Exception as exc:  # SUMO's own errors: TraCIException, FatalTraCIError, ...
+        print(f"run.py: SUMO failed: {exc}", file=sys.stderr)
+        return 3
+    args.fcd_output.write_text(fcd_text(rows))
+    duration = int(plan["steps"]) * float(plan["timestep"])
+    last = rows[-1]["t"] if rows else 0.0
+    until = (
+        f"for the whole {duration:g} s"
+        if last >= duration - 1e-9
+        else f"until it left the network at the end of its route at {last:.2f} s"
+    )
+    print(f"run.py: {args.controller} drove the ego {until}; wrote {args.fcd_output}")
+    testcase = os.path.relpath(here / "testcase.json")
+    print(f"judge it: scengen check {testcase} --ego {args.fcd_output} "
+          f"--controller {args.controller}")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
