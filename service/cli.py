@@ -36,8 +36,10 @@ from service.core.testcase import (
     TestCase,
     dump_testcase,
     find_network_file,
+    name_stem,
     new_testcase,
     read_testcase,
+    readable_name,
 )
 from service.core.trajectory import read_trajectory
 from service.core.verdict import Verdict, junit_report
@@ -84,7 +86,12 @@ def _parser() -> argparse.ArgumentParser:
     )
     new.add_argument("--duration", type=float, default=20.0, help="seconds (default 20)")
     new.add_argument("--timestep", type=float, default=0.1, help="seconds (default 0.1)")
-    new.add_argument("--name", default="", help="a name for the test-case")
+    new.add_argument(
+        "--name",
+        default="",
+        help="a name for the test-case (default: network, junction, ego route and level, "
+        "as in '4way-stop C S2C_1:C2W_1 level 0')",
+    )
     new.add_argument("-o", "--output", type=Path, metavar="FILE", help="write here, not stdout")
     new.set_defaults(run=_run_new)
 
@@ -154,6 +161,11 @@ def _parser() -> argparse.ArgumentParser:
         metavar="M",
         help="new cars' front before their stop line at t = 0 (default: the ego's)",
     )
+    extend.add_argument(
+        "--name",
+        help="the new test-case's name (default: the old one's with the new level, "
+        "'... level 1' after '... level 0')",
+    )
     extend.add_argument("-o", "--output", type=Path, metavar="FILE", help="write here")
     _network_file_argument(extend)
     extend.set_defaults(run=_run_extend)
@@ -220,10 +232,11 @@ def _parser() -> argparse.ArgumentParser:
 
     export = commands.add_parser(
         "export",
-        help="write a test-case as a SUMO bundle that the plain sumo binary runs",
-        description="Writes the network, the route file, the non-egos' trajectories as FCD "
-        "(replayed by SUMO's fcd-replay device), a .sumocfg, the test-case JSON and a README "
-        "into DIR.",
+        help="write a test-case as a SUMO bundle (run.py, and a .sumocfg for plain sumo)",
+        description="Writes into DIR the network, the test-case JSON, a README, run.py (the "
+        "replay of `scengen evaluate`: python run.py --controller NAME writes the ego's FCD) "
+        "with its plan, vehicle types and routes, and a .sumocfg for the plain sumo binary "
+        "(the non-egos' trajectories as FCD for SUMO's fcd-replay device).",
     )
     export.add_argument("testcase", type=Path, metavar="TESTCASE", help="a test-case JSON file")
     export.add_argument(
@@ -489,6 +502,8 @@ def _run_new(args: argparse.Namespace) -> int:
         args.timestep,
         name=args.name,
     )
+    if not args.name:
+        testcase = testcase.model_copy(update={"name": readable_name(testcase)})
     return _emit(testcase, args.output)
 
 
@@ -591,6 +606,8 @@ def _run_extend(args: argparse.Namespace) -> int:
         _intersection(old, args),
     )
     new = extension.testcase
+    name = args.name or readable_name(new, name_stem(old.name))
+    new = new.model_copy(update={"name": name})
     provenance = new.provenance or {}
     violated = ", ".join(
         f"{v['car']} ({v['rule']})" for v in provenance.get("complexity_certificate_violates", [])
@@ -607,11 +624,16 @@ def _run_extend(args: argparse.Namespace) -> int:
 def _run_example(args: argparse.Namespace) -> int:
     example = EXAMPLES[args.name]
     print(f"{example.name}: {example.about}", file=sys.stderr)
+    levels = StepProgress(len(example.steps) + 1, "level")
 
     def keep(testcase: TestCase) -> None:  # each level is written as soon as it is verified
         print(write_testcase(testcase, args.output), flush=True)
+        levels.step(f"{testcase.name} written")
 
-    run_example(example, args.seed, args.budget, _progress(time.monotonic()), keep)
+    try:
+        run_example(example, args.seed, args.budget, levels.note, keep)
+    finally:
+        levels.close()
     return EXIT_OK
 
 
@@ -737,6 +759,14 @@ class StepProgress:
             print(f"[{elapsed:6.2f} s] {self.done}/{self.total} {message}", file=sys.stderr,
                   flush=True)  # fmt: skip
 
+    def note(self, message: str) -> None:
+        """Something said between steps: beside the bar on a terminal, else its own line."""
+        if self.bar is not None:
+            self.bar.set_postfix_str(message)
+        else:
+            elapsed = time.monotonic() - self.started
+            print(f"[{elapsed:6.2f} s] {message}", file=sys.stderr, flush=True)
+
     def close(self) -> None:
         if self.bar is not None:
             self.bar.close()
@@ -746,7 +776,11 @@ def _run_export(args: argparse.Namespace) -> int:
     testcase = read_testcase(args.testcase)
     for path in export_bundle(testcase, args.output, _intersection(testcase, args)):
         print(path)
-    print(f"run it: cd {args.output} && sumo -c testcase.sumocfg", file=sys.stderr)
+    print(
+        f"run it: cd {args.output} && python run.py --controller sumo "
+        "(or plain sumo: sumo -c testcase.sumocfg; see its README.md)",
+        file=sys.stderr,
+    )
     return EXIT_OK
 
 

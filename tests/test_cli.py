@@ -12,6 +12,7 @@ import pytest
 
 from service import cli
 from service.core import errors
+from service.core.testcase import read_testcase
 from service.examples import EXAMPLES
 from tests.conftest import TOWN05, TOWN07
 
@@ -152,11 +153,11 @@ def test_check_fails_a_drive_through_the_stop_sign(
     junit = tmp_path / "verdict.xml"
     result = run("check", str(testcase), "--ego", str(trajectory), "--junit", str(junit))
     assert result.returncode == 1, result.stderr
-    assert result.stdout.startswith("FAIL  4way-stop C S2C_1:C2W_1 / drive")
+    assert result.stdout.startswith("FAIL  4way-stop C S2C_1:C2W_1 level 0 / drive")
     assert "violated CVC 22450(a) (stopAtSign)" in result.stdout
     xml = junit.read_text()
     assert 'failures="1"' in xml and "22450(a)" in xml
-    assert 'name="4way-stop C S2C_1:C2W_1 / drive"' in xml
+    assert 'name="4way-stop C S2C_1:C2W_1 level 0 / drive"' in xml
 
 
 def test_check_json_verdict(left_turn_files: tuple[Path, Path]) -> None:
@@ -388,8 +389,8 @@ def test_export_writes_a_bundle(tmp_path: Path) -> None:
     result = run("export", str(testcase), "-o", str(tmp_path / "bundle"))
     assert result.returncode == 0, result.stderr
     written = {Path(line).name for line in result.stdout.splitlines()}
-    assert "testcase.sumocfg" in written and "testcase.fcd.xml" in written
-    assert "sumo -c testcase.sumocfg" in result.stderr
+    assert {"testcase.sumocfg", "testcase.fcd.xml", "run.py", "testcase.run.json"} <= written
+    assert "python run.py --controller sumo" in result.stderr
 
 
 def test_plot_draws_a_testcase_and_an_evaluation(tmp_path: Path) -> None:
@@ -418,3 +419,22 @@ def test_plot_animates_a_replay(tmp_path: Path) -> None:
     with Image.open(gif) as image:
         assert image.n_frames == 13  # one frame every 0.5 s of 6 s
     assert run("plot", str(testcase), "-o", str(tmp_path / "x.png"), "--animate").returncode == 2
+
+
+def test_cli_testcases_get_readable_default_names(tmp_path: Path) -> None:
+    """Network, junction, ego route and level; an extension renames the level; a name
+    given with --name is kept and the next level continues it."""
+    root, level1, level2 = tmp_path / "root.json", tmp_path / "l1.json", tmp_path / "l2.json"
+    args = ["new", str(TOWN05), "--junction", "396", "--control", "allway_stop"]
+    assert cli.main([*args, "--ego=-44_1:-9_1", "-o", str(root)]) == 0
+    assert read_testcase(root).name == "Town05 396 -44_1:-9_1 level 0"
+    assert cli.main(["extend", str(root), "--add=-8_1:-9_1", "-o", str(level1)]) == 0
+    assert read_testcase(level1).name == "Town05 396 -44_1:-9_1 level 1"
+    assert cli.main(["extend", str(level1), "--add", "45_1:44_1", "--name", "left",
+                     "-o", str(level2)]) == 0  # fmt: skip
+    assert read_testcase(level2).name == "left"
+    named = tmp_path / "named.json"
+    assert cli.main(["new", "t-stop", "--ego", "E2C_0:C2S_0", "--name", "t left",
+                     "-o", str(named)]) == 0  # fmt: skip
+    assert cli.main(["extend", str(named), "--add", "W2C_0:C2E_0", "-o", str(level1)]) == 0
+    assert read_testcase(level1).name == "t left level 1"

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import re
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -229,6 +229,26 @@ def dump_testcase(testcase: TestCase) -> str:
         json.dumps(testcase.model_dump(mode="json", by_alias=True, exclude_none=True), indent=2)
         + "\n"
     )
+
+
+def testcase_level(testcase: TestCase) -> int:
+    """0 for an ego-only test-case, else the level of the extension that added its last cars."""
+    return max((n.added_in for n in testcase.nonegos), default=0)
+
+
+def readable_name(testcase: TestCase, stem: str = "") -> str:
+    """A name a test engineer reads at a glance: ``STEM level N``, or without a stem the
+    network's short name (a bundled name, or the file name without ``.net.xml``), the
+    junction, the ego's route and the level: ``Town05 396 -44_1:-9_1 level 2``."""
+    if not stem:
+        network = PurePosixPath(testcase.network.ref).name.removesuffix(".xml")
+        stem = f"{network.removesuffix('.net')} {testcase.junction} {testcase.ego.route.id}"
+    return f"{stem} level {testcase_level(testcase)}"
+
+
+def name_stem(name: str) -> str:
+    """``name`` without a trailing ``level N`` (so the next level renames it, not nests)."""
+    return re.sub(r" level \d+$", "", name)
 
 
 # Where this process has read a non-bundled network from, by content hash: a test-case
