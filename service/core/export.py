@@ -20,7 +20,7 @@ from xml.sax.saxutils import quoteattr
 
 from service.core import sumo_run
 from service.core.controllers import BUILT_IN
-from service.core.network import Intersection
+from service.core.network import Intersection, bundled_networks
 from service.core.poses import centre_to_front
 from service.core.replay import (
     ROUTES_FILE,
@@ -87,8 +87,18 @@ def sumocfg_text(testcase: TestCase, network: str) -> str:
 """
 
 
-def readme_text(testcase: TestCase, cars: Sequence[Departure] = ()) -> str:
+def readme_text(
+    testcase: TestCase, cars: Sequence[Departure] = (), networks: Sequence[str] = ()
+) -> str:
     label = testcase.name or NAME
+    if len(networks) > 1:
+        network = (
+            f"the network as SUMO runs it ({networks[0]}, junction {testcase.junction} of "
+            f"type {testcase.control}) and as the test-case names it ({networks[1]}, which "
+            "scengen commands find next to testcase.json)"
+        )
+    else:
+        network = f"the network ({networks[0]})" if networks else "the network"
     controllers = ", ".join(f"`{name}`" for name in BUILT_IN)
     return f"""# {label}: SUMO bundle
 
@@ -129,7 +139,7 @@ plan: time step, every car's start and distance per step, the certificates, the
 controllers), {TYPES_FILE} (vehicle types: the cars' sizes, the ego's driver settings),
 {ROUTES_FILE} (every car's route, depart lane, position and speed), {NAME}.rou.xml (the
 ego's route and start), {NAME}.fcd.xml (the non-egos' trajectories), {NAME}.sumocfg, and
-the network.
+{network}.
 """ + _inside_note(cars)
 
 
@@ -160,20 +170,24 @@ def export_bundle(
     """Write the bundle into ``folder`` (created if missing); the files written."""
     junction = intersection or load_testcase_intersection(testcase)
     folder.mkdir(parents=True, exist_ok=True)
-    network = junction.network_file.name
-    shutil.copyfile(junction.network_file, folder / network)
+    network = junction.network_file.name  # what SUMO runs: rebuilt when overridden
+    networks = {network: junction.network_file}
+    if testcase.network.ref not in bundled_networks():  # what scengen finds by the test-case
+        networks.setdefault(Path(testcase.network.ref).name, junction.source_file)
+    for name, source in networks.items():
+        shutil.copyfile(source, folder / name)
     shutil.copyfile(sumo_run.__file__, folder / "run.py")
     ego, others = departures(testcase, junction)
     # the runner's files: types (also the .sumocfg's: the fcd-replay device reads its file,
     # and needs the non-egos' types, before the route files are loaded), every car's route
-    written = [folder / network, folder / "run.py"]
+    written = [*(folder / name for name in networks), folder / "run.py"]
     written += [folder / name for name in write_run_files(testcase, junction, folder, network)]
     files = {
         f"{NAME}.rou.xml": xml_file("routes", vehicle_lines([ego])),
         f"{NAME}.fcd.xml": fcd_text(testcase, junction),
         f"{NAME}.sumocfg": sumocfg_text(testcase, network),
         f"{NAME}.json": dump_testcase(testcase),
-        "README.md": readme_text(testcase, [ego, *others]),
+        "README.md": readme_text(testcase, [ego, *others], list(networks)),
     }
     for name, text in files.items():
         (folder / name).write_text(text)

@@ -153,7 +153,11 @@ def plan_drive(
     to_exit = start_distance + sum(net.getLane(v).getLength() for v in chain)
     ahead = to_exit + connection.getToLane().getLength()
     lanes.append(connection.getToLane())
-    needed = speed * (duration + timestep) + 2 * length
+    leave = to_exit + length + CLEARANCE
+    # on far enough for the whole drive, and at least until the car has left the junction
+    # (a far start covers the drive's length before the junction: short exit lanes still
+    # need the lanes after them)
+    needed = max(speed * (duration + timestep) + 2 * length, leave)
     while ahead < needed:
         outgoing = straightest_successor(net, lanes[-1], junction)
         if outgoing is None:
@@ -161,7 +165,6 @@ def plan_drive(
         ahead += sum(net.getLane(v).getLength() for v in via_chain(net, outgoing))
         lanes.append(outgoing.getToLane())
         ahead += lanes[-1].getLength()
-    leave = to_exit + length + CLEARANCE
     depart_pos = behind - start_distance
     # SUMO cannot insert a car on an internal lane: when the start lies inside a junction
     # upstream, depart just before it and drop the extra metres afterwards.

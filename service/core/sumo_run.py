@@ -120,8 +120,9 @@ def drive(
             for car, (lane, position) in moved.items():  # onto its start in the junction
                 if car in present:
                     traci.vehicle.moveTo(car, lane, position)
-            if EGO not in present:
-                raise RunFailed("SUMO could not insert the ego at its start")
+            missing = [car["id"] for car in (ego, *plan["nonegos"]) if car["id"] not in present]
+            if missing:
+                raise RunFailed(f"SUMO could not insert {', '.join(missing)} at the start")
             odometer = traci.vehicle.getDistance(EGO)
             for car in present:
                 traci.vehicle.setLaneChangeMode(car, 0)

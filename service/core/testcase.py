@@ -290,6 +290,10 @@ def find_network_file(
         candidates.append((Path(ref), "as named"))
         if digest in _READ_FROM:
             candidates.append((_READ_FROM[digest], "read before by this process"))
+    unique: dict[Path, tuple[Path, str]] = {}
+    for path, how in candidates:  # next to the test-case and as named can be one place
+        unique.setdefault(path.resolve(), (path, how))
+    candidates = list(unique.values())
     present = [(path, how) for path, how in candidates if path.is_file()]
     for path, how in present:
         if file_sha256(path) == digest:
@@ -300,7 +304,7 @@ def find_network_file(
             f"network.sha256: {ref} has changed since the test-case was made ({path}: "
             f"expected {digest[:12]}..., found {file_sha256(path)[:12]}...)"
         )
-    looked = ", ".join(str(path) for path, _ in candidates)
+    looked = ", ".join(f"{path.resolve()} ({how})" for path, how in candidates)
     raise UnknownNetwork(
         f"network {ref!r} (sha256 {digest[:12]}...) is not bundled and is not at {looked}: "
         "pass its file with --network FILE",

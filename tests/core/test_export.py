@@ -18,7 +18,7 @@ from service.core.check import testcase_label as label_of
 from service.core.controllers import BUILT_IN
 from service.core.export import export_bundle
 from service.core.generate import extend_testcase
-from service.core.network import Intersection
+from service.core.network import Intersection, bundled_networks
 from service.core.poses import centre_to_front
 from service.core.replay import Evaluation, evaluate
 from service.core.sumo_binaries import sumo_binary
@@ -170,6 +170,15 @@ def test_the_bundle_runner_reproduces_the_evaluation(
         for ours, theirs in zip(bundle.ego_events, service.ego_events, strict=True):
             assert ours.t == pytest.approx(theirs.t, abs=testcase.timestep), case
         outcomes.add((controller, service.passed))
+        if controller == "sumo" and testcase.network.ref not in bundled_networks():
+            # a new shell in the bundle finds the network the test-case names, next to it
+            judged = subprocess.run(
+                [sys.executable, "-m", "service", "check", "testcase.json",
+                 "--ego", "sumo.fcd.xml", "--controller", "sumo"],
+                cwd=folder, capture_output=True, text=True, timeout=120,
+            )  # fmt: skip
+            assert judged.returncode == (0 if service.passed else 1), judged.stderr
+            assert "(next to the test-case)" in judged.stderr
     # the comparison covers passes and failures of SUMO's drivers and of the certificates
     assert {("sumo", True), ("sumo-rolling-stop", False), ("certificate:complexity", False)} <= (
         outcomes

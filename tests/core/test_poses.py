@@ -132,3 +132,16 @@ def test_several_drives_in_one_sumo_process(four_way: Intersection) -> None:
 def test_start_beyond_the_road_is_invalid_input(four_way: Intersection) -> None:
     with pytest.raises(InvalidInput, match="longer than the road before fork 'S2C_1'"):
         generate_poses(four_way, [(four_way.route("S2C_1:C2W_1"), 500.0)], 8.0, 20.0, 0.1)
+
+
+def test_a_start_too_far_to_reach_the_junction_is_not_an_exit_error(
+    town07_y: Intersection,
+) -> None:
+    """Exit 35_0 is 0.7 m long. A start farther than the drive goes (200 m at 5 m/s for
+    20 s) used to be refused with "the road after exit '35_0' ends 0.7 m after the
+    junction" (the lanes after the exit were only added up to the drive's length, short
+    of where the car leaves the junction); Step 1 now drives on until it has left it."""
+    route = town07_y.route("-40_0:35_0")
+    track = generate_poses(town07_y, [(route, 200.0)], 5.0, 20.0, 0.1)[0]
+    assert track.samples[-1].distance > 205.0
+    assert not town07_y.polygon.intersects(Point(track.samples[-1].x, track.samples[-1].y))

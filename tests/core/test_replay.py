@@ -186,3 +186,19 @@ def test_a_start_inside_an_upstream_junction_is_replayed_and_exported(
     assert {v.other for v in harder.violations} == {"car1"}
     export_bundle(extended, tmp_path, intersection)
     assert "moveTo('ego'" in (tmp_path / "README.md").read_text()
+
+
+def test_a_car_starting_fast_after_an_upstream_junction_is_inserted_at_once() -> None:
+    """Town07 358 with the ego 60 m out: the new car starts on lane 43_0 at about 6 m/s just
+    after a junction where it must yield. SUMO's insertion checks would hold it back
+    ("unpriorised junction too close") and the replay would lose it; the test-case fixes
+    every start, so the checks are off and every car is on the map from the first step
+    (the runner fails the replay when one is not)."""
+    start = new_testcase(TOWN07, "-40_0:35_0", junction="358", control="right_before_left",
+                         start_distance=60.0, duration=25.0)  # fmt: skip
+    extended = extend_testcase(start, ["41_0:35_0"], seed=0, budget=120).testcase
+    intersection = load_testcase_intersection(extended)
+    for controller in ("sumo", "certificate:solvability"):
+        evaluation = evaluate(extended, controller, intersection)
+        assert evaluation.error is None and not evaluation.verdict.errors
+        assert evaluation.verdict.passed, evaluation.verdict.reasons
