@@ -31,7 +31,12 @@ from service.core.replay import (
     write_run_files,
     xml_file,
 )
-from service.core.testcase import TestCase, dump_testcase, load_testcase_intersection
+from service.core.testcase import (
+    TestCase,
+    dump_testcase,
+    load_testcase_intersection,
+    local_network_name,
+)
 
 NAME = "testcase"
 
@@ -173,7 +178,7 @@ def export_bundle(
     network = junction.network_file.name  # what SUMO runs: rebuilt when overridden
     networks = {network: junction.network_file}
     if testcase.network.ref not in bundled_networks():  # what scengen finds by the test-case
-        networks.setdefault(Path(testcase.network.ref).name, junction.source_file)
+        networks.setdefault(local_network_name(testcase.network.ref), junction.source_file)
     for name, source in networks.items():
         shutil.copyfile(source, folder / name)
     shutil.copyfile(sumo_run.__file__, folder / "run.py")

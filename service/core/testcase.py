@@ -271,6 +271,14 @@ def network_ref(network: str | Path) -> NetworkRef:
     return NetworkRef(ref=path.name if given.is_absolute() else given.as_posix(), sha256=digest)
 
 
+def local_network_name(ref: str) -> str:
+    """The file name a network has next to a test-case that names it ``ref`` (where
+    ``scengen export`` puts it): the reference's file name; a server's network id gets the
+    ``.net.xml`` suffix."""
+    name = PurePosixPath(ref).name
+    return name if name.endswith(".xml") else f"{name}.net.xml"
+
+
 def find_network_file(
     testcase: TestCase, network_file: Path | None = None, near: Path | None = None
 ) -> tuple[Path, str]:
@@ -286,7 +294,7 @@ def find_network_file(
     else:
         candidates = []
         if near is not None:
-            candidates.append((near / Path(ref).name, "next to the test-case"))
+            candidates.append((near / local_network_name(ref), "next to the test-case"))
         candidates.append((Path(ref), "as named"))
         if digest in _READ_FROM:
             candidates.append((_READ_FROM[digest], "read before by this process"))
