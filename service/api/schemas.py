@@ -8,10 +8,17 @@ from datetime import datetime
 from functools import lru_cache
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from service.core.network import ControlType
-from service.core.testcase import Params
+from service.core.testcase import (
+    MAX_DURATION,
+    MAX_NAME_LENGTH,
+    MAX_TIMESTEP,
+    MIN_TIMESTEP,
+    Params,
+    check_name,
+)
 
 MAX_SEED = 2**32 - 1  # clingo's and z3's seeds are unsigned 32-bit
 EXAMPLE_NETWORK = "4way-stop"
@@ -32,8 +39,11 @@ def example_testcase() -> dict[str, Any]:
     return dict(json.loads(example_document()))
 
 
+MAX_OFFSET = 10**12  # pagination offsets: far beyond any store, well inside SQL's integers
+
+
 class _Body(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class Links(BaseModel):
@@ -76,10 +86,15 @@ class TestCaseCreate(_Body):
     )
     start_distance: float = Field(30.0, ge=0, description="ego front before the stop line (m)")
     start_speed: float = Field(8.0, ge=0, description="ego speed at t = 0 (m/s)")
-    duration: float = Field(20.0, gt=0, le=600, description="length of the test (s)")
-    timestep: float = Field(0.1, gt=0, le=1, description="sample spacing (s)")
+    duration: float = Field(20.0, gt=0, le=MAX_DURATION, description="length of the test (s)")
+    timestep: float = Field(0.1, ge=MIN_TIMESTEP, le=MAX_TIMESTEP, description="sample spacing (s)")
     params: Params | None = Field(None, description="rule and speed parameters")
-    name: str = Field("", max_length=200)
+    name: str = Field("", max_length=MAX_NAME_LENGTH, description="printable characters")
+
+    @field_validator("name")
+    @classmethod
+    def _printable_name(cls, value: str) -> str:
+        return check_name(value)
 
 
 class TestCaseSummary(BaseModel):

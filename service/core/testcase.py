@@ -36,12 +36,30 @@ from service.core.poses import plan_drive
 SCHEMA = "scengen/testcase/1"
 RESERVED_IDS = frozenset({"ego", "illegal"})
 
+# Bounds on the work one test-case can ask for (every sample is simulated, stored, checked).
+MIN_TIMESTEP = 0.001  # s, SUMO's smallest step length
+MAX_TIMESTEP = 1.0  # s
+MAX_DURATION = 600.0  # s
+MAX_SAMPLES = 60_000  # per car: 600 s at 0.01 s
+MAX_NAME_LENGTH = 200
+
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # no NaN or infinity anywhere: such a number is bad input, never a solver's crash later
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+def check_name(value: str) -> str:
+    """A test-case's name: printable (it goes into JUnit XML, READMEs, file listings)."""
+    bad = next((c for c in value if ord(c) < 32 or 127 <= ord(c) < 160), None)
+    if bad is not None:
+        raise ValueError(
+            f"must not contain control characters (U+{ord(bad):04X} at position {value.index(bad)})"
+        )
+    return value
 
 
 class Params(_Model):
@@ -149,20 +167,27 @@ class TestCase(_Model):
     __test__ = False  # not a pytest class
 
     schema_: Literal["scengen/testcase/1"] = Field("scengen/testcase/1", alias="schema")
-    name: str = ""
+    name: str = Field("", max_length=MAX_NAME_LENGTH)
     network: NetworkRef
     junction: str = Field(min_length=1)
     control: Literal["allway_stop", "priority_stop", "right_before_left"]
     rules: str
-    timestep: Positive = 0.1
-    duration: Positive = 20.0
+    timestep: float = Field(0.1, ge=MIN_TIMESTEP, le=MAX_TIMESTEP)
+    duration: float = Field(20.0, gt=0, le=MAX_DURATION)
     params: Params = Params()
     ego: Ego
     nonegos: list[NonEgo] = []
     certificates: Certificates | None = None
     provenance: dict[str, Any] | None = None
 
-    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, populate_by_name=True, allow_inf_nan=False
+    )
+
+    @field_validator("name")
+    @classmethod
+    def _printable_name(cls, value: str) -> str:
+        return check_name(value)
 
     @model_validator(mode="after")
     def _consistent(self) -> TestCase:
@@ -173,6 +198,12 @@ class TestCase(_Model):
             )
         if self.duration < self.timestep:
             raise ValueError("duration must be at least one time step")
+        if self.duration / self.timestep > MAX_SAMPLES:
+            raise ValueError(
+                f"duration {self.duration:g} s at time step {self.timestep:g} s is "
+                f"{self.duration / self.timestep:.0f} samples per car; at most {MAX_SAMPLES} "
+                "(a longer time step or a shorter duration)"
+            )
         ids = [n.id for n in self.nonegos]
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         if duplicates:

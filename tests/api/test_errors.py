@@ -13,6 +13,7 @@ from service.api import create_app
 from service.api.problems import ALL_TYPES, DOMAIN, problem_type_of
 from service.api.schemas import EXAMPLE_EGO, EXAMPLE_NEW_ROUTE, example_testcase
 from service.core import errors
+from service.core.testcase import new_testcase
 from service.settings import Settings
 
 TOKEN = "s3cret"
@@ -319,3 +320,46 @@ def test_without_the_token_no_body_is_read(client: TestClient) -> None:
     assert_problem(malformed, 401, "unauthorized")
     huge = client.post("/networks", files={"file": ("x.net.xml", b" " * (2 * 1024 * 1024))})
     assert_problem(huge, 401, "unauthorized")
+
+
+HUGE = "99999999999999999999"
+
+
+@pytest.mark.parametrize("path", ["/testcases", "/evaluations", "/jobs"])
+def test_a_huge_offset_is_refused(client: TestClient, path: str) -> None:
+    assert_problem(client.get(f"{path}?offset={HUGE}"), 422, "invalid-request", "query.offset")
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        ('"timestep": 1e-6, "duration": 600', "timestep"),  # 600 million samples
+        ('"timestep": 5e-324', "timestep"),
+        ('"duration": 1e6', "duration"),
+        ('"params": {"v_max": Infinity}', "params.v_max"),
+        ('"start_speed": NaN', "start_speed"),
+        ('"name": "a\\u0000b"', "name"),
+    ],
+)
+def test_numbers_and_names_are_checked_at_the_edge(
+    client: TestClient, body: str, field: str
+) -> None:
+    """Refused with 422 naming the field, before any worker runs (they used to reach SUMO
+    or z3 and come back as 502 worker-failed, or pin a worker at gigabytes)."""
+    reply = client.post(
+        "/testcases",
+        content='{"network": "4way-stop", "ego_route": "E2C_1:C2S_1", ' + body + "}",
+        headers={"content-type": "application/json", **AUTH},
+    )
+    assert_problem(reply, 422, "invalid-request", field)
+
+
+def test_an_inline_testcase_has_the_caps_of_a_created_one(client: TestClient) -> None:
+    document = new_testcase("4way-stop", "E2C_1:C2S_1").model_dump(mode="json", by_alias=True)
+    for change, words in (({"duration": 1e6}, "duration"), ({"timestep": 1e-6}, "timestep"),
+                          ({"name": "a\u0000b"}, "control characters")):  # fmt: skip
+        reply = client.post(
+            "/extend", json={"testcase": {**document, **change}, "routes": ["S2C_1:C2N_1"]},
+            headers=AUTH,
+        )  # fmt: skip
+        assert_problem(reply, 422, "invalid-testcase", words)

@@ -123,6 +123,17 @@ def test_new_testcase_rejects_start_faster_than_the_limit() -> None:
             lambda d: d["nonegos"].append(_nonego(samples=1)),
             r"nonegos\.0\.trajectory: .*at least 2",
         ),
+        # bounds on the work a test-case asks for, and numbers that are numbers
+        (lambda d: d.update(timestep=1e-6), r"timestep: .*greater than or equal to 0\.001"),
+        (lambda d: d.update(timestep=5e-324), r"timestep: .*greater than or equal to 0\.001"),
+        (lambda d: d.update(duration=1e6), r"duration: .*less than or equal to 600"),
+        (lambda d: d.update(timestep=0.001, duration=600), r"600000 samples per car; at most"),
+        (lambda d: d.update(duration=float("inf")), r"duration: Input should be a finite number"),
+        (lambda d: d.update(duration=float("nan")), r"duration: Input should be a finite number"),
+        (lambda d: d["params"].update(v_max=float("inf")), r"params\.v_max: .*finite number"),
+        (lambda d: d["ego"]["start"].update(distance=float("nan")), r"ego\.start\.distance"),
+        (lambda d: d.update(name="a\u0000b"), r"name: must not contain control .*U\+0000"),
+        (lambda d: d.update(name="x" * 201), r"name: .*at most 200 characters"),
     ],
 )
 def test_validation_names_the_bad_field(ego_only: TestCase, change: Any, message: str) -> None:

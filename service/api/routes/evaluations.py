@@ -13,6 +13,7 @@ from service.api.media import wants_junit
 from service.api.problems import Problem
 from service.api.routes.testcases import check_controller
 from service.api.schemas import (
+    MAX_OFFSET,
     Controller,
     EvaluationCreate,
     EvaluationPage,
@@ -125,7 +126,7 @@ async def list_evaluations(
     state: State,
     testcase: Annotated[str | None, Query(description="only of this test-case")] = None,
     limit: Annotated[int, Query(ge=1, le=200)] = 50,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET)] = 0,
 ) -> EvaluationPage:
     """List stored evaluations, newest first."""
     page = state.store.list_evaluations(testcase, limit, offset)

@@ -11,7 +11,7 @@ from fastapi import APIRouter, Header, Query, Response, status
 from fastapi.responses import Response as PlainResponse
 
 from service.api.problems import Problem
-from service.api.schemas import JobItemPublic, JobPage, JobPublic, Links
+from service.api.schemas import MAX_OFFSET, JobItemPublic, JobPage, JobPublic, Links
 from service.api.state import AppState, State, Token, json_answer
 from service.core.verdict import Verdict, junit_report
 from service.jobs import tasks
@@ -117,7 +117,7 @@ async def list_jobs(
         str | None, Query(alias="state", description=f"one of {', '.join(STATES)}")
     ] = None,
     limit: Annotated[int, Query(ge=1, le=200)] = 20,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET)] = 0,
 ) -> JobPage:
     """List jobs, newest first."""
     if job_state is not None and job_state not in STATES:

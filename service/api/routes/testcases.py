@@ -13,6 +13,7 @@ from fastapi.responses import JSONResponse
 from service.api.media import IMAGE_RESPONSES, cached, picture_format
 from service.api.problems import Problem
 from service.api.schemas import (
+    MAX_OFFSET,
     Lineage,
     Links,
     TestCaseCreate,
@@ -107,7 +108,7 @@ async def list_testcases(
     parent: Annotated[str | None, Query(description="only extensions of this test-case")] = None,
     roots: Annotated[bool, Query(description="only test-cases without a parent")] = False,
     limit: Annotated[int, Query(ge=1, le=200)] = 50,
-    offset: Annotated[int, Query(ge=0)] = 0,
+    offset: Annotated[int, Query(ge=0, le=MAX_OFFSET)] = 0,
 ) -> TestCasePage:
     """List stored test-cases, newest first."""
     page = state.store.list_testcases(network, parent, roots, limit, offset)
