@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import copy
-import secrets
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
 from contextlib import asynccontextmanager
@@ -28,7 +27,7 @@ from service.api.schemas import (
     example_document,
     example_testcase,
 )
-from service.api.state import AppState, Metrics
+from service.api.state import AppState, Metrics, token_matches
 from service.jobs.dispatch import make_dispatcher
 from service.jobs.executor import LocalExecutor
 from service.settings import Settings, get_settings
@@ -145,7 +144,7 @@ class BodyLimit:
             return
         headers = dict(scope.get("headers", []))
         writes = scope.get("method") in ("POST", "PUT", "PATCH", "DELETE")
-        if writes and self.token and not _bearer_matches(headers, self.token):
+        if writes and self.token and not token_matches(scope.get("headers", []), self.token):
             await self.app(scope, _no_body, send)  # the route's own check answers 401
             return
         declared = headers.get(b"content-length")
@@ -192,11 +191,6 @@ class BodyLimit:
             scope.get("path", ""),
         )
         await response(scope, receive, send)
-
-
-def _bearer_matches(headers: dict[bytes, bytes], token: str) -> bool:
-    scheme, _, given = headers.get(b"authorization", b"").decode(errors="replace").partition(" ")
-    return scheme.lower() == "bearer" and secrets.compare_digest(given.encode(), token.encode())
 
 
 async def _no_body() -> dict[str, Any]:

@@ -7,9 +7,11 @@ their message as ``detail`` and their context (step, routes, seed, ...) as extra
 
 from __future__ import annotations
 
+import functools
 import logging
 import re
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import sqlalchemy as sa
@@ -199,11 +201,14 @@ def install_problem_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def invalid_request(request: Request, error: RequestValidationError) -> JSONResponse:
-        found = [_describe_validation(item) for item in error.errors()]
-        malformed = [item for item in error.errors() if item.get("type") == "json_invalid"]
+        items = error.errors()
+        malformed = [item for item in items if item.get("type") == "json_invalid"]
         if malformed:
             detail = f"the body is not valid JSON: {malformed[0].get('ctx', {}).get('error', '')}"
             return problem_response(HTTP[400], detail.rstrip(": "), request.url.path)
+        found = [_describe_validation(item) for item in items[:MAX_REPORTED_ERRORS]]
+        if len(items) > MAX_REPORTED_ERRORS:  # a million bad keys: not a 97 MB answer
+            found.append(f"... and {len(items) - MAX_REPORTED_ERRORS} more errors")
         return problem_response(HTTP[422], "; ".join(found), request.url.path, errors=found)
 
     @app.exception_handler(StarletteHTTPException)
@@ -251,9 +256,24 @@ def _jsonable(context: dict[str, object]) -> dict[str, Any]:
     }
 
 
-_SERVER_PATH = re.compile(r"(?:/[^\s/'\"(),:]+)+/([^\s/'\"(),:]+)")
+MAX_REPORTED_ERRORS = 20  # validation errors listed in one answer
+
+# an absolute path of two or more parts, not inside a relative one ("../../etc", "a/b")
+_ABSOLUTE_PATH = re.compile(r"(?<![\w.])(/[^\s/'\"(),:]+)(?:/[^\s/'\"(),:]+)*/([^\s/'\"(),:]+)")
+
+
+@functools.lru_cache(maxsize=64)
+def _on_this_machine(top: str) -> bool:
+    """Whether ``top`` ("/tmp", "/work") is a folder at the root of this machine."""
+    return Path(top).is_dir()
 
 
 def _scrub(text: str) -> str:
-    """Server-side paths mean nothing to a client (and tell too much): keep the file name."""
-    return _SERVER_PATH.sub(r"\1", text)
+    """Server-side paths mean nothing to a client (and tell too much): keep the file name.
+    Only paths that start in a folder of this machine's root count, so that what a client
+    sent is echoed as it was (API paths such as /networks/ID/junctions, relative paths)."""
+
+    def scrubbed(match: re.Match[str]) -> str:
+        return match.group(2) if _on_this_machine(match.group(1)) else match.group(0)
+
+    return _ABSOLUTE_PATH.sub(scrubbed, text)

@@ -23,6 +23,8 @@ from service.core.network import ControlType
 from service.jobs import tasks
 from service.store import NetworkRecord, network_id, safe_filename
 
+MAX_ID_LENGTH = 1000  # a junction id in a path
+
 router = APIRouter(prefix="/networks", tags=["networks"])
 CONTROLS = [c.value for c in ControlType]
 CONTROLS_FIELD = (
@@ -214,11 +216,17 @@ async def plot_junction(
 async def _junction_work(
     state: State, record: NetworkRecord, junction: str, name: str, function: Any, args: Any
 ) -> Any:
-    if "/" in junction or junction in ("", ".", ".."):
-        raise UnknownJunction(f"junction {junction!r} is not a junction id")
+    if len(junction) > MAX_ID_LENGTH or any(ord(c) < 32 for c in junction) or not junction:
+        raise UnknownJunction(
+            f"junction {junction[:80]!r}{'...' if len(junction) > 80 else ''} is not a "
+            f"junction id (ids are 1 to {MAX_ID_LENGTH} printable characters); "
+            f"GET /networks/{record.id}/junctions lists them"
+        )
+    # the cache folder is named by a hash of the id: no client-chosen string becomes a path
+    folder = hashlib.sha256(junction.encode()).hexdigest()[:16]
     return await cached(
         state,
-        f"networks/{record.id}/{junction}/{name}",
+        f"networks/{record.id}/junction-{folder}/{name}",
         lambda: state.run("junction", function, args, state.settings.work_budget, time.monotonic()),
         json_cache=name.endswith(".json"),
     )
@@ -234,6 +242,8 @@ def _parse_controls(text: str) -> dict[str, str]:
         value = json.loads(text or "{}")
     except json.JSONDecodeError as error:
         raise Problem(400, f"controls is not valid JSON: {error}") from None
+    except RecursionError:
+        raise Problem(400, "controls is nested too deeply to be junction -> control") from None
     if not isinstance(value, dict) or not all(
         isinstance(k, str) and isinstance(v, str) for k, v in value.items()
     ):
