@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import copy
+import shutil
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
 from contextlib import asynccontextmanager
@@ -58,6 +60,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         chosen.data_dir.mkdir(parents=True, exist_ok=True)
+        remove_stale_uploads(chosen.cache_dir / "uploads", chosen.work_budget)
         store = Store(chosen.database, chosen.cache_dir)
         executor = LocalExecutor(chosen.workers)
         metrics = Metrics()
@@ -191,6 +194,22 @@ class BodyLimit:
             scope.get("path", ""),
         )
         await response(scope, receive, send)
+
+
+def remove_stale_uploads(folder: Path, budget: float) -> list[Path]:
+    """Staged uploads left by a server killed while it checked them (kill -9 runs no
+    cleanup): those older than an upload check may take. Younger ones may belong to
+    another server on the same data directory. The folders removed."""
+    removed: list[Path] = []
+    if not folder.is_dir():
+        return removed
+    cutoff = time.time() - budget - 60.0
+    for staged in folder.iterdir():
+        with contextlib.suppress(OSError):
+            if staged.stat().st_mtime < cutoff:
+                shutil.rmtree(staged)
+                removed.append(staged)
+    return removed
 
 
 async def _no_body() -> dict[str, Any]:

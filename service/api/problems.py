@@ -104,6 +104,12 @@ DOMAIN: dict[type[errors.ScengenError], ProblemType] = {
     errors.SimulationFailed: _type(
         "simulation-failed", 422, "Simulation failed", "SUMO refused or broke off a drive."
     ),
+    errors.MemoryExceeded: _type(
+        "memory-exceeded",
+        504,
+        "Memory budget exceeded",
+        "The work needed more memory than a worker may use (SCENGEN_WORKER_MEMORY_MB).",
+    ),
     errors.BudgetExceeded: _type(
         "budget-exceeded",
         504,
@@ -217,9 +223,16 @@ def install_problem_handlers(app: FastAPI) -> None:
         detail = str(error.detail) if error.detail else kind.description
         if error.status_code == 404 and detail == "Not Found":
             detail = f"no route {request.url.path}; the API is listed at /docs"
-        if error.status_code == 405 and detail == "Method Not Allowed":
-            detail = f"{request.method} is not a method of {request.url.path}"
-        return problem_response(kind, detail, request.url.path, dict(error.headers or {}))
+        headers = dict(error.headers or {})
+        if error.status_code == 405:
+            allowed = _allowed_methods(request)
+            if allowed:  # Starlette names only the first route's methods
+                headers["Allow"] = ", ".join(allowed)
+            if detail == "Method Not Allowed":
+                detail = f"{request.method} is not a method of {request.url.path}"
+                if allowed:
+                    detail += f"; it has {', '.join(allowed)}"
+        return problem_response(kind, detail, request.url.path, headers)
 
     @app.exception_handler(sa.exc.DataError)
     @app.exception_handler(UnicodeError)
@@ -241,6 +254,21 @@ def install_problem_handlers(app: FastAPI) -> None:
         LOG.exception("internal error on %s %s", request.method, request.url.path)
         detail = f"internal error ({type(error).__name__}); the server's log has the details"
         return problem_response(HTTP[500], detail, request.url.path)
+
+
+def _allowed_methods(request: Request) -> list[str]:
+    """Every method the API documents at this path (Starlette's 405 names only the first
+    matching route's methods)."""
+    path = request.url.path
+    methods: set[str] = set()
+    for template, operations in request.app.openapi().get("paths", {}).items():
+        pattern = re.sub(r"\\\{[^/]+?\\\}", "[^/]+", re.escape(template))
+        if re.fullmatch(pattern, path):
+            methods |= {m.upper() for m in operations if m in HTTP_METHODS}
+    return sorted(methods)
+
+
+HTTP_METHODS = frozenset({"get", "put", "post", "delete", "patch", "head", "options"})
 
 
 def _describe_validation(item: Any) -> str:

@@ -27,7 +27,10 @@ import traceback
 from collections.abc import Callable
 from typing import Any, TypeVar
 
-from service.core.errors import BudgetExceeded, ScengenError
+from service.core.errors import BudgetExceeded, MemoryExceeded, ScengenError
+
+MEMORY_VARIABLE = "SCENGEN_WORKER_MEMORY_MB"
+DEFAULT_MEMORY_MB = 4096
 
 T = TypeVar("T")
 
@@ -179,14 +182,41 @@ def _answer(request: bytes) -> bytes:
         answer: tuple[str, Any] = ("ok", target(*args))
     except ScengenError as exc:
         answer = ("error", exc)
+    except MemoryError:
+        limit = os.environ.get(MEMORY_VARIABLE, str(DEFAULT_MEMORY_MB))
+        answer = ("error", MemoryExceeded(
+            f"{module}.{name} needed more memory than a worker may use ({limit} MB, "
+            f"{MEMORY_VARIABLE})"
+        ))  # fmt: skip
     except BaseException as exc:  # report anything, the parent decides
         answer = ("crash", f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}")
     return pickle.dumps(answer)
 
 
+def _limit_memory() -> None:
+    """Cap this worker's data segment (heap and private mappings: what a huge allocation
+    takes) at ``SCENGEN_WORKER_MEMORY_MB`` (default 4096; 0: no cap), so that one call that
+    asks for gigabytes fails alone instead of taking the machine's memory."""
+    try:
+        megabytes = int(os.environ.get(MEMORY_VARIABLE, str(DEFAULT_MEMORY_MB)))
+    except ValueError:
+        megabytes = DEFAULT_MEMORY_MB
+    if megabytes <= 0 or not hasattr(os, "fork"):  # POSIX only
+        return
+    import resource
+
+    wanted = megabytes * 1024 * 1024
+    _, hard = resource.getrlimit(resource.RLIMIT_DATA)
+    if hard != resource.RLIM_INFINITY:
+        wanted = min(wanted, hard)
+    with contextlib.suppress(ValueError, OSError):
+        resource.setrlimit(resource.RLIMIT_DATA, (wanted, hard))
+
+
 def _serve() -> None:
     """Child side: read one pickled call from stdin, write the pickled outcome to stdout."""
     _die_with_parent()
+    _limit_memory()
     request = sys.stdin.buffer.read()
     out = sys.stdout.buffer
     sys.stdout = sys.stderr  # anything the call prints must not corrupt the answer
@@ -197,6 +227,7 @@ def _serve() -> None:
 def _serve_many() -> None:
     """Warm child side: answer framed calls from stdin until it closes."""
     _die_with_parent()
+    _limit_memory()
     source, out = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr
     while header := source.read(FRAME.size):

@@ -99,6 +99,10 @@ class BudgetExceeded(ScengenError):
     """Raised when a solver or simulator call runs out of its time budget and is killed."""
 
 
+class MemoryExceeded(BudgetExceeded):
+    """Raised when a call in a worker process needs more memory than the worker's limit."""
+
+
 def choices(values: Iterable[str], limit: int = 30) -> str:
     """A readable, sorted list of valid choices for an error message (long lists are cut)."""
     ordered = sorted(values)

@@ -312,7 +312,11 @@ def test_bad_parameters_and_seeds_are_422_not_worker_failures(client: TestClient
 def test_method_not_allowed_says_which_are(client: TestClient) -> None:
     reply = client.put("/networks")
     body = assert_problem(reply, 405, "method-not-allowed", "PUT")
-    assert "GET" in reply.headers["allow"] and body["status"] == 405
+    assert reply.headers["allow"] == "GET, POST" and body["status"] == 405
+    # every method of the path, not only the first route's (GET said Allow: GET alone)
+    reply = client.put("/testcases/0123456789abcdef")
+    assert_problem(reply, 405, "method-not-allowed", "it has DELETE, GET")
+    assert reply.headers["allow"] == "DELETE, GET"
 
 
 def test_a_browser_gets_evaluations_as_json() -> None:
@@ -415,3 +419,18 @@ def test_a_body_with_many_errors_gets_a_bounded_answer(client: TestClient) -> No
     )
     body = assert_problem(reply, 422, "invalid-request", "params.k0", "... and 4980 more errors")
     assert len(body["errors"]) == 21 and len(reply.content) < 5000
+
+
+def test_uploads_staged_by_a_killed_server_are_removed_at_start(tmp_path: Path) -> None:
+    import os
+
+    from service.api.app import remove_stale_uploads
+
+    uploads = tmp_path / "uploads"
+    old, fresh = uploads / "1", uploads / "2"
+    for folder in (old, fresh):
+        folder.mkdir(parents=True)
+        (folder / "x.net.xml").write_text("<net/>")
+    os.utime(old, (1.0, 1.0))  # staged long ago, by a server that was killed
+    assert remove_stale_uploads(uploads, budget=120.0) == [old]
+    assert not old.exists() and fresh.exists()  # another server may be checking this one

@@ -8,7 +8,7 @@ import time
 import pytest
 
 from service.core.budget import run_with_budget
-from service.core.errors import BudgetExceeded, ScengenError, UnknownNetwork
+from service.core.errors import BudgetExceeded, MemoryExceeded, ScengenError, UnknownNetwork
 from service.core.network import resolve_network
 
 
@@ -32,3 +32,12 @@ def test_domain_errors_cross_the_process_boundary() -> None:
 def test_other_exceptions_are_reported_as_crashes() -> None:
     with pytest.raises(ScengenError, match=r"crashed: ValueError: math domain error"):
         run_with_budget(math.sqrt, (-1.0,), 30.0, "sqrt")
+
+
+def test_a_call_that_needs_too_much_memory_fails_alone(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each worker's data segment is capped (SCENGEN_WORKER_MEMORY_MB): a call that asks for
+    more fails with MemoryExceeded naming the limit; the next call runs as usual."""
+    monkeypatch.setenv("SCENGEN_WORKER_MEMORY_MB", "256")
+    with pytest.raises(MemoryExceeded, match=r"256 MB, SCENGEN_WORKER_MEMORY_MB"):
+        run_with_budget(bytearray, (1024**3,), 60.0, "a gigabyte")
+    assert len(run_with_budget(bytearray, (1024**2,), 60.0, "a megabyte")) == 1024**2

@@ -82,9 +82,33 @@ def resolve_network(ref: str | Path) -> Path:
 
 def read_network(path: Path) -> Any:
     try:
-        return sumolib.net.readNet(str(path), withInternal=True)
+        net = sumolib.net.readNet(str(path), withInternal=True)
     except Exception as exc:  # sumolib raises bare SAX and key errors on bad files
         raise InvalidInput(f"cannot read SUMO network {path}: {exc}", network=str(path)) from exc
+    _check_geometry(net, path)
+    return net
+
+
+def _check_geometry(net: Any, path: Path) -> None:
+    """A network a drive can use: lanes, and finite coordinates everywhere (a NaN would only
+    surface later, inside SUMO or the checker)."""
+    lanes = [lane for edge in net.getEdges() for lane in edge.getLanes()]
+    if not lanes:
+        raise InvalidInput(f"SUMO network {path.name} has no lanes", network=str(path))
+    for node in net.getNodes():
+        if not all(math.isfinite(c) for c in node.getCoord()):
+            raise InvalidInput(
+                f"SUMO network {path.name}: junction {node.getID()!r} has a coordinate that "
+                "is not a finite number",
+                network=str(path),
+            )
+    for lane in lanes:
+        if not all(math.isfinite(c) for point in lane.getShape() for c in point):
+            raise InvalidInput(
+                f"SUMO network {path.name}: lane {lane.getID()!r} has a shape point that is "
+                "not a finite number",
+                network=str(path),
+            )
 
 
 def junction_arms(node: Any) -> int:

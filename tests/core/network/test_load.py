@@ -262,3 +262,24 @@ def test_network_that_is_not_xml_is_invalid_input(tmp_path: Path) -> None:
     broken.write_text("<net><junction")
     with pytest.raises(InvalidInput, match="cannot read SUMO network"):
         load_intersection(broken)
+
+
+def test_a_network_without_lanes_or_with_nan_coordinates_is_refused(tmp_path: Path) -> None:
+    """Refused when read (at upload on the server), not later inside SUMO or the checker."""
+    text = (bundled_networks()["4way-stop"]).read_text()
+    nan_junction = tmp_path / "nan.net.xml"
+    centre = '<junction id="C" type="allway_stop" x='
+    nan_junction.write_text(text.replace(f'{centre}"150.00"', f'{centre}"nan"'))
+    with pytest.raises(InvalidInput, match="junction 'C' has a coordinate that is not a finite"):
+        load_intersection(nan_junction)
+    nan_lane = tmp_path / "nan-lane.net.xml"
+    lane = 'shape="145.20,160.40 145.20,139.60"'  # lane :C_1_0
+    nan_lane.write_text(text.replace(lane, lane.replace("145.20,160.40", "nan,160.40")))
+    with pytest.raises(InvalidInput, match="shape point that is not a finite number"):
+        load_intersection(nan_lane)
+    head, _, _ = text.partition("<edge ")
+    bare = tmp_path / "bare.net.xml"
+    bare.write_text(head + '<junction id="C" type="allway_stop" x="0" y="0" incLanes="" '
+                    'intLanes="" shape="0,0 1,1"/>\n</net>\n')  # fmt: skip
+    with pytest.raises(InvalidInput, match="has no lanes"):
+        load_intersection(bare)
