@@ -27,7 +27,15 @@ class Settings(BaseSettings):
         default_factory=lambda: os.cpu_count() or 2,
         ge=1,
         le=64,
-        description="worker processes running at once (default: one per core)",
+        description="worker processes of interactive calls (/extend, evaluations, pictures) "
+        "running at once (default: one per core)",
+    )
+    job_workers: int = Field(
+        0,
+        ge=0,
+        le=64,
+        description="job items the local executor runs at once, each with its own worker "
+        "process (0, the default: as many as workers); on top of the interactive ones",
     )
     extend_budget: float = Field(60.0, gt=0, description="default budget of POST /extend (s)")
     evaluate_budget: float = Field(60.0, gt=0, description="default budget of an evaluation (s)")
@@ -51,6 +59,11 @@ class Settings(BaseSettings):
     @property
     def database(self) -> str:
         return self.database_url or f"sqlite:///{self.data_dir.resolve()}/scengen.sqlite3"
+
+    @property
+    def job_slots(self) -> int:
+        """How many job items run at once on the local executor."""
+        return self.job_workers or self.workers
 
     @property
     def cache_dir(self) -> Path:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
 import yaml
 
 from service.cli import _parser
@@ -52,3 +53,22 @@ def test_the_image_installs_what_the_package_needs() -> None:
         assert re.search(rf"^COPY {folder} ", DOCKERFILE, flags=re.M), folder
     assert '"scengen", "serve"' in DOCKERFILE and "SCENGEN_DATA_DIR" in DOCKERFILE
     assert "python:3.11" in DOCKERFILE
+
+
+def test_job_items_and_interactive_calls_have_their_own_worker_counts(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    from service.jobs.dispatch import LocalDispatcher
+    from service.store import Store
+
+    monkeypatch.setenv("SCENGEN_WORKERS", "3")
+    assert Settings().job_slots == 3  # by default as many as the interactive ones
+    monkeypatch.setenv("SCENGEN_JOB_WORKERS", "1")
+    settings = Settings()
+    assert (settings.workers, settings.job_slots) == (3, 1)
+
+    store = Store(f"sqlite:///{tmp_path}/scengen.sqlite3", tmp_path / "cache")
+    try:
+        assert LocalDispatcher(store, settings).pool._max_workers == 1
+    finally:
+        store.close()

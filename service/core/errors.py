@@ -14,6 +14,7 @@
     ├── NetworkBuildFailed          netconvert could not rebuild a network
     ├── SimulationFailed            SUMO refused or broke off a drive
     └── BudgetExceeded              a solver or simulator call ran out of its time budget
+        └── MemoryExceeded          a call needed more memory than a worker may use
 
 Adapters (CLI, HTTP API, jobs) map these classes once, to exit codes or problem types.
 """

@@ -54,24 +54,25 @@ class Dispatcher:
 
 
 class LocalDispatcher(Dispatcher):
-    """Items run in threads of the server, at most ``workers`` at once."""
+    """Items run in threads of the server, at most ``job_slots`` at once (each item's
+    solver and SUMO calls in child processes)."""
 
     def __init__(self, store: Store, settings: Settings) -> None:
         super().__init__(store, settings)
-        self.pool = ThreadPoolExecutor(settings.workers, thread_name_prefix="scengen-item")
+        self.pool = ThreadPoolExecutor(settings.job_slots, thread_name_prefix="scengen-item")
         self.running: set[tuple[str, int]] = set()
         self.owner = owner_name("local")
         self.shutdown = threading.Event()
 
     async def dispatch(self) -> None:
-        free = self.settings.workers - len(self.running)
+        free = self.settings.job_slots - len(self.running)
         if free <= 0:
             return
         ready = await asyncio.to_thread(self.jobs.runnable, free + len(self.running))
         loop = asyncio.get_running_loop()
         for item in ready:
             key = (item.job, item.position)
-            if key in self.running or len(self.running) >= self.settings.workers:
+            if key in self.running or len(self.running) >= self.settings.job_slots:
                 continue
             self.running.add(key)
             future = loop.run_in_executor(
