@@ -40,6 +40,7 @@ from service.core.testcase import (
     new_testcase,
     read_testcase,
     readable_name,
+    renamed,
 )
 from service.core.trajectory import read_trajectory
 from service.core.verdict import Verdict, junit_report
@@ -503,7 +504,7 @@ def _run_new(args: argparse.Namespace) -> int:
         name=args.name,
     )
     if not args.name:
-        testcase = testcase.model_copy(update={"name": readable_name(testcase)})
+        testcase = renamed(testcase, readable_name(testcase))
     return _emit(testcase, args.output)
 
 
@@ -595,6 +596,8 @@ def _progress(started: float) -> Callable[[str], None]:
 
 def _run_extend(args: argparse.Namespace) -> int:
     old = read_testcase(args.testcase)
+    if args.name is not None:
+        renamed(old, args.name)  # a name that cannot be stored fails before the search
     started = time.monotonic()
     extension = extend_testcase(
         old,
@@ -607,7 +610,7 @@ def _run_extend(args: argparse.Namespace) -> int:
     )
     new = extension.testcase
     name = args.name or readable_name(new, name_stem(old.name))
-    new = new.model_copy(update={"name": name})
+    new = renamed(new, name)
     provenance = new.provenance or {}
     violated = ", ".join(
         f"{v['car']} ({v['rule']})" for v in provenance.get("complexity_certificate_violates", [])

@@ -438,3 +438,17 @@ def test_cli_testcases_get_readable_default_names(tmp_path: Path) -> None:
                      "-o", str(named)]) == 0  # fmt: skip
     assert cli.main(["extend", str(named), "--add", "W2C_0:C2E_0", "-o", str(level1)]) == 0
     assert read_testcase(level1).name == "t left level 1"
+
+
+def test_an_unstorable_name_fails_before_the_search(tmp_path: Path) -> None:
+    root = tmp_path / "root.json"
+    assert cli.main(["new", "t-stop", "--ego", "E2C_0:C2S_0", "-o", str(root)]) == 0
+    result = run("extend", str(root), "--add", "W2C_0:C2E_0", "--name", "a\x01b")
+    assert result.returncode == 2
+    assert "name: must not contain control characters" in result.stderr
+    assert "step 1" not in result.stderr  # no search was started
+    long = tmp_path / "long.json"
+    assert cli.main(["new", "t-stop", "--ego", "E2C_0:C2S_0", "--name", "x" * 199,
+                     "-o", str(long)]) == 0  # fmt: skip
+    assert cli.main(["extend", str(long), "--add", "W2C_0:C2E_0", "-o", str(root)]) == 0
+    assert read_testcase(root).name == "x" * 192 + " level 1"  # cut to fit, not lost

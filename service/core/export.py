@@ -186,7 +186,7 @@ def export_bundle(
     # the runner's files: types (also the .sumocfg's: the fcd-replay device reads its file,
     # and needs the non-egos' types, before the route files are loaded), every car's route
     written = [*(folder / name for name in networks), folder / "run.py"]
-    written += [folder / name for name in write_run_files(testcase, junction, folder, network)]
+    written += [folder / name for name in write_run_files(testcase, ego, others, folder, network)]
     files = {
         f"{NAME}.rou.xml": xml_file("routes", vehicle_lines([ego])),
         f"{NAME}.fcd.xml": fcd_text(testcase, junction),

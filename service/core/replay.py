@@ -165,10 +165,12 @@ def controller_spec(driver: Driver) -> dict[str, Any]:
     return {"kind": "external"}
 
 
-def run_plan(testcase: TestCase, intersection: Intersection, network: str) -> dict[str, Any]:
-    """The runner's plan: its files, the time step, every car's departure and distance per
-    step, the certificates, and the built-in controllers (JSON, ``testcase.run.json``)."""
-    ego, others = departures(testcase, intersection)
+def run_plan(
+    testcase: TestCase, ego: Departure, others: Sequence[Departure], network: str
+) -> dict[str, Any]:
+    """The runner's plan: its files, the time step, every car's departure (``departures``)
+    and distance per step, the certificates, and the built-in controllers (JSON,
+    ``testcase.run.json``)."""
     certificates = None
     if testcase.certificates is not None:
         certificates = {
@@ -211,13 +213,12 @@ def run_plan(testcase: TestCase, intersection: Intersection, network: str) -> di
 
 
 def write_run_files(
-    testcase: TestCase, intersection: Intersection, folder: Path, network: str
+    testcase: TestCase, ego: Departure, others: Sequence[Departure], folder: Path, network: str
 ) -> dict[str, str]:
     """The runner's files in ``folder``: vehicle types, every car's route and departure, and
     the plan (``network`` as the plan names it, relative to ``folder`` or absolute). The
     texts written, by file name."""
-    ego, others = departures(testcase, intersection)
-    plan = run_plan(testcase, intersection, network)
+    plan = run_plan(testcase, ego, others, network)
     files = {
         TYPES_FILE: xml_file("additional", vtype_lines(ego, others, testcase)),
         ROUTES_FILE: xml_file("routes", vehicle_lines([ego, *others])),
@@ -246,7 +247,9 @@ def evaluate(
     junction = intersection or load_testcase_intersection(testcase)
     reference = driver.reference if isinstance(driver, UserDriver) else None
     with tempfile.TemporaryDirectory(prefix="scengen-replay-") as folder:
-        write_run_files(testcase, junction, Path(folder), str(junction.network_file.resolve()))
+        ego, others = departures(testcase, junction)
+        network = str(junction.network_file.resolve())
+        write_run_files(testcase, ego, others, Path(folder), network)
         plan_file = str(Path(folder) / sumo_run.PLAN_FILE)
         arguments = (plan_file, controller_spec(driver), driver.name, reference)
         try:

@@ -208,7 +208,7 @@ def fcd_text(rows: list[Row]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _program(name: str) -> str:
+def find_program(name: str) -> str:
     """A SUMO program: the eclipse-sumo wheel's, $SUMO_HOME/bin's, or the PATH's."""
     homes = [os.environ.get("SUMO_HOME", "")]
     try:
@@ -234,7 +234,7 @@ def _sumo(use_traci: bool, name: str) -> tuple[Any, str]:
             return importlib.import_module("libsumo"), name
         except ImportError:
             pass
-    return importlib.import_module("traci"), _program(name)
+    return importlib.import_module("traci"), find_program(name)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -274,7 +274,15 @@ def readable_name(testcase: TestCase, stem: str = "") -> str:
     if not stem:
         network = PurePosixPath(testcase.network.ref).name.removesuffix(".xml")
         stem = f"{network.removesuffix('.net')} {testcase.junction} {testcase.ego.route.id}"
-    return f"{stem} level {testcase_level(testcase)}"
+    suffix = f" level {testcase_level(testcase)}"
+    return stem[: MAX_NAME_LENGTH - len(suffix)] + suffix
+
+
+def renamed(testcase: TestCase, name: str) -> TestCase:
+    """``testcase`` named ``name``, validated like any document (InvalidTestCase names a
+    name that is too long or holds control characters)."""
+    document = testcase.model_dump(mode="json", by_alias=True, exclude_none=True)
+    return parse_testcase({**document, "name": name})
 
 
 def name_stem(name: str) -> str:
