@@ -169,7 +169,11 @@ def plan_drive(
     # SUMO cannot insert a car on an internal lane: when the start lies inside a junction
     # upstream, depart just before it and drop the extra metres afterwards.
     skip = max(0.0, depart_pos - (lanes[0].getLength() - 0.01))
-    start_on = _internal_start(net, upstream, depart_pos - lanes[0].getLength()) if skip else None
+    start_on = None
+    if skip and upstream:
+        start_on = _internal_start(net, upstream, depart_pos - lanes[0].getLength())
+    elif skip:  # within a centimetre of the line on the fork: moved there from 1 cm before
+        start_on = (lanes[0].getID(), depart_pos)
     depart_pos -= skip
     if ahead < leave:
         raise InvalidInput(

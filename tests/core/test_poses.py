@@ -145,3 +145,18 @@ def test_a_start_too_far_to_reach_the_junction_is_not_an_exit_error(
     track = generate_poses(town07_y, [(route, 200.0)], 5.0, 20.0, 0.1)[0]
     assert track.samples[-1].distance > 205.0
     assert not town07_y.polygon.intersects(Point(track.samples[-1].x, track.samples[-1].y))
+
+
+@pytest.mark.parametrize("start_distance", [0.0, 0.005])
+def test_a_start_at_the_stop_line_is_on_the_fork_lane(
+    four_way: Intersection, start_distance: float
+) -> None:
+    """SUMO inserts no further than a centimetre before a lane's end (found by the fuzzer:
+    start_distance 0 crashed the worker)."""
+    track = generate_poses(
+        four_way, [(four_way.route("S2C_1:C2W_1"), start_distance)], 8.0, 5.0, 0.1
+    )[0]
+    first = track.samples[0]
+    stop_x, stop_y = four_way.forks["S2C_1"].stop_line
+    assert (first.x, first.y) == pytest.approx((stop_x, stop_y - start_distance - 2.5), abs=1e-3)
+    assert first.distance == 0.0
