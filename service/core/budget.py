@@ -17,6 +17,7 @@ import contextlib
 import importlib
 import os
 import pickle
+import re
 import select
 import struct
 import subprocess
@@ -31,6 +32,10 @@ from service.core.errors import BudgetExceeded, MemoryExceeded, ScengenError
 
 MEMORY_VARIABLE = "SCENGEN_WORKER_MEMORY_MB"
 DEFAULT_MEMORY_MB = 4096
+# what a child's native libraries print when an allocation fails under the cap
+OUT_OF_MEMORY = re.compile(
+    r"MemoryError|Memory allocation|Cannot allocate memory|bad_alloc|out of memory", re.I
+)
 
 T = TypeVar("T")
 
@@ -72,7 +77,14 @@ def decode_outcome(stdout: bytes, stderr: bytes, what: str) -> Any:
     try:
         status, payload = pickle.loads(stdout)
     except Exception:
-        detail = stderr.decode(errors="replace").strip().splitlines()[-1:] or ["no output"]
+        text = stderr.decode(errors="replace")
+        detail = text.strip().splitlines()[-1:] or ["no output"]
+        if OUT_OF_MEMORY.search(text):  # a native library that could not allocate gave up
+            limit = os.environ.get(MEMORY_VARIABLE, str(DEFAULT_MEMORY_MB))
+            raise MemoryExceeded(
+                f"{what} ran out of the memory a worker may use ({limit} MB, "
+                f"{MEMORY_VARIABLE}): {detail[0]}"
+            ) from None
         raise ScengenError(f"{what} died without an answer: {detail[0]}") from None
     if status == "error":
         raise payload

@@ -7,7 +7,7 @@ import time
 
 import pytest
 
-from service.core.budget import run_with_budget
+from service.core.budget import decode_outcome, run_with_budget
 from service.core.errors import BudgetExceeded, MemoryExceeded, ScengenError, UnknownNetwork
 from service.core.network import resolve_network
 
@@ -41,3 +41,13 @@ def test_a_call_that_needs_too_much_memory_fails_alone(monkeypatch: pytest.Monke
     with pytest.raises(MemoryExceeded, match=r"256 MB, SCENGEN_WORKER_MEMORY_MB"):
         run_with_budget(bytearray, (1024**3,), 60.0, "a gigabyte")
     assert len(run_with_budget(bytearray, (1024**2,), 60.0, "a megabyte")) == 1024**2
+
+
+def test_a_native_library_that_cannot_allocate_is_a_memory_failure() -> None:
+    """Under a low cap, OpenBLAS (numpy's) gives up and exits without a Python MemoryError:
+    that is still the memory budget, not a crashed worker."""
+    stderr = b"OpenBLAS error: Memory allocation still failed after 10 retries, giving up.\n"
+    with pytest.raises(MemoryExceeded, match=r"SCENGEN_WORKER_MEMORY_MB\): OpenBLAS error"):
+        decode_outcome(b"", stderr, "the picture")
+    with pytest.raises(ScengenError, match="died without an answer: Segmentation fault"):
+        decode_outcome(b"", b"Segmentation fault\n", "the picture")
