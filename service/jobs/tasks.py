@@ -1,5 +1,9 @@
 """The units of work an executor runs in a worker process: plain functions over core.
 
+Each worker is a fresh process that imports only what its call needs: the generator, the
+replay and the exporter (z3, clingo, the checker) are imported inside the calls that use
+them, so that a description or a new test-case does not pay for them.
+
 Arguments and results are JSON documents, paths and bytes, so that a call pickles small and
 the same function can run in the local pool or on a remote worker. Every function loads the
 network itself: the caller hands over the file (materialised from the store) and checks
@@ -15,14 +19,10 @@ import zipfile
 from pathlib import Path
 from typing import Any
 
-from service.core.chain import grow
 from service.core.errors import NoneFound
-from service.core.export import export_bundle
-from service.core.generate import extend_testcase
 from service.core.network import load_intersection
 from service.core.network.describe import describe_intersection
 from service.core.network.load import SUPPORTED, junction_arms, read_network
-from service.core.replay import evaluate
 from service.core.testcase import (
     NetworkRef,
     Params,
@@ -119,6 +119,8 @@ def extend(
 ) -> dict[str, Any]:
     """The extension of a test-case: the new document, the attempts and the step timings.
     With ``deadline`` (a Unix time), the generator gets only what is left of ``budget``."""
+    from service.core.generate import extend_testcase
+
     old = parse_testcase(document)
     intersection = load_testcase_intersection(old, cache_dir, network_file)
     left = budget if deadline is None else min(budget, deadline - time.time())
@@ -142,6 +144,8 @@ def evaluate_controller(
     document: str, network_file: Path, cache_dir: Path, controller: str, budget: float
 ) -> dict[str, Any]:
     """A controller's verdict on a test-case (``Verdict.to_dict``) and the seconds it took."""
+    from service.core.replay import evaluate
+
     testcase = parse_testcase(document)
     intersection = load_testcase_intersection(testcase, cache_dir, network_file)
     clock = time.monotonic()
@@ -151,6 +155,8 @@ def evaluate_controller(
 
 def bundle(document: str, network_file: Path, cache_dir: Path) -> bytes:
     """The SUMO export of a test-case as a zip archive (one folder named after it)."""
+    from service.core.export import export_bundle
+
     testcase = parse_testcase(document)
     intersection = load_testcase_intersection(testcase, cache_dir, network_file)
     memory = io.BytesIO()
@@ -171,6 +177,7 @@ def plot_testcase(
     budget: float,
 ) -> bytes:
     """The test-case's picture; with a controller, that controller's replay and verdict."""
+    from service.core.replay import evaluate
     from service.plot import plot_testcase as draw
 
     testcase = parse_testcase(document)
@@ -198,6 +205,8 @@ def extend_any(
     """An extension by one car on a route the service chooses (service.core.chain.grow):
     the routes that conflict with the ego's, from forks no car uses yet, tried in an order
     drawn from ``seed``, each in full; the budget only stops the call."""
+    from service.core.chain import grow
+
     old = parse_testcase(document)
     intersection = load_testcase_intersection(old, cache_dir, network_file)
     growth = grow(old, seed, budget, intersection)
