@@ -8,8 +8,13 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field
+from pydantic import Field, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
+
+from service.core.budget import DEFAULT_MEMORY_MB
+from service.core.testcase import MAX_SAMPLES
+
+MIN_WORKER_MEMORY_MB = 512
 
 
 class Settings(BaseSettings):
@@ -43,6 +48,22 @@ class Settings(BaseSettings):
     work_budget: float = Field(120.0, gt=0, description="budget of uploads, pictures, bundles (s)")
     api_token: str = Field("", description="when set, creating or deleting needs this bearer token")
     max_upload_mb: float = Field(20.0, gt=0, description="largest request body (MB)")
+    max_samples: int = Field(
+        MAX_SAMPLES,
+        ge=1,
+        le=MAX_SAMPLES,
+        description="samples per car a test-case may have (duration / time step), at most "
+        f"{MAX_SAMPLES}",
+    )
+    max_reported_errors: int = Field(
+        20, ge=1, le=1000, description="validation errors listed in one problem answer"
+    )
+    worker_memory_mb: int = Field(
+        DEFAULT_MEMORY_MB,
+        ge=0,
+        description=f"data segment each worker process may use (MB): 0 (no cap) or at least "
+        f"{MIN_WORKER_MEMORY_MB}",
+    )
     executor: Literal["local", "celery"] = Field(
         "local", description="where batch jobs run: local worker processes, or Celery workers"
     )
@@ -55,6 +76,16 @@ class Settings(BaseSettings):
     lease_seconds: float = Field(
         30.0, gt=1, description="a running item whose worker is silent this long is retried"
     )
+
+    @field_validator("worker_memory_mb")
+    @classmethod
+    def _enough_to_start(cls, value: int) -> int:
+        if 0 < value < MIN_WORKER_MEMORY_MB:
+            raise ValueError(
+                f"a worker needs at least {MIN_WORKER_MEMORY_MB} MB to load its libraries "
+                "(SUMO, clingo, z3, numpy); 0 turns the cap off"
+            )
+        return value
 
     @property
     def database(self) -> str:

@@ -22,7 +22,13 @@ import sqlalchemy as sa
 
 from service.core.errors import UnknownNetwork, choices
 from service.core.network import bundled_networks, file_sha256
-from service.core.testcase import TestCase, dump_testcase, parse_testcase
+from service.core.testcase import (
+    MAX_SAMPLES,
+    TestCase,
+    check_samples,
+    dump_testcase,
+    parse_testcase,
+)
 
 T = TypeVar("T")
 metadata = sa.MetaData()
@@ -140,9 +146,10 @@ class Page(Generic[T]):
 class Store:
     """Every read and write of the service's state; safe to share within one process."""
 
-    def __init__(self, url: str, cache_dir: Path) -> None:
+    def __init__(self, url: str, cache_dir: Path, max_samples: int = MAX_SAMPLES) -> None:
         self.url = url
         self.cache_dir = cache_dir
+        self.max_samples = max_samples  # per car, in test-cases clients send (SCENGEN_MAX_SAMPLES)
         if url.startswith("sqlite:///"):
             Path(url.removeprefix("sqlite:///")).parent.mkdir(parents=True, exist_ok=True)
         connect_args = (
@@ -248,6 +255,7 @@ class Store:
         """Store a test-case a client sent inline (nothing submitted is lost), after checking
         that its network is one this service has."""
         testcase = parse_testcase(document)
+        check_samples(testcase.duration, testcase.timestep, self.max_samples)
         self.network_file_for(testcase)
         return self.add_testcase(testcase)
 

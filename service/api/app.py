@@ -5,6 +5,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import copy
+import os
 import shutil
 import time
 from collections.abc import AsyncIterator, Awaitable, Callable, MutableMapping
@@ -15,13 +16,20 @@ from typing import Any
 
 import fastapi_offline
 from fastapi import FastAPI, Request, Response
+from fastapi.dependencies.models import Dependant
 from fastapi.openapi.docs import get_redoc_html, get_swagger_ui_html
 from fastapi.openapi.utils import get_openapi
 from fastapi.responses import HTMLResponse, RedirectResponse
 from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 
-from service.api.problems import HTTP, install_problem_handlers, problem_response
+from service.api.problems import (
+    HTTP,
+    STATUS_DESCRIPTIONS,
+    WORK_PROBLEMS,
+    install_problem_handlers,
+    problem_response,
+)
 from service.api.routes import evaluations, extend, health, jobs, networks, testcases
 from service.api.schemas import (
     EXAMPLE_NETWORK,
@@ -29,7 +37,8 @@ from service.api.schemas import (
     example_document,
     example_testcase,
 )
-from service.api.state import AppState, Metrics, token_matches
+from service.api.state import AppState, Metrics, get_state, token_matches
+from service.core.budget import MEMORY_VARIABLE
 from service.jobs.dispatch import make_dispatcher
 from service.jobs.executor import LocalExecutor
 from service.settings import Settings, get_settings
@@ -46,6 +55,7 @@ download **/testcases/{id}/bundle** to run any ego controller in SUMO, and judge
 **POST /evaluations**. Errors are `application/problem+json`; `GET /problems` lists them.
 """
 
+ROUTE_MODULES = (extend, testcases, networks, evaluations, jobs, health)
 KNOWN_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 ASGIApp = Callable[
     [MutableMapping[str, Any], Callable[[], Awaitable[Any]], Callable[[Any], Awaitable[None]]],
@@ -60,8 +70,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         chosen.data_dir.mkdir(parents=True, exist_ok=True)
+        # every worker process this server starts (calls, job items) reads its cap here
+        memory_before = os.environ.get(MEMORY_VARIABLE)
+        os.environ[MEMORY_VARIABLE] = str(chosen.worker_memory_mb)
         remove_stale_uploads(chosen.cache_dir / "uploads", chosen.work_budget)
-        store = Store(chosen.database, chosen.cache_dir)
+        store = Store(chosen.database, chosen.cache_dir, chosen.max_samples)
         executor = LocalExecutor(chosen.workers)
         metrics = Metrics()
         dispatcher = make_dispatcher(store, chosen)
@@ -78,6 +91,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             await dispatcher.close()
             await executor.shutdown()
             store.close()
+            if memory_before is None:
+                os.environ.pop(MEMORY_VARIABLE, None)
+            else:
+                os.environ[MEMORY_VARIABLE] = memory_before
 
     app = FastAPI(
         title=TITLE,
@@ -87,7 +104,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         docs_url=None,
         redoc_url=None,
     )
-    for module in (extend, testcases, networks, evaluations, jobs, health):
+    for module in ROUTE_MODULES:
         for route in module.router.routes:  # the handler's one-line docstring is its summary
             if isinstance(route, APIRoute) and route.endpoint.__doc__:
                 route.summary = route.endpoint.__doc__.strip().splitlines()[0].rstrip(".")
@@ -272,7 +289,7 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
         )
         _add_examples(schema)
         _add_parameter_examples(schema)
-        _document_problems(schema)
+        _document_problems(schema, [r for m in ROUTE_MODULES for r in m.router.routes])
         _drop_repeated_descriptions(schema)
         app.openapi_schema = schema
     return app.openapi_schema
@@ -319,21 +336,51 @@ PROBLEM_SCHEMA = {
 }
 
 
-def _document_problems(schema: dict[str, Any]) -> None:
-    """Errors leave as problem+json, not FastAPI's default validation body."""
+def _document_problems(schema: dict[str, Any], routes: list[Any]) -> None:
+    """Errors leave as problem+json, not FastAPI's default validation body; every status an
+    operation can answer with is documented (the fuzz test holds the server to it)."""
     schema.setdefault("components", {}).setdefault("schemas", {})["Problem"] = PROBLEM_SCHEMA
     for name in ("HTTPValidationError", "ValidationError"):
         schema["components"]["schemas"].pop(name, None)
     reference = {"application/problem+json": {"schema": {"$ref": "#/components/schemas/Problem"}}}
+    stateful = {
+        route.operation_id
+        for route in routes
+        if isinstance(route, APIRoute) and _depends_on(route.dependant, get_state)
+    }
     for operations in schema["paths"].values():
         for operation in operations.values():
             responses = operation.setdefault("responses", {})
+            for status in _kind_problems(operation, operation.get("operationId") in stateful):
+                responses.setdefault(str(status), {"description": STATUS_DESCRIPTIONS[status]})
             for code, response in responses.items():
                 if code.startswith(("4", "5")):
                     response["content"] = reference
-            if operation.get("parameters") or operation.get("requestBody"):
-                responses.setdefault("422", {"description": "Invalid request"})
-                responses["422"]["content"] = reference
+            if "security" in operation:  # a token is needed only when the server has one
+                operation["security"] = [*operation["security"], {}]
+            operation["responses"] = dict(sorted(responses.items()))
+
+
+def _kind_problems(operation: dict[str, Any], stateful: bool) -> list[int]:
+    """The problems every operation of this kind can answer with."""
+    statuses = []
+    parameters = operation.get("parameters", [])
+    if operation.get("requestBody"):
+        # a body over OFF_LOOP_BYTES is validated in a worker process (502, 504)
+        statuses += [400, 413, 422, *WORK_PROBLEMS]
+    if parameters:
+        statuses.append(422)
+    if any(parameter["in"] == "path" for parameter in parameters):
+        statuses.append(404)
+    if "security" in operation:
+        statuses.append(401)
+    if stateful:
+        statuses.append(503)
+    return statuses
+
+
+def _depends_on(dependant: Dependant, call: Callable[..., Any]) -> bool:
+    return any(sub.call is call or _depends_on(sub, call) for sub in dependant.dependencies)
 
 
 def _add_parameter_examples(schema: dict[str, Any]) -> None:

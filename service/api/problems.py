@@ -144,6 +144,28 @@ HTTP: dict[int, ProblemType] = {
     503: _type("database-unavailable", 503, "Database unavailable", "The database did not answer."),
 }
 
+# What each status means where an operation documents it (GET /problems has the types).
+STATUS_DESCRIPTIONS: dict[int, str] = {
+    400: "the body cannot be parsed (not JSON, not well-formed XML, a bad form field)",
+    401: "a token is set (SCENGEN_API_TOKEN) and the request does not carry it",
+    404: "nothing of that id (the path names it)",
+    406: "no representation matches ?format or Accept",
+    409: "other stored resources depend on it, or the key was used with another body",
+    413: "the body exceeds SCENGEN_MAX_UPLOAD_MB",
+    422: "the input fails validation, or names something this service does not have",
+    502: "a worker process died or crashed; the server is fine",
+    503: "the database did not answer",
+    504: "the work ran out of its time or memory budget and was stopped",
+}
+WORK_PROBLEMS = (502, 504)  # operations that run something in a worker process
+
+
+def documented(*statuses: int) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI ``responses`` for the problems an operation answers with beyond those every
+    operation of its kind has (app._document_problems adds those and the Problem body)."""
+    return {status: {"description": STATUS_DESCRIPTIONS[status]} for status in statuses}
+
+
 ALL_TYPES: dict[str, ProblemType] = {
     t.slug: t for t in [*DOMAIN.values(), NONE_FOUND_IN_BUDGET, *HTTP.values()]
 }
@@ -212,9 +234,12 @@ def install_problem_handlers(app: FastAPI) -> None:
         if malformed:
             detail = f"the body is not valid JSON: {malformed[0].get('ctx', {}).get('error', '')}"
             return problem_response(HTTP[400], detail.rstrip(": "), request.url.path)
-        found = [_describe_validation(item) for item in items[:MAX_REPORTED_ERRORS]]
-        if len(items) > MAX_REPORTED_ERRORS:  # a million bad keys: not a 97 MB answer
-            found.append(f"... and {len(items) - MAX_REPORTED_ERRORS} more errors")
+        state = getattr(request.app.state, "scengen", None)
+        limit = state.settings.max_reported_errors if state else DEFAULT_REPORTED_ERRORS
+        total = getattr(error, "total", len(items))  # counted in a worker (api.bodies)
+        found = [_describe_validation(item) for item in items[:limit]]
+        if total > len(found):  # a million bad keys: not a 97 MB answer
+            found.append(f"... and {total - len(found)} more errors")
         return problem_response(HTTP[422], "; ".join(found), request.url.path, errors=found)
 
     @app.exception_handler(StarletteHTTPException)
@@ -284,7 +309,7 @@ def _jsonable(context: dict[str, object]) -> dict[str, Any]:
     }
 
 
-MAX_REPORTED_ERRORS = 20  # validation errors listed in one answer
+DEFAULT_REPORTED_ERRORS = 20  # validation errors listed in one answer
 
 # an absolute path of two or more parts, not inside a relative one ("../../etc", "a/b")
 _ABSOLUTE_PATH = re.compile(r"(?<![\w.])(/[^\s/'\"(),:]+)(?:/[^\s/'\"(),:]+)*/([^\s/'\"(),:]+)")

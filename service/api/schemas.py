@@ -43,7 +43,7 @@ MAX_OFFSET = 10**12  # pagination offsets: far beyond any store, well inside SQL
 
 
 class _Body(BaseModel):
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, strict=True)
 
 
 class Links(BaseModel):
@@ -82,7 +82,9 @@ class TestCaseCreate(_Body):
     ego_route: str = Field(description="fork lane id : exit lane id, from the junction's routes")
     junction: str | None = Field(None, description="default: the network's only supported one")
     control: ControlType | None = Field(
-        None, description="override the junction's control type (default: the network's)"
+        None,
+        strict=False,
+        description="override the junction's control type (default: the network's)",
     )
     start_distance: float = Field(30.0, ge=0, description="ego front before the stop line (m)")
     start_speed: float = Field(8.0, ge=0, description="ego speed at t = 0 (m/s)")

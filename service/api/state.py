@@ -15,7 +15,7 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from pydantic import BaseModel
 
 from service.api.problems import Problem
-from service.core.errors import choices
+from service.core.errors import InvalidInput, choices
 from service.jobs.dispatch import Dispatcher
 from service.jobs.executor import LocalExecutor
 from service.settings import Settings
@@ -73,6 +73,14 @@ class AppState:
         record = self.store.testcase(ident)
         if record is None:
             raise Problem(404, f"no test-case {ident!r}; GET /testcases lists them")
+        return record
+
+    def testcase_named_in_body(self, ident: str) -> TestCaseRecord:
+        """A test-case a request body names: unknown is invalid input (422), not a missing
+        page (404 is for ids in the path)."""
+        record = self.store.testcase(ident)
+        if record is None:
+            raise InvalidInput(f"testcase_id: no test-case {ident!r}; GET /testcases lists them")
         return record
 
     async def run(

@@ -49,7 +49,7 @@ NonNegative = Annotated[float, Field(ge=0)]
 
 class _Model(BaseModel):
     # no NaN or infinity anywhere: such a number is bad input, never a solver's crash later
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False, strict=True)
 
 
 def check_name(value: str) -> str:
@@ -123,7 +123,7 @@ class Sample(_Model):
 
 
 class EventRecord(_Model):
-    kind: EventKind
+    kind: EventKind = Field(strict=False)  # a name in JSON is an enum member
     lane: str
     t: NonNegative
     distance: NonNegative
@@ -181,7 +181,7 @@ class TestCase(_Model):
     provenance: dict[str, Any] | None = None
 
     model_config = ConfigDict(
-        extra="forbid", frozen=True, populate_by_name=True, allow_inf_nan=False
+        extra="forbid", frozen=True, populate_by_name=True, allow_inf_nan=False, strict=True
     )
 
     @field_validator("name")
@@ -199,11 +199,7 @@ class TestCase(_Model):
         if self.duration < self.timestep:
             raise ValueError("duration must be at least one time step")
         if self.duration / self.timestep > MAX_SAMPLES:
-            raise ValueError(
-                f"duration {self.duration:g} s at time step {self.timestep:g} s is "
-                f"{self.duration / self.timestep:.0f} samples per car; at most {MAX_SAMPLES} "
-                "(a longer time step or a shorter duration)"
-            )
+            raise ValueError(_too_many_samples(self.duration, self.timestep, MAX_SAMPLES))
         ids = [n.id for n in self.nonegos]
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         if duplicates:
@@ -414,3 +410,17 @@ def load_testcase_intersection(
     test-case was read from)."""
     path, _ = find_network_file(testcase, network_file, near)
     return load_intersection(path, testcase.junction, testcase.control, cache_dir)
+
+
+def check_samples(duration: float, timestep: float, limit: int) -> None:
+    """InvalidTestCase when a test-case of ``duration`` at ``timestep`` has more than
+    ``limit`` samples per car (a server may allow fewer than MAX_SAMPLES)."""
+    if duration / timestep > limit:
+        raise InvalidTestCase(_too_many_samples(duration, timestep, limit))
+
+
+def _too_many_samples(duration: float, timestep: float, limit: int) -> str:
+    return (
+        f"duration {duration:g} s at time step {timestep:g} s is {duration / timestep:.0f} "
+        f"samples per car; at most {limit} (a longer time step or a shorter duration)"
+    )

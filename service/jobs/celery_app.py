@@ -43,7 +43,7 @@ def run_item_task(job: str, position: int) -> None:
     from service.store import Store
 
     settings = get_settings()
-    store = Store(settings.database, settings.cache_dir)
+    store = Store(settings.database, settings.cache_dir, settings.max_samples)
     try:
         run_item(store, settings, job, position, owner_name("celery"))
     finally:

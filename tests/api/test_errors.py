@@ -120,12 +120,17 @@ def test_invalid_extend_bodies_are_named(
     assert_problem(client.post("/extend", json=body, headers=AUTH), 422, "invalid-request", *words)
 
 
-def test_unknown_ids_are_404(client: TestClient) -> None:
+def test_unknown_ids_in_the_path_are_404_in_a_body_422(client: TestClient) -> None:
     for path in ("/testcases/nope", "/testcases/nope/bundle", "/evaluations/nope",
                  "/networks/nope", "/networks/nope/junctions", "/nothing-here"):  # fmt: skip
         assert_problem(client.get(path), 404, "not-found", "nope" if "nope" in path else "/docs")
-    reply = client.post("/extend", json={"testcase_id": "nope", "routes": ["a:b"]}, headers=AUTH)
-    assert_problem(reply, 404, "not-found", "no test-case 'nope'")
+    for path in ("/extend", "/evaluations"):
+        body = {"testcase_id": "nope", "routes": ["a:b"]} if path == "/extend" else {
+            "testcase_id": "nope"}  # fmt: skip
+        reply = client.post(path, json=body, headers=AUTH)
+        assert_problem(reply, 422, "invalid-input", "testcase_id: no test-case 'nope'")
+    reply = client.post("/testcases", json={"network": "nope", "ego_route": "a:b"}, headers=AUTH)
+    assert_problem(reply, 422, "unknown-network", "network: no network 'nope'", "4way-stop")
 
 
 def test_inline_testcase_errors_name_the_field(client: TestClient) -> None:

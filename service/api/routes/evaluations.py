@@ -9,8 +9,9 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, Response, status
 
+from service.api.bodies import OffLoopValidation
 from service.api.media import wants_junit
-from service.api.problems import Problem
+from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.routes.testcases import check_controller
 from service.api.schemas import (
     MAX_OFFSET,
@@ -26,7 +27,7 @@ from service.core.verdict import Verdict
 from service.jobs import tasks
 from service.store import EvaluationRecord, TestCaseRecord
 
-router = APIRouter(tags=["evaluations"])
+router = APIRouter(tags=["evaluations"], route_class=OffLoopValidation)
 VerdictFormat = Annotated[str | None, Query(description="json or junit (default: by Accept)")]
 JUNIT = "application/xml"
 JUNIT_RESPONSE: dict[int | str, dict[str, Any]] = {
@@ -78,7 +79,7 @@ async def list_controllers() -> list[Controller]:
     status_code=status.HTTP_201_CREATED,
     dependencies=[Token],
     response_model=EvaluationPublic,
-    responses=JUNIT_RESPONSE,
+    responses={**JUNIT_RESPONSE, **documented(406, *WORK_PROBLEMS)},
 )
 async def create_evaluation(
     state: State,
@@ -101,7 +102,7 @@ async def create_evaluation(
         if body.testcase is not None:
             record = state.store.keep_inline(body.testcase)
         else:
-            record = state.testcase_or_404(str(body.testcase_id))
+            record = state.testcase_named_in_body(str(body.testcase_id))
         return record, state.store.network_file_for(record.testcase)
 
     record, network_file = await asyncio.to_thread(base)
@@ -147,7 +148,7 @@ async def list_evaluations(
     "/evaluations/{evaluation}",
     operation_id="get_evaluation",
     response_model=EvaluationPublic,
-    responses=JUNIT_RESPONSE,
+    responses={**JUNIT_RESPONSE, **documented(406)},
 )
 async def get_evaluation(
     state: State,

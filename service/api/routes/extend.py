@@ -10,7 +10,8 @@ from typing import Any
 
 from fastapi import APIRouter, Response, status
 
-from service.api.problems import Problem
+from service.api.bodies import OffLoopValidation
+from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.routes.testcases import public
 from service.api.schemas import Attempt, ExtendRequest, ExtensionPublic
 from service.api.state import AppState, State, Token, json_answer
@@ -18,7 +19,7 @@ from service.core.testcase import parse_testcase
 from service.jobs import tasks
 from service.store import TestCaseRecord
 
-router = APIRouter(tags=["extend"])
+router = APIRouter(tags=["extend"], route_class=OffLoopValidation)
 
 # The generator stops itself at the request's deadline, but may finish the answer set in
 # hand (and a worker takes a moment to start): it is killed this much later, so that an
@@ -33,6 +34,7 @@ GRACE = 2.0
     dependencies=[Token],
     response_model=ExtensionPublic,
     responses={
+        **documented(*WORK_PROBLEMS),
         422: {"description": "invalid input, or no more complex test-case exists (problem+json)"},
         504: {"description": "the budget ran out before a test-case was found (problem+json)"},
     },
@@ -73,7 +75,7 @@ def _base(state: AppState, body: ExtendRequest) -> tuple[TestCaseRecord, Path]:
     if body.testcase is not None:
         old = state.store.keep_inline(body.testcase)
     else:
-        old = state.testcase_or_404(str(body.testcase_id))
+        old = state.testcase_named_in_body(str(body.testcase_id))
     return old, state.store.network_file_for(old.testcase)
 
 

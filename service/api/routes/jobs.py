@@ -10,7 +10,8 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Header, Query, Response, status
 from fastapi.responses import Response as PlainResponse
 
-from service.api.problems import Problem
+from service.api.bodies import OffLoopValidation
+from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.schemas import MAX_OFFSET, JobItemPublic, JobPage, JobPublic, Links
 from service.api.state import AppState, State, Token, json_answer
 from service.core.verdict import Verdict, junit_report
@@ -18,7 +19,7 @@ from service.jobs import tasks
 from service.jobs.batch import Batch
 from service.jobs.store import FINISHED, IdempotencyConflict, JobRecord, JobStore
 
-router = APIRouter(prefix="/jobs", tags=["jobs"])
+router = APIRouter(prefix="/jobs", tags=["jobs"], route_class=OffLoopValidation)
 STATES = ("queued", "running", *FINISHED)
 
 
@@ -76,6 +77,10 @@ def _job_or_404(state: AppState, ident: str) -> JobRecord:
     status_code=status.HTTP_202_ACCEPTED,
     dependencies=[Token],
     response_model=JobPublic,
+    responses={
+        200: {"model": JobPublic, "description": "the job that this Idempotency-Key made"},
+        **documented(409),
+    },
 )
 async def create_job(
     state: State,
@@ -191,7 +196,10 @@ async def get_job_junit(state: State, job: str) -> Response:
     "/{job}/bundles",
     operation_id="get_job_bundles",
     response_class=PlainResponse,
-    responses={200: {"content": {"application/zip": {}}, "description": "the SUMO bundles"}},
+    responses={
+        200: {"content": {"application/zip": {}}, "description": "the SUMO bundles"},
+        **documented(*WORK_PROBLEMS),
+    },
 )
 async def get_job_bundles(state: State, job: str) -> Response:
     """A zip with the SUMO bundle of every test-case the job made, one folder each."""

@@ -15,7 +15,7 @@ from fastapi import APIRouter, File, Form, Query, Request, Response, UploadFile,
 from fastapi.responses import JSONResponse
 
 from service.api.media import IMAGE_RESPONSES, cached, picture_format
-from service.api.problems import Problem
+from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.schemas import JunctionSummary, Links, NetworkPublic
 from service.api.state import State, Token
 from service.core.errors import InvalidInput, UnknownJunction
@@ -61,6 +61,7 @@ async def list_networks(state: State) -> list[NetworkPublic]:
     operation_id="upload_network",
     status_code=status.HTTP_201_CREATED,
     dependencies=[Token],
+    responses=documented(*WORK_PROBLEMS),
 )
 async def upload_network(
     state: State,
@@ -123,6 +124,7 @@ async def get_network_file(state: State, network: str) -> Response:
     operation_id="delete_network",
     status_code=status.HTTP_204_NO_CONTENT,
     dependencies=[Token],
+    responses=documented(409),
 )
 async def delete_network(state: State, network: str) -> None:
     """Delete an uploaded network that no stored test-case uses."""
@@ -135,7 +137,9 @@ async def delete_network(state: State, network: str) -> None:
     state.store.delete_network(network)
 
 
-@router.get("/{network}/junctions", operation_id="list_junctions")
+@router.get(
+    "/{network}/junctions", operation_id="list_junctions", responses=documented(*WORK_PROBLEMS)
+)
 async def list_junctions(state: State, network: str) -> list[JunctionSummary]:
     """The network's junctions with three or more approaches."""
     record = state.network_or_404(network)
@@ -165,7 +169,11 @@ async def list_junctions(state: State, network: str) -> list[JunctionSummary]:
     ]
 
 
-@router.get("/{network}/junctions/{junction}", operation_id="describe_junction")
+@router.get(
+    "/{network}/junctions/{junction}",
+    operation_id="describe_junction",
+    responses=documented(*WORK_PROBLEMS),
+)
 async def describe_junction(state: State, network: str, junction: str) -> JSONResponse:
     """The intersection: forks, exits, routes, conflicts and right-of-way relations."""
     record = state.network_or_404(network)
@@ -186,7 +194,7 @@ async def describe_junction(state: State, network: str, junction: str) -> JSONRe
     "/{network}/junctions/{junction}/plot",
     operation_id="plot_junction",
     response_class=Response,
-    responses=IMAGE_RESPONSES,
+    responses={**IMAGE_RESPONSES, **documented(406, *WORK_PROBLEMS)},
 )
 async def plot_junction(
     state: State,

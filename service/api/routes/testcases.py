@@ -10,8 +10,9 @@ from typing import Annotated
 from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.responses import JSONResponse
 
+from service.api.bodies import OffLoopValidation
 from service.api.media import IMAGE_RESPONSES, cached, picture_format
-from service.api.problems import Problem
+from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.schemas import (
     MAX_OFFSET,
     Lineage,
@@ -22,13 +23,14 @@ from service.api.schemas import (
     TestCaseSummary,
 )
 from service.api.state import State, Token, json_answer
+from service.core import errors
 from service.core.controllers import controller_names
 from service.core.errors import InvalidInput, choices
-from service.core.testcase import NetworkRef, parse_testcase
+from service.core.testcase import NetworkRef, check_samples, parse_testcase
 from service.jobs import tasks
 from service.store import TestCaseRecord
 
-router = APIRouter(prefix="/testcases", tags=["testcases"])
+router = APIRouter(prefix="/testcases", tags=["testcases"], route_class=OffLoopValidation)
 
 
 def links(record: TestCaseRecord) -> Links:
@@ -67,11 +69,19 @@ def public(record: TestCaseRecord) -> TestCasePublic:
     operation_id="create_testcase",
     status_code=status.HTTP_201_CREATED,
     dependencies=[Token],
+    responses=documented(*WORK_PROBLEMS),
     response_model=TestCasePublic,
 )
 async def create_testcase(state: State, body: TestCaseCreate) -> Response:
     """Create an ego-only test-case on a network."""
-    network = state.network_or_404(body.network)
+    check_samples(body.duration, body.timestep, state.settings.max_samples)
+    network = state.store.network(body.network)
+    if network is None:  # named in the body, not the path: invalid input, not a missing page
+        known = [n.id for n in state.store.list_networks()]
+        raise errors.UnknownNetwork(
+            f"network: no network {body.network!r}; known networks: {choices(known)}",
+            network=body.network,
+        )
     junction = body.junction
     control = body.control.value if body.control else None
     if control is None and junction is not None:
@@ -160,6 +170,7 @@ async def get_testcase_document(state: State, testcase: str) -> Response:
     operation_id="delete_testcase",
     status_code=status.HTTP_204_NO_CONTENT,
     dependencies=[Token],
+    responses=documented(409),
 )
 async def delete_testcase(state: State, testcase: str) -> None:
     """Delete a test-case without extensions, and its evaluations."""
@@ -189,7 +200,10 @@ async def get_lineage(state: State, testcase: str) -> Lineage:
     "/{testcase}/bundle",
     operation_id="get_bundle",
     response_class=Response,
-    responses={200: {"content": {"application/zip": {}}, "description": "the SUMO bundle"}},
+    responses={
+        200: {"content": {"application/zip": {}}, "description": "the SUMO bundle"},
+        **documented(*WORK_PROBLEMS),
+    },
 )
 async def get_bundle(state: State, testcase: str) -> Response:
     """The SUMO export as a zip: network, routes, FCD of the non-egos, .sumocfg, README."""
@@ -217,7 +231,7 @@ async def get_bundle(state: State, testcase: str) -> Response:
     "/{testcase}/plot",
     operation_id="plot_testcase",
     response_class=Response,
-    responses=IMAGE_RESPONSES,
+    responses={**IMAGE_RESPONSES, **documented(406, *WORK_PROBLEMS)},
 )
 async def plot_testcase(
     state: State,
