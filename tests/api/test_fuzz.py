@@ -1,0 +1,108 @@
+"""Schemathesis against a real server: every operation, a fixed seed, a bounded number of
+cases, and strict checks (no server error, only documented statuses, responses that match
+their schemas, schema-violating requests refused, and /healthz answering after every request).
+
+``tests/api/fuzz/schemathesis.toml`` says which checks are relaxed where and why;
+``tests/api/fuzz/hooks.py`` adds the /healthz check. The command the test runs is printed on
+failure, to be run again by hand (docs/reliability.md).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.servers import Server
+
+FUZZ = Path(__file__).parent / "fuzz"
+TOKEN = "fuzz-token"
+SEED = 1
+CASES_PER_OPERATION = 5
+CHECKS = (
+    "not_a_server_error",
+    "status_code_conformance",
+    "content_type_conformance",
+    "response_headers_conformance",
+    "response_schema_conformance",
+    "negative_data_rejection",
+    "missing_required_header",
+    "unsupported_method",
+    "allow_header_conformance",
+    "use_after_free",
+    "ensure_resource_availability",
+    "ignored_auth",
+    "server_stays_healthy",
+)
+# Not checked: positive_data_acceptance (a schema-valid body may name a route or network
+# this service does not have: that is a 422 by design) and response times (benchmarked).
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Server]:
+    running = Server(
+        tmp_path_factory.mktemp("fuzz"),
+        api_token=TOKEN,
+        workers="2",
+        # bounded work: a fuzzed budget is refused over 5 s, a search stops after 3 s
+        max_budget="5",
+        extend_budget="3",
+        evaluate_budget="5",
+        work_budget="30",
+    )
+    yield running
+    running.stop()
+
+
+def st_command(url: str) -> list[str]:
+    return [
+        str(Path(sys.executable).with_name("st")),
+        "--config-file",
+        str(FUZZ / "schemathesis.toml"),
+        "run",
+        f"{url}/openapi.json",
+        "--checks",
+        ",".join(CHECKS),
+        "--max-examples",
+        str(CASES_PER_OPERATION),
+        "--seed",
+        str(SEED),
+        "--workers",
+        "2",
+        "--no-shrink",
+        "--request-timeout",
+        "120",
+        "--header",
+        f"Authorization: Bearer {TOKEN}",
+    ]
+
+
+def test_the_fuzzer_finds_nothing(server: Server) -> None:
+    command = st_command(server.url)
+    environment = {
+        **os.environ,
+        "SCENGEN_FUZZ_URL": server.url,
+        "SCHEMATHESIS_HOOKS": "hooks",
+        "PYTHONPATH": str(FUZZ),
+        "NO_COLOR": "1",
+    }
+    finished = subprocess.run(
+        command, cwd=FUZZ, env=environment, capture_output=True, text=True, timeout=900
+    )
+    output = finished.stdout + finished.stderr
+    report = f"{' '.join(command)}\n{output[-6000:]}"
+    assert finished.returncode == 0, report
+    paths = json.loads(server.client.get("/openapi.json").text)["paths"]
+    operations = sum(len(methods) for methods in paths.values())
+    tested = re.search(r"Tested:\s+(\d+)", output)
+    generated = re.search(r"(\d+) generated", output)
+    assert tested and generated, report
+    assert int(tested.group(1)) == operations, report  # every operation, not only some
+    assert int(generated.group(1)) >= CASES_PER_OPERATION * operations, report
+    assert server.client.get("/healthz").status_code == 200
