@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled
 
 .PHONY: help install system-tools test lint format nets run demo openapi bench bench-api bench-jobs \
-	bench-generator \
+	bench-generator bench-reliability \
 	coverage clean
 
 help:
@@ -18,6 +18,7 @@ help:
 	@echo "make bench    time the checker, the generator, the API and batch jobs (docs/benchmarks.md)"
 	@echo "make bench-generator   only the generator: targets, chain growth, Step 2 theories"
 	@echo "make bench-api / bench-jobs   one of those benchmarks"
+	@echo "make bench-reliability   hostile requests against a server (docs/reliability.md)"
 	@echo "make demo     describe the 4-way stop, write a test-case, drive and judge an ego"
 	@echo "make coverage extend every conflicting route pair of the bundled intersections"
 
@@ -75,6 +76,7 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.bench_ordering
 	$(BIN)/python -m bench.bench_api
 	$(BIN)/python -m bench.bench_jobs
+	$(BIN)/python -m bench.bench_hostile
 
 bench-generator: $(STAMP)
 	$(BIN)/pip install --quiet -e '.[test,bench]'
@@ -87,6 +89,9 @@ bench-api: $(STAMP)
 
 bench-jobs: $(STAMP)
 	$(BIN)/python -m bench.bench_jobs
+
+bench-reliability: $(STAMP)
+	$(BIN)/python -m bench.bench_hostile
 
 coverage: $(STAMP)
 	$(BIN)/python -m bench.coverage
