@@ -8,6 +8,7 @@ not be reached.
 from __future__ import annotations
 
 import json
+import re
 import sys
 import time
 import urllib.error
@@ -32,6 +33,25 @@ class ServerUnreachable(ScengenError):
     """The server could not be reached or answered with a 5xx."""
 
 
+class Yaml12Floats(yaml.SafeLoader):
+    """YAML 1.1's SafeLoader, reading floats as YAML 1.2 (and JSON) write them: PyYAML takes
+    ``1e-06``, which json.dumps writes, for a string, and numbers are strict."""
+
+
+Yaml12Floats.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(
+        r"""^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+]?[0-9]+)?
+        |[-+]?(?:[0-9][0-9_]*)(?:[eE][-+]?[0-9]+)
+        |\.[0-9_]+(?:[eE][-+]?[0-9]+)?
+        |[-+]?\.(?:inf|Inf|INF)
+        |\.(?:nan|NaN|NAN))$""",
+        re.VERBOSE,
+    ),
+    list("-+0123456789."),
+)
+
+
 def read_batch(path: Path) -> Batch:
     """A batch file: JSON, or YAML by its suffix."""
     try:
@@ -40,7 +60,7 @@ def read_batch(path: Path) -> Batch:
         raise InvalidInput(f"cannot read {path}: {error.strerror}") from None
     try:
         if path.suffix.lower() in (".yaml", ".yml"):
-            document = yaml.safe_load(text)
+            document = yaml.load(text, Loader=Yaml12Floats)
         elif path.suffix.lower() == ".json":
             document = json.loads(text)
         else:

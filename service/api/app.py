@@ -167,12 +167,12 @@ class BodyLimit:
         if writes and self.token and not token_matches(scope.get("headers", []), self.token):
             await self.app(scope, _no_body, send)  # the route's own check answers 401
             return
+        if scope.get("method") not in ("POST", "PUT", "PATCH"):
+            await self.app(scope, receive, send)  # no route reads their bodies
+            return
         declared = headers.get(b"content-length")
         if declared is not None and declared.isdigit() and int(declared) > self.limit:
             await self._refuse(scope, receive, send)
-            return
-        if scope.get("method") not in ("POST", "PUT", "PATCH"):
-            await self.app(scope, receive, send)
             return
         # Read the whole body first (chunked bodies declare no length): over the cap is a
         # 413 here, not an error somewhere inside the body parser.

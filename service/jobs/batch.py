@@ -19,7 +19,7 @@ MAX_SEED = 2**32 - 1  # clingo's and z3's seeds are unsigned 32-bit
 
 
 class _Item(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
 
 
 class _Based(_Item):
@@ -96,6 +96,7 @@ class Batch(BaseModel):
     model_config = ConfigDict(
         extra="forbid",
         frozen=True,
+        strict=True,
         json_schema_extra={
             "examples": [
                 {

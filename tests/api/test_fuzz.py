@@ -83,7 +83,7 @@ def st_command(url: str) -> list[str]:
     ]
 
 
-def test_the_fuzzer_finds_nothing(server: Server) -> None:
+def test_the_fuzzer_finds_nothing(server: Server, tmp_path: Path) -> None:
     command = st_command(server.url)
     environment = {
         **os.environ,
@@ -93,7 +93,7 @@ def test_the_fuzzer_finds_nothing(server: Server) -> None:
         "NO_COLOR": "1",
     }
     finished = subprocess.run(
-        command, cwd=FUZZ, env=environment, capture_output=True, text=True, timeout=900
+        command, cwd=tmp_path, env=environment, capture_output=True, text=True, timeout=900
     )
     output = finished.stdout + finished.stderr
     report = f"{' '.join(command)}\n{output[-6000:]}"

@@ -159,3 +159,27 @@ def test_worker_memory_too_small_to_start_is_refused(megabytes: int) -> None:
 def test_limits_outside_their_range_are_refused(setting: str, value: int) -> None:
     with pytest.raises(ValidationError, match=setting):
         Settings(**{setting: value})  # type: ignore[arg-type]
+
+
+def test_a_large_body_nested_too_deeply_is_400(client: TestClient) -> None:
+    reply = post_json(client, "/testcases", "[" * (OFF_LOOP_BYTES + 1))
+    assert reply.status_code == 400, reply.text
+    assert "nested too deeply" in reply.json()["detail"]
+
+
+def test_a_large_inline_testcase_is_checked_in_the_worker(client: TestClient) -> None:
+    before = body_validations(client)
+    stored = client.get("/testcases").json()["total"]
+    document = {**example_testcase(), "params": {f"k{k}": 1 for k in range(30_000)}}
+    reply = client.post("/extend", json={"testcase": document, "routes": [EXAMPLE_NEW_ROUTE]})
+    assert reply.status_code == 422, reply.text
+    assert reply.json()["type"] == "/problems/invalid-testcase"
+    assert reply.json()["detail"].endswith("(and 29995 more)")
+    assert body_validations(client) == before + 1
+    assert client.get("/testcases").json()["total"] == stored
+
+
+def test_a_get_with_a_large_declared_body_is_answered(client: TestClient) -> None:
+    """Only bodies that a route reads count against the cap (413 is documented on those)."""
+    reply = client.request("GET", "/networks", content=b"x" * (int(UPLOAD_MB * 2**20) + 1))
+    assert reply.status_code == 200

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 from service.core.errors import InvalidInput
 from service.jobs.batch import ChainItem, dependencies, parse_batch
+from service.submit import read_batch
 
 ROOT = {"testcase_id": "ecf9aef2eb19a2b5"}
 
@@ -58,3 +60,26 @@ def test_bad_batches_are_named(items: list[dict[str, Any]], message: str) -> Non
     with pytest.raises(InvalidInput, match="invalid batch") as caught:
         parse_batch({"items": items})
     assert message in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    ("item", "field"),
+    [
+        ({"kind": "chain", **ROOT, "levels": 2, "seed": True}, "seed"),
+        ({"kind": "chain", **ROOT, "levels": "2"}, "levels"),
+        ({"kind": "chain", "after": False, "levels": 2}, "after"),
+    ],
+)
+def test_numbers_are_strict(item: dict[str, Any], field: str) -> None:
+    """true is not 1 and "2" is not 2 (as in every other body of the API)."""
+    with pytest.raises(InvalidInput, match=field):
+        parse_batch({"items": [{"kind": "extend", **ROOT, "routes": ["a:b"]}, item]})
+
+
+def test_a_yaml_batch_reads_floats_as_json_writes_them(tmp_path: Path) -> None:
+    """PyYAML alone reads 1e-06 as a string (YAML 1.1); json.dumps writes it for 0.000001."""
+    path = tmp_path / "batch.yaml"
+    item = "  - {kind: extend, testcase_id: x, routes: ['a:b'], budget: %s}\n"
+    path.write_text("items:\n" + item % "1e-06" + item % "1e+01")
+    budgets = [item.budget for item in read_batch(path).items]  # type: ignore[union-attr]
+    assert budgets == [1e-06, 10.0]
