@@ -32,13 +32,15 @@ BUDGET = 30.0
 POOLS = (2, 10)
 
 
-def serve(data_dir: Path, workers: int) -> tuple[subprocess.Popen[bytes], str]:
+def serve(data_dir: Path, workers: int, **settings: str) -> tuple[subprocess.Popen[bytes], str]:
+    """``scengen serve`` on a free port; ``settings`` as SCENGEN_* variables (api_token=...)."""
     import socket
 
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     env = {**os.environ, "SCENGEN_DATA_DIR": str(data_dir), "SCENGEN_WORKERS": str(workers)}
+    env.update({f"SCENGEN_{name.upper()}": value for name, value in settings.items()})
     process = subprocess.Popen(
         [sys.executable, "-m", "service", "serve", "--port", str(port)],
         env=env,

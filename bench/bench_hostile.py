@@ -12,11 +12,7 @@ from __future__ import annotations
 
 import json
 import multiprocessing
-import os
 import platform
-import socket
-import subprocess
-import sys
 import tempfile
 import threading
 import time
@@ -27,6 +23,7 @@ from typing import Any
 
 import httpx2 as httpx
 
+from bench.bench_api import serve
 from service.api.schemas import EXAMPLE_EGO, EXAMPLE_NETWORK, EXAMPLE_NEW_ROUTE, example_testcase
 from service.core.network import bundled_networks
 
@@ -187,12 +184,6 @@ def hostile_requests() -> list[Hostile]:
     ]
 
 
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return int(probe.getsockname()[1])
-
-
 def rss_mb(pid: int) -> float:
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
         if line.startswith("VmRSS:"):
@@ -211,27 +202,8 @@ def poll(url: str, stop: threading.Event, worst: list[float]) -> None:
 
 def main() -> None:
     with tempfile.TemporaryDirectory(prefix="scengen-hostile-") as folder:
-        port = free_port()
-        env = {
-            **os.environ,
-            "SCENGEN_DATA_DIR": folder,
-            "SCENGEN_WORKERS": "2",
-            "SCENGEN_API_TOKEN": TOKEN,
-        }
-        server = subprocess.Popen(
-            [sys.executable, "-m", "service", "serve", "--port", str(port)],
-            env=env,
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.DEVNULL,
-        )
-        url = f"http://127.0.0.1:{port}"
+        server, url = serve(Path(folder), 2, api_token=TOKEN)
         try:
-            for _ in range(150):
-                try:
-                    if httpx.get(f"{url}/healthz").status_code == 200:
-                        break
-                except httpx.TransportError:
-                    time.sleep(0.2)
             rows = [measure(url, server.pid, hostile) for hostile in hostile_requests()]
         finally:
             server.terminate()
