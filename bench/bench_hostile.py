@@ -44,6 +44,10 @@ class Hostile:
     headers: dict[str, str] = field(default_factory=lambda: dict(AUTH))
     curl: str = ""
 
+    def __post_init__(self) -> None:
+        if self.content is not None:  # raw JSON (NaN, Infinity): json= would refuse it
+            self.headers.setdefault("content-type", "application/json")
+
 
 def hostile_requests() -> list[Hostile]:
     flood = json.dumps({**CREATE, "params": {f"k{i}": 1 for i in range(1_000_000)}}).encode()
@@ -75,7 +79,6 @@ def hostile_requests() -> list[Hostile]:
                     "routes": [EXAMPLE_NEW_ROUTE],
                 }
             ).encode(),
-            headers={**AUTH, "content-type": "application/json"},
             curl='-d \'{"testcase": {... "duration": Infinity}, ...}\' /extend',
         ),
         Hostile(
@@ -84,7 +87,6 @@ def hostile_requests() -> list[Hostile]:
             "/testcases",
             content=b'{"network":"4way-stop","ego_route":"E2C_1:C2S_1",'
             b'"params":{"v_max":Infinity}}',
-            headers={**AUTH, "content-type": "application/json"},
             curl='-d \'{... "params": {"v_max": Infinity}}\' /testcases',
         ),
         Hostile(
@@ -92,7 +94,6 @@ def hostile_requests() -> list[Hostile]:
             "POST",
             "/testcases",
             content=b'{"network":"4way-stop","ego_route":"E2C_1:C2S_1","duration":NaN}',
-            headers={**AUTH, "content-type": "application/json"},
             curl="-d '{... \"duration\": NaN}' /testcases",
         ),
         Hostile(
@@ -100,7 +101,6 @@ def hostile_requests() -> list[Hostile]:
             "POST",
             "/testcases",
             content=flood,
-            headers={**AUTH, "content-type": "application/json"},
             curl="-d @million-keys.json /testcases",
         ),
         Hostile(

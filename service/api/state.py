@@ -15,7 +15,7 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from pydantic import BaseModel
 
 from service.api.problems import Problem
-from service.core.errors import InvalidInput, choices
+from service.core.errors import InvalidInput, UnknownNetwork, choices
 from service.jobs.dispatch import Dispatcher
 from service.jobs.executor import LocalExecutor
 from service.settings import Settings
@@ -73,6 +73,18 @@ class AppState:
         record = self.store.testcase(ident)
         if record is None:
             raise Problem(404, f"no test-case {ident!r}; GET /testcases lists them")
+        return record
+
+    def network_named_in_body(self, ident: str) -> NetworkRecord:
+        """A network a request body names: unknown is 422 ``unknown-network``, not a
+        missing page (404 is for ids in the path)."""
+        record = self.store.network(ident)
+        if record is None:
+            known = [n.id for n in self.store.list_networks()]
+            raise UnknownNetwork(
+                f"network: no network {ident!r}; known networks: {choices(known)}",
+                network=ident,
+            )
         return record
 
     def testcase_named_in_body(self, ident: str) -> TestCaseRecord:

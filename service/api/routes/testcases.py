@@ -23,7 +23,6 @@ from service.api.schemas import (
     TestCaseSummary,
 )
 from service.api.state import State, Token, json_answer
-from service.core import errors
 from service.core.controllers import controller_names
 from service.core.errors import InvalidInput, choices
 from service.core.testcase import NetworkRef, check_samples, parse_testcase
@@ -75,13 +74,7 @@ def public(record: TestCaseRecord) -> TestCasePublic:
 async def create_testcase(state: State, body: TestCaseCreate) -> Response:
     """Create an ego-only test-case on a network."""
     check_samples(body.duration, body.timestep, state.settings.max_samples)
-    network = state.store.network(body.network)
-    if network is None:  # named in the body, not the path: invalid input, not a missing page
-        known = [n.id for n in state.store.list_networks()]
-        raise errors.UnknownNetwork(
-            f"network: no network {body.network!r}; known networks: {choices(known)}",
-            network=body.network,
-        )
+    network = state.network_named_in_body(body.network)
     junction = body.junction
     control = body.control.value if body.control else None
     if control is None and junction is not None:
