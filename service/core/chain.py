@@ -1,12 +1,13 @@
 """Growing a chain one car at a time, the way a test engineer would.
 
-Each level adds one new car on a route that conflicts with the ego's, from a fork no car
-uses yet (following in one lane is not modelled), trying such routes in an order drawn
-from the seed. Every choice depends only on the test-case and the seed: first every route
-gets up to ROUTE_ORDERS answer sets (a count, not a clock), in that order; when none of
-them gave an extension, those whose search was cut short get the generator's full MAX_ORDERS
-(starting over: the search is deterministic, so the first ROUTE_ORDERS are tried again).
-The time budget only stops the call.
+Each level adds one new car on a route that conflicts with the ego's or starts ahead of
+the ego on its fork, trying such routes in an order drawn from the seed: those from forks
+no car uses first; only when none of them gives an extension, those that join a queue
+(service.core.queues). Every choice depends only on the test-case and the seed: in each
+group, first every route gets up to ROUTE_ORDERS answer sets (a count, not a clock), in
+that order; when none of them gave an extension, those whose search was cut short get the
+generator's full MAX_ORDERS (starting over: the search is deterministic, so the first
+ROUTE_ORDERS are tried again). The time budget only stops the call.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from service.core.errors import NoMoreComplexTestCase, NoneFound
+from service.core.errors import InvalidInput, NoMoreComplexTestCase, NoneFound
 from service.core.generate import MAX_ORDERS, Extension, Progress, extend_testcase
 from service.core.network import Intersection
 from service.core.testcase import TestCase, load_testcase_intersection
@@ -25,14 +26,22 @@ ROUTE_ORDERS = 20  # answer sets one route gets in the first round (a count)
 
 
 def candidate_routes(old: TestCase, intersection: Intersection) -> list[str]:
-    """Routes a new car may take: they conflict with the ego's and start on a fork that
-    neither the ego nor any non-ego uses, sorted by id."""
-    used = {old.ego.route.fork, *(car.route.fork for car in old.nonegos)}
+    """Routes a new car may take: they conflict with the ego's or start on its fork (a car
+    ahead of the ego), sorted by id; a car on a fork in use joins the queue there."""
+    ego = old.ego.route
     return sorted(
         route
-        for route in intersection.conflicts[old.ego.route.id]
-        if intersection.routes[route].fork not in used
+        for route in intersection.routes
+        if route in intersection.conflicts[ego.id] or intersection.routes[route].fork == ego.fork
     )
+
+
+def _by_free_fork(old: TestCase, intersection: Intersection, routes: list[str]) -> list[list[str]]:
+    """Routes from forks no car uses, then those that join a queue (each in the order
+    given): the second group is tried only when the first gave nothing."""
+    used = {old.ego.route.fork, *(car.route.fork for car in old.nonegos)}
+    free = [r for r in routes if intersection.routes[r].fork not in used]
+    return [free, [r for r in routes if intersection.routes[r].fork in used]]
 
 
 @dataclass(frozen=True)
@@ -60,6 +69,32 @@ def grow(
     end = time.monotonic() + budget
     outcomes: list[str] = []
     proven = True
+    for group in _by_free_fork(old, junction, candidates):
+        found, proven_here = _first_extension(old, group, seed, budget, end, junction,
+                                              progress, outcomes)  # fmt: skip
+        proven = proven and proven_here
+        if found is not None:
+            return found
+    tried = "; ".join(outcomes) or "no route conflicts with the ego's"
+    if proven:
+        raise NoMoreComplexTestCase(f"no new car makes this test-case more complex ({tried})")
+    raise NoneFound(f"no route gave a more complex test-case ({tried})", seed=seed)
+
+
+def _first_extension(
+    old: TestCase,
+    candidates: list[str],
+    seed: int,
+    budget: float,
+    end: float,
+    junction: Intersection,
+    progress: Progress | None,
+    outcomes: list[str],
+) -> tuple[Growth | None, bool]:
+    """The first of ``candidates`` with an extension: each first gets ROUTE_ORDERS answer
+    sets, then those cut short get MAX_ORDERS. Also whether every other one is proven to
+    have none."""
+    proven = True
     for orders in (ROUTE_ORDERS, MAX_ORDERS):
         retry = []
         for route in candidates:
@@ -70,7 +105,7 @@ def grow(
                 extension = extend_testcase(
                     old, [route], seed, left, None, progress, junction, max_orders=orders
                 )
-            except NoMoreComplexTestCase as error:
+            except (NoMoreComplexTestCase, InvalidInput) as error:  # no room on its fork
                 outcomes.append(f"{route}: {error}")
                 continue
             except NoneFound as error:
@@ -82,12 +117,9 @@ def grow(
                 proven = False
                 outcomes.append(f"{route}: {error}")
                 continue
-            return Growth(extension, route, tuple(outcomes))
+            return Growth(extension, route, tuple(outcomes)), proven
         candidates = retry
-    tried = "; ".join(outcomes) or "no route conflicts with the ego's from a free fork"
-    if proven:
-        raise NoMoreComplexTestCase(f"no new car makes this test-case more complex ({tried})")
-    raise NoneFound(f"no route gave a more complex test-case ({tried})", seed=seed)
+    return None, proven
 
 
 def _exhausted(budget: float, outcomes: Sequence[str], seed: int) -> NoneFound:

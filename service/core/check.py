@@ -22,6 +22,7 @@ from service.core.errors import InvalidTrajectory
 from service.core.events import EventKind, LaneEvent, compute_events
 from service.core.network import Intersection
 from service.core.poses import PoseSample, centre_to_front, start_front
+from service.core.queues import QueueCar, follows, line_distance
 from service.core.rules import (
     REQUESTED_LANE,
     TimedEvent,
@@ -32,7 +33,7 @@ from service.core.rules import (
     time_symbol,
 )
 from service.core.testcase import NonEgo, TestCase, load_testcase_intersection
-from service.core.verdict import CollisionRecord, EventRef, Verdict, Violation
+from service.core.verdict import CROSSING, REAR_END, CollisionRecord, EventRef, Verdict, Violation
 
 EGO = "ego"
 START_TOLERANCE = 2.0  # metres between the trajectory's first front bumper and the start
@@ -49,6 +50,12 @@ class Car:
     width: float
     samples: Sequence[PoseSample]
     events: tuple[LaneEvent, ...]
+    line: float  # distance travelled at which its front reaches the junction (queues)
+
+    @property
+    def in_queue(self) -> QueueCar:
+        first = self.samples[0].distance if self.samples else 0.0
+        return QueueCar(self.id, self.fork, self.lane, self.length, self.width, self.line, first)
 
 
 def testcase_label(testcase: TestCase) -> str:
@@ -86,6 +93,34 @@ class Judge:
             reuse[n.id] if kept.get(n.id) == n else _nonego_car(testcase, self.junction, n)
             for n in testcase.nonegos
         ]
+        self.queued: dict[tuple[str, float], Car] = {}
+        self.nonegos = self._in_queues(self.nonegos)
+
+    def _in_queues(self, cars: Sequence[Car]) -> list[Car]:
+        """The cars with the arrivals of those in a queue: a car behind another on its fork
+        arrives no earlier than the last car ahead of it entered (service.core.queues)."""
+        entries = {
+            car.id: next((e.time for e in car.events if e.kind is EventKind.ENTERED), math.inf)
+            for car in cars
+        }
+        after: dict[str, float] = {}
+        for follow in follows([car.in_queue for car in cars], self.junction):
+            after[follow.follower] = max(after.get(follow.follower, -math.inf),
+                                         entries[follow.leader])  # fmt: skip
+        found = []
+        for car in cars:
+            if car.id not in after:
+                found.append(car)
+                continue
+            key = (car.id, after[car.id])
+            queued = self.queued.get(key) if car.id != EGO else None  # the ego varies
+            if queued is None:
+                queued = _car(car.id, car.fork, car.lane, car.length, car.width, car.samples,
+                              self.testcase, self.junction, after[car.id])  # fmt: skip
+                if car.id != EGO:
+                    self.queued[key] = queued
+            found.append(queued)
+        return found
 
     def ego_car(self, ego: Sequence[PoseSample]) -> Car:
         """The ego as the checker sees it (its events), after checking where it starts."""
@@ -95,7 +130,8 @@ class Judge:
     def verdict(self, ego: Sequence[PoseSample] | Car, controller: str = "ego") -> Verdict:
         """The verdict on an ego trajectory (or an ego car made by ``ego_car``)."""
         car = ego if isinstance(ego, Car) else self.ego_car(ego)
-        cars = [car, *self.nonegos]
+        cars = self._in_queues([car, *self.nonegos])
+        car = cars[0]
         goal_time = _goal_time(self.testcase, self.junction, car)
         return Verdict(
             testcase=testcase_label(self.testcase),
@@ -112,12 +148,14 @@ class Judge:
 def _car(
     car_id: str, fork: str, lane: str, length: float, width: float,
     samples: Sequence[PoseSample], testcase: TestCase, junction: Intersection,
+    not_before: float = -math.inf,
 ) -> Car:  # fmt: skip
     events = compute_events(
         samples, length, width, junction, fork,
-        testcase.params.arrival_distance, testcase.params.v_stop,
+        testcase.params.arrival_distance, testcase.params.v_stop, not_before,
     )  # fmt: skip
-    return Car(car_id, fork, lane, length, width, samples, tuple(events))
+    line = line_distance(samples, length, junction.fork(fork), events) if samples else 0.0
+    return Car(car_id, fork, lane, length, width, samples, tuple(events), line)
 
 
 def _ego_car(testcase: TestCase, junction: Intersection, samples: Sequence[PoseSample]) -> Car:
@@ -205,13 +243,16 @@ def _refs(car: Car) -> list[EventRef]:
 
 
 def _collisions(cars: Sequence[Car]) -> list[CollisionRecord]:
+    """The ego's first collision with each car; between two cars of one fork it is a
+    rear-end collision (one drove into the other on their common lane)."""
     ego, others = cars[0], cars[1:]
     ego_motion = Motion(ego.samples, ego.length, ego.width)
     found = []
     for other in others:
         hit = first_collision(ego_motion, Motion(other.samples, other.length, other.width))
         if hit is not None:
-            found.append(CollisionRecord(other.id, round(hit.time, 6), hit.x, hit.y))
+            kind = REAR_END if other.fork == ego.fork else CROSSING
+            found.append(CollisionRecord(other.id, round(hit.time, 6), hit.x, hit.y, kind))
     return found
 
 

@@ -3,7 +3,9 @@
 Events (design section 1), each with a time and a distance travelled:
 
 - ``arrived``: the front bumper comes within the arrival distance of the fork's stop line
-  (measured along the fork's approach heading);
+  (measured along the fork's approach heading), with no car ahead of it on its fork that
+  has not entered the junction yet (a car still behind another has not arrived: the
+  caller says when the last car ahead entered, service.core.queues);
 - ``stopped``: the speed first falls to ``v_stop`` or below between arriving and entering;
 - ``entered``: the rectangle first overlaps the junction polygon;
 - ``entered_lane`` / ``left_lane``: the rectangle starts / stops overlapping a connecting
@@ -153,7 +155,9 @@ def _region_events(
     return events
 
 
-def _arrival(track: _Track, fork: Fork, arrival_distance: float) -> LaneEvent | None:
+def _arrival(
+    track: _Track, fork: Fork, arrival_distance: float, not_before: float
+) -> LaneEvent | None:
     rad = math.radians(fork.heading)
     ux, uy = math.sin(rad), math.cos(rad)
     fx = track.x + np.sin(np.radians(track.heading)) * track.length / 2.0
@@ -163,6 +167,16 @@ def _arrival(track: _Track, fork: Fork, arrival_distance: float) -> LaneEvent | 
     if near.size == 0:
         return None
     k = int(near[0])
+    if not_before > track.t[k]:  # still behind a car that has not entered: not yet arrived
+        if not_before > track.t[-1]:
+            return None
+        j = int(np.searchsorted(track.t, not_before, side="right")) - 1
+        if j >= len(track.t) - 1:
+            last = track.samples[-1]
+            return LaneEvent(EventKind.ARRIVED, fork.lane, last.t, last.distance)
+        share = (not_before - track.t[j]) / (track.t[j + 1] - track.t[j])
+        time, distance, *_ = track.between(j, float(share))
+        return LaneEvent(EventKind.ARRIVED, fork.lane, time, distance)
     if k == 0:
         return LaneEvent(EventKind.ARRIVED, fork.lane, float(track.t[0]), float(track.distance[0]))
     share = (to_line[k - 1] - arrival_distance) / (to_line[k - 1] - to_line[k])
@@ -195,8 +209,11 @@ def compute_events(
     fork: str,
     arrival_distance: float,
     v_stop: float,
+    not_before: float = -math.inf,
 ) -> list[LaneEvent]:
-    """All events of a car on a route from ``fork``, ordered by distance then kind."""
+    """All events of a car on a route from ``fork``, ordered by distance then kind.
+    ``not_before``: when every car ahead of it on its fork has entered the junction (a car
+    still behind another has not arrived, service.core.queues)."""
     if len(samples) < 2:
         return []
     track = _Track(samples, length, width)
@@ -211,7 +228,7 @@ def compute_events(
         events.append(LaneEvent(EventKind.ENTERED, fork, entered.time, entered.distance))
     if exits and exits[-1].time >= entries[-1].time:
         events.append(exits[-1])
-    arrived = _arrival(track, intersection.fork(fork), arrival_distance)
+    arrived = _arrival(track, intersection.fork(fork), arrival_distance, not_before)
     if arrived is not None and (entered is None or arrived.time <= entered.time):
         events.append(arrived)
         limit = entered.time if entered is not None else math.inf

@@ -15,6 +15,7 @@ budget in seconds only stops a call that runs too long, with an error that says 
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import time
@@ -22,7 +23,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from service.core.check import Judge, check_testcase
+from service.core.check import Car, Judge, check_testcase
 from service.core.collisions import Motion, first_collision
 from service.core.errors import (
     BudgetExceeded,
@@ -32,6 +33,7 @@ from service.core.errors import (
     NoneFound,
 )
 from service.core.events import EventKind, LaneEvent, compute_events
+from service.core.following import CERTIFICATES, QueueBounds, QueueMember, queue_bounds
 from service.core.invariants import ROUNDING, motion_fault
 from service.core.kinematics import Bounds
 from service.core.linear import GRID
@@ -44,12 +46,20 @@ from service.core.ordering import (
     OrderingSearch,
     SearchLimitReached,
     event_groups,
-    headways,
     stand_distance,
     stop_symbol,
     timed_events,
 )
 from service.core.poses import DRIVE_BUDGET, PoseSample, PoseTrack, generate_poses
+from service.core.queues import (
+    Follow,
+    Places,
+    QueueCar,
+    follows,
+    gap_fault,
+    line_distance,
+    needed_gap,
+)
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -57,22 +67,26 @@ from service.core.testcase import (
     parse_testcase,
 )
 from service.core.timing import (
+    TICK,
     CarPlan,
+    Following,
     Knot,
     TimingFailure,
     TimingProblem,
     TimingSolution,
     solve_timing,
 )
+from service.core.verdict import REAR_END
 
 STEP1_SPEED = 8.0  # m/s: Step 1 drives at this speed; it sets only how dense the poses are
-PLATOON_SPACING = 15.0  # metres between new cars that start on the same fork
+QUEUE_SPACING = 5.0  # metres a new car starts behind the room it needs on a fork in use
 MAX_ORDERS = 60  # answer sets one extension tries at most: a count, the same on any machine
 # Step 2 first proposes orders that 70 % of the bounds can time (they leave the curves room),
 # then, when those are exhausted, every order the full bounds allow.
 SEARCH_SHARES = (0.7, 1.0)
 
 Progress = Callable[[str], None]
+StartDistances = float | Sequence[float | None] | None
 
 
 @dataclass(frozen=True)
@@ -123,12 +137,14 @@ def extend_testcase(
     routes: Sequence[str],
     seed: int = 0,
     budget: float = 60.0,
-    start_distance: float | None = None,
+    start_distance: StartDistances = None,
     progress: Progress | None = None,
     intersection: Intersection | None = None,
     max_orders: int = MAX_ORDERS,
 ) -> Extension:
-    """A strictly more complex, solvable test-case with new non-egos on ``routes``.
+    """A strictly more complex, solvable test-case with new non-egos on ``routes``, each
+    starting ``start_distance`` before its stop line (one number for all, one per route,
+    or None: automatic, behind the cars already on its fork or ahead of the ego).
 
     At most ``max_orders`` answer sets of Step 2 are tried; ``budget`` (seconds) only
     stops a call that takes longer (NoneFound with ``budget_exhausted``)."""
@@ -136,11 +152,12 @@ def extend_testcase(
     say = progress or (lambda _: None)
     seconds: dict[str, float] = {}
     junction = intersection or load_testcase_intersection(old)
-    _check_old(old, junction)
+    old_judge = Judge(old, junction)
+    _check_old(old, old_judge)
     new_routes = _validate(old, junction, routes)
     ego_route = junction.route(old.ego.route.id)
     ids = _new_ids(old, len(new_routes))
-    starts = _starts(old, new_routes, start_distance)
+    starts = automatic_starts(old, old_judge, new_routes, start_distance)
 
     clock = time.monotonic()
     attempts: list[Attempt] = []
@@ -166,14 +183,17 @@ def extend_testcase(
     say(f"step 1 poses: {len(tracks)} drives in {seconds['poses']:.2f} s")
     deadline.check(attempts, "Step 1")
 
-    cars = _ordering_cars(old, junction, ego_track, new_tracks, new_routes, ids)
+    cars = _ordering_cars(old, old_judge, junction, ego_track, new_tracks, new_routes, ids)
+    queue = _queue(old, old_judge, junction, cars, tracks_of, ids)
     seconds["ordering"] = seconds["timing"] = seconds["verification"] = 0.0
     tried: list[Ordering] = []
     ruled_out: list[Sequence[tuple[str, Any, Any]]] = []
     exhausted = False
     for share in SEARCH_SHARES:
         clock = time.monotonic()
-        search = OrderingSearch(junction, cars, old.params.m, seed, _limits(old, share=share))
+        search = OrderingSearch(
+            junction, cars, old.params.m, seed, _limits(old, share=share), queue.bounds
+        )
         for ordering in tried:
             search.block(ordering)
         for relations in ruled_out:
@@ -197,7 +217,7 @@ def extend_testcase(
             number = len(attempts)
             deadline.check(attempts, "Step 3")
             clock = time.monotonic()
-            problem = _timing_problem(old, junction, cars, ordering, tracks_of)
+            problem = _timing_problem(old, junction, cars, ordering, tracks_of, queue)
             result = solve_timing(problem)
             seconds["timing"] += time.monotonic() - clock
             if isinstance(result, TimingFailure):
@@ -220,7 +240,7 @@ def extend_testcase(
             say(f"step 2/3 answer set {number + 1}: {outcome}")
         if not exhausted:
             break
-    raise _not_found(old, junction, cars, seed, routes, attempts, exhausted)
+    raise _not_found(old, junction, cars, queue.bounds, seed, routes, attempts, exhausted)
 
 
 def _limits(old: TestCase, margin: float | None = None, share: float = 1.0) -> Limits:
@@ -244,6 +264,7 @@ def _not_found(
     old: TestCase,
     junction: Intersection,
     cars: Sequence[OrderingCar],
+    bounds: QueueBounds,
     seed: int,
     routes: Sequence[str],
     attempts: Sequence[Attempt],
@@ -261,7 +282,7 @@ def _not_found(
             seed=seed,
             search_exhausted=False,
         )
-    bare = OrderingSearch(junction, cars, old.params.m, seed, _limits(old, margin=0.0))
+    bare = OrderingSearch(junction, cars, old.params.m, seed, _limits(old, margin=0.0), bounds)
     if not bare.satisfiable():
         return NoMoreComplexTestCase(
             f"no more complex test-case exists for these routes: {bare.explain_unsatisfiable()}",
@@ -314,6 +335,8 @@ def _judge(
     problem = verify_extension(old, candidate, junction, ids)
     if problem is not None:
         return f"verification: {problem}", None
+    assert candidate.provenance is not None
+    candidate.provenance["complexity_certificate"] = complexity_kind(candidate, junction)
     return "verified", candidate
 
 
@@ -328,31 +351,22 @@ def _validate(old: TestCase, junction: Intersection, routes: Sequence[str]) -> l
                 f"route {route.id} conflicts with no route at junction {junction.junction}: "
                 "a car on it can never matter to anyone"
             )
-        if route.fork == ego.fork:
-            raise InvalidInput(
-                f"route {route.id} starts on the ego's fork {ego.fork}; new cars must come "
-                "from another lane (following in one lane is not modelled)"
-            )
-        if any(n.route.fork == route.fork for n in old.nonegos):
-            raise InvalidInput(
-                f"route {route.id} starts on fork {route.fork}, which an existing non-ego "
-                "uses; new cars must come from another lane"
-            )
-    if not any(ego.id in junction.conflicts[route.id] for route in chosen):
+    if not any(ego.id in junction.conflicts[route.id] or route.fork == ego.fork
+               for route in chosen):  # fmt: skip
         raise NoMoreComplexTestCase(
             "no more complex test-case exists for these routes: none of them crosses or "
-            f"merges with the ego's route {ego.id}, so no ego behaviour can violate a new "
-            "car's right-of-way",
+            f"merges with the ego's route {ego.id} or starts ahead of the ego on its fork, so "
+            "no ego behaviour can violate a new car's right-of-way or drive into it",
             routes=list(routes),
         )
     return chosen
 
 
-def _check_old(old: TestCase, junction: Intersection) -> None:
+def _check_old(old: TestCase, judge: Judge) -> None:
     if old.certificates is None:
         return
     samples = [PoseSample(**s.model_dump()) for s in old.certificates.solvability]
-    verdict = check_testcase(old, samples, "solvability certificate", junction)
+    verdict = judge.verdict(samples, "solvability certificate")
     if not verdict.passed:
         raise InvalidTestCase(
             "the old test-case fails its own checks: its solvability certificate "
@@ -371,15 +385,98 @@ def _new_ids(old: TestCase, count: int) -> list[str]:
     return ids
 
 
-def _starts(old: TestCase, routes: Sequence[Route], start: float | None) -> list[float]:
-    base = old.ego.start.distance if start is None else start
-    seen: dict[str, int] = {}
+def automatic_starts(
+    old: TestCase, judge: Judge, routes: Sequence[Route], start: StartDistances
+) -> list[float]:
+    """Each new car's start distance: the one given, else automatic. Automatically, a car
+    on a fork no one uses starts where the ego does; on the ego's fork, ahead of the first
+    car there; on a fork with other cars, behind the last one; with room for the gap and
+    the headway at the start speed, and QUEUE_SPACING more. InvalidInput when a car would
+    start behind the ego or too close to a car already on its fork."""
+    given = _given_starts(routes, start)
+    ego, params = old.ego, old.params
+    ego_fork = ego.route.fork
+    on_fork: dict[str, list[_Placed]] = {
+        ego_fork: [_Placed(ego.start.distance, ego.length, "the ego", ego.start.speed)]
+    }
+    for car in judge.nonegos:
+        speed = car.samples[0].speed if car.samples else 0.0
+        on_fork.setdefault(car.fork, []).append(
+            _Placed(car.in_queue.start, car.length, car.id, speed)
+        )
     starts = []
-    for route in routes:
-        ahead = seen.get(route.fork, 0)
-        starts.append(base + ahead * PLATOON_SPACING)
-        seen[route.fork] = ahead + 1
+    for k, (route, wanted) in enumerate(zip(routes, given, strict=True)):
+        there = on_fork.setdefault(route.fork, [])
+        name = f"new car {k + 1} ({route.id})"
+        if wanted is None:
+            wanted = _automatic(old, there, route.fork == ego_fork)
+            if wanted is None:
+                first = min(p.start for p in there)
+                raise InvalidInput(
+                    f"{name}: no room ahead of the cars on the ego's fork {route.fork} (the "
+                    f"first starts {first:g} m before the line); give its start distance"
+                )
+        wanted = round(wanted, 6)
+        if route.fork == ego_fork and wanted > ego.start.distance:
+            raise InvalidInput(
+                f"{name} would start {wanted:g} m before the line, behind the ego "
+                f"({ego.start.distance:g} m): a non-ego behind the ego would drive into any "
+                "ego that waits longer than it does, so new cars on the ego's fork start "
+                "ahead of it (a smaller start distance)"
+            )
+        placed = _Placed(wanted, ego.length, name, 0.0)
+        for other in there:
+            ahead, behind = (other, placed) if other.start < wanted else (placed, other)
+            room = ahead.length + needed_gap(params.gap, params.headway, behind.speed)
+            if behind.start - ahead.start < room:
+                raise InvalidInput(
+                    f"{name} would start {wanted:g} m before the line, "
+                    f"{abs(wanted - other.start):g} m from {other.name} ({other.start:g} m) "
+                    f"on fork {route.fork}: the car behind needs a car length plus its gap "
+                    f"({room:g} m) to the one ahead"
+                )
+        there.append(placed)
+        starts.append(wanted)
     return starts
+
+
+@dataclass(frozen=True)
+class _Placed:
+    """A car on a fork at the start: metres before the line, length, name, speed."""
+
+    start: float
+    length: float
+    name: str
+    speed: float
+
+
+def _automatic(old: TestCase, there: Sequence[_Placed], ego_fork: bool) -> float | None:
+    """The automatic start of a new car on a fork with ``there`` on it."""
+    params, length = old.params, old.ego.length
+    if not there:
+        return old.ego.start.distance
+    if ego_fork:
+        first = min(there, key=lambda p: p.start)
+        room = length + needed_gap(params.gap, params.headway, first.speed)
+        ahead = first.start - room - QUEUE_SPACING
+        return ahead if ahead >= 0 else None
+    last = max(there, key=lambda p: p.start)
+    return last.start + last.length + params.gap + QUEUE_SPACING
+
+
+def _given_starts(routes: Sequence[Route], start: StartDistances) -> list[float | None]:
+    if start is None or isinstance(start, int | float):
+        return [None if start is None else float(start)] * len(routes)
+    given = list(start)
+    if len(given) != len(routes):
+        raise InvalidInput(
+            f"give one start distance per new route: {len(routes)} routes, "
+            f"{len(given)} start distances"
+        )
+    for value in given:
+        if value is not None and (not math.isfinite(value) or value < 0):
+            raise InvalidInput(f"start distances must be >= 0 m, got {value:g}")
+    return given
 
 
 def _events(
@@ -397,20 +494,18 @@ def _events(
 
 def _ordering_cars(
     old: TestCase,
+    judge: Judge,
     junction: Intersection,
     ego_track: PoseTrack,
     new_tracks: dict[str, PoseTrack],
     new_routes: Sequence[Route],
     ids: Sequence[str],
 ) -> list[OrderingCar]:
-    cars = []
-    for nonego in old.nonegos:
-        route = junction.route(nonego.route.id)
-        samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
-        events = _events(samples, nonego.length, nonego.width, junction, route.fork, old)
-        cars.append(
-            OrderingCar(nonego.id, CarKind.OLD, route.fork, route.connecting_lane, tuple(events))
-        )
+    """The cars of Step 2; old cars with their events as the checker sees them (arrivals
+    in a queue included)."""
+    cars = [
+        OrderingCar(car.id, CarKind.OLD, car.fork, car.lane, car.events) for car in judge.nonegos
+    ]
     ego_route = junction.route(old.ego.route.id)
     ego_events = tuple(
         _events(ego_track.samples, old.ego.length, old.ego.width, junction, ego_route.fork, old)
@@ -433,6 +528,59 @@ def _ordering_cars(
             OrderingCar(car_id, CarKind.NEW, route.fork, route.connecting_lane, tuple(events))
         )
     return cars
+
+
+@dataclass(frozen=True)
+class _Queue:
+    """The queues of an extension: who follows whom, and what that asks of the times."""
+
+    follows: tuple[Follow, ...]
+    members: dict[str, QueueMember]
+    bounds: QueueBounds
+    order: dict[str, int]  # symbolic cars, leaders first
+
+
+def _queue(
+    old: TestCase,
+    judge: Judge,
+    junction: Intersection,
+    cars: Sequence[OrderingCar],
+    tracks: dict[str, PoseTrack],
+    ids: Sequence[str],
+) -> _Queue:
+    by_name = {car.car: car for car in cars}
+    members: dict[str, QueueMember] = {}
+    queue_cars: list[QueueCar] = []
+    for old_car in judge.nonegos:
+        members[old_car.id] = QueueMember(
+            by_name[old_car.id],
+            old_car.length,
+            old_car.line,
+            Places.of(old_car.samples, old_car.in_queue),
+        )
+        queue_cars.append(old_car.in_queue)
+    for name in ("ego", *ids):
+        car, track = by_name[name], tracks[name]
+        line = line_distance(track.samples, track.length, junction.fork(car.fork), car.events)
+        queue_cars.append(QueueCar(name, car.fork, car.lane, track.length, track.width, line,
+                                   track.samples[0].distance))  # fmt: skip
+        members[name] = QueueMember(car, track.length, line)
+    members["illegal"] = QueueMember(by_name["illegal"], members["ego"].length,
+                                     members["ego"].line)  # fmt: skip
+    found = tuple(follows(queue_cars, junction))
+    limits = Bounds(old.params.v_max, old.params.a_max, old.params.a_min)
+    bounds = queue_bounds(found, members, old.params.gap, limits, old.duration)
+    at_start = tuple(  # events where a car starts (a queue's first car may have arrived)
+        (t.symbol, TICK)
+        for car in cars
+        if car.kind is not CarKind.OLD
+        for t in timed_events(car)
+        if t.event.distance <= ROUNDING
+    )
+    bounds = dataclasses.replace(bounds, latest=bounds.latest + at_start)
+    depth = {q.id: sum(1 for f in found if f.follower == q.id) for q in queue_cars}
+    order = {name: depth.get("ego" if name == "illegal" else name, 0) for name in by_name}
+    return _Queue(found, members, bounds, order)
 
 
 def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: bool) -> CarPlan:
@@ -458,6 +606,9 @@ def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: boo
         )
         if own_exit:
             leaves = len(knots)
+        if group[0].event.distance <= ROUNDING:  # an event at the start: at t = 0
+            arrival = None if EventKind.ARRIVED in kinds else arrival
+            continue
         if symbol in used or kinds & {EventKind.ARRIVED, EventKind.ENTERED} or own_exit:
             knots.append(Knot(symbol, _on_grid(group[0].event.distance)))
     runs = None
@@ -480,6 +631,7 @@ def _timing_problem(
     cars: Sequence[OrderingCar],
     ordering: Ordering,
     tracks: dict[str, PoseTrack],
+    queue: _Queue,
 ) -> TimingProblem:
     plans = []
     fixed = []
@@ -489,16 +641,28 @@ def _timing_problem(
             continue
         sign = junction.forks[car.fork].stop_sign
         plans.append(_plan(car, ordering, tracks[car.car], sign))
+        fixed += [  # events where the car starts happen at t = 0
+            (str(group[0].symbol), 0.0)
+            for group in event_groups(car)
+            if group[0].event.distance <= ROUNDING
+        ]
+    plans.sort(key=lambda plan: queue.order[plan.car])  # leaders before their followers
+    follows = _followings(old, queue)
     knotted = {k.symbol for p in plans for k in p.knots}
+    bounds = queue.bounds
     return TimingProblem(
         cars=tuple(plans),
         fixed=tuple(fixed),
         relations=tuple((kind, str(a), str(b)) for kind, a, b in ordering.relations),
         gaps=tuple(
             (str(a), str(b), gap)
-            for a, b, gap in headways(cars)
+            for a, b, gap in bounds.headways
             if str(a) in knotted and str(b) in knotted
         ),
+        earliest=tuple((str(s), t) for s, t in bounds.earliest if str(s) in knotted),
+        latest=tuple((str(s), t) for s, t in bounds.latest if str(s) in knotted),
+        follows=follows,
+        timestep=old.timestep,
         duration=old.duration,
         m=old.params.m,
         margin=_margin(old),
@@ -508,6 +672,39 @@ def _timing_problem(
         v_run=old.params.v_run,
         v_max=old.params.v_max,
     )
+
+
+def _followings(old: TestCase, queue: _Queue) -> tuple[Following, ...]:
+    """Step 3's pairs: every follow with a symbolic car (the ego's stands for both
+    certificates), except the complexity certificate behind a new car (it may hit it)."""
+    found = []
+    for follow in queue.follows:
+        for leader in CERTIFICATES if follow.leader == "ego" else (follow.leader,):
+            for follower in CERTIFICATES if follow.follower == "ego" else (follow.follower,):
+                a, b = queue.members[leader], queue.members[follower]
+                if a.places is not None and b.places is not None:
+                    continue
+                if follower == "illegal" and a.car.kind is CarKind.NEW:
+                    continue
+                old_car = a if a.places is not None else b if b.places is not None else None
+                rows: tuple[tuple[float, float, float], ...] = ()
+                if old_car is not None:
+                    nonego = next(n for n in old.nonegos if n.id == old_car.car.car)
+                    rows = tuple((s.t, s.distance, s.speed) for s in nonego.trajectory)
+                found.append(
+                    Following(
+                        leader,
+                        follower,
+                        a.line,
+                        b.line,
+                        a.length,
+                        follow.parting,
+                        old.params.gap,
+                        old.params.headway + _margin(old),
+                        rows,
+                    )
+                )
+    return tuple(found)
 
 
 def _sample(
@@ -595,7 +792,9 @@ def verify_extension(
     assert new.certificates is not None
     old_judge = Judge(old, junction)
     new_judge = Judge(new, junction, known=old_judge)
-    solvability = [PoseSample(**s.model_dump()) for s in new.certificates.solvability]
+    solvability = new_judge.ego_car(
+        [PoseSample(**s.model_dump()) for s in new.certificates.solvability]
+    )
     verdict = new_judge.verdict(solvability, "solvability")
     if not verdict.passed:
         return "solvability certificate fails the new test-case: " + "; ".join(verdict.reasons)
@@ -608,10 +807,12 @@ def verify_extension(
     verdict = new_judge.verdict(complexity, "complexity")
     if verdict.passed:
         return "complexity certificate passes the new test-case"
-    if not verdict.goal_reached or verdict.collisions:
+    if not verdict.goal_reached:
         return "complexity certificate fails the new test-case otherwise: " + "; ".join(
             verdict.reasons
         )
+    if any(c.other not in ids or c.kind != REAR_END for c in verdict.collisions):
+        return "complexity certificate collides with a car other than a new car ahead of it"
     if any(v.other not in ids for v in verdict.violations):
         return "complexity certificate breaks a rule besides a new car's right-of-way"
     motions = {
@@ -625,4 +826,44 @@ def verify_extension(
             hit = first_collision(motions[car_id], motion)
             if hit is not None:
                 return f"{car_id} collides with {other} at {hit.time:.2f} s"
+    return _gaps_kept(new, new_judge, solvability, junction, ids)
+
+
+def _gaps_kept(
+    new: TestCase, judge: Judge, solvability: Car, junction: Intersection, ids: Sequence[str]
+) -> str | None:
+    """What is wrong with the gaps in the queues that a new car or the solvability
+    certificate is in (None: every follower keeps its gap)."""
+    cars = {car.id: car for car in (solvability, *judge.nonegos)}
+    checked = {*ids, solvability.id}
+    for follow in follows([car.in_queue for car in cars.values()], junction):
+        if not checked & {follow.leader, follow.follower}:
+            continue
+        leader, follower = cars[follow.leader], cars[follow.follower]
+        fault = gap_fault(
+            follow,
+            Places.of(leader.samples, leader.in_queue),
+            Places.of(follower.samples, follower.in_queue),
+            new.params.gap,
+            new.params.headway,
+        )
+        if fault is not None:
+            name = "the solvability certificate" if follower.id == solvability.id else None
+            return f"{name or follower.id} does not keep its gap: {fault}"
     return None
+
+
+def complexity_kind(new: TestCase, junction: Intersection) -> dict[str, Any]:
+    """How the complexity certificate fails the new test-case: "right-of-way" (it violates
+    a new car's) or "rear-end" (it drives into a new car ahead of it), and the cars."""
+    assert new.certificates is not None
+    verdict = check_testcase(
+        new, [PoseSample(**s.model_dump()) for s in new.certificates.complexity],
+        "complexity", junction,
+    )  # fmt: skip
+    hit = sorted({c.other for c in verdict.collisions})
+    return {
+        "kind": "rear-end" if hit else "right-of-way",
+        "right_of_way": sorted({v.other for v in verdict.violations if v.other}),
+        "rear_end": hit,
+    }

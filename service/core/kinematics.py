@@ -83,13 +83,14 @@ def least_gaps(
     """``gaps[j - 1]``: the least time from point j - 1 to point j, for j >= 1. Covering the
     distance takes at least as long as from the highest speed the car can have at the first
     point (accelerating at most a_max) and as arriving no faster than it can have at the
-    second (braking at most -a_min), never above v_max; a stand takes ``DWELL``."""
+    second (braking at most -a_min), never above v_max; a stand takes ``DWELL``, an event
+    at the start (point 1 where point 0 is) none."""
     caps = speed_caps(distances, start_speed, bounds)
     gaps = []
     for j in range(1, len(distances)):
         gap = distances[j] - distances[j - 1]
         if gap <= SAME:
-            gaps.append(DWELL)
+            gaps.append(0.0 if j == 1 else DWELL)  # an event at the start, or a stand
             continue
         gaps.append(
             max(

@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import clingo
 import clingo.ast
@@ -44,6 +44,9 @@ from service.core.rules import (
     time_symbol,
 )
 
+if TYPE_CHECKING:
+    from service.core.following import QueueBounds
+
 OLD = Predicate("old", 1)
 NEW = Predicate("new", 1)
 CERTIFICATE = Predicate("certificate", 1)
@@ -55,6 +58,9 @@ MIN_GAP = Predicate("minGap", 3)
 MIN_GAP_STOPPED = Predicate("minGapStopped", 4)
 MAX_GAP_RUNNING = Predicate("maxGapRunning", 4)
 HEADWAY = Predicate("headway", 3)
+EARLIEST = Predicate("earliest", 2)
+LATEST = Predicate("latest", 2)
+AHEAD_OF = Predicate("aheadOf", 2)
 HORIZON = Predicate("horizon", 1)
 START = clingo.Number(0)  # the zero of clingo-dl's time line: t = 0
 GROUPS = ("complexity", "solvability", "noCollision")
@@ -64,7 +70,6 @@ GROUP_EXPLANATIONS = {
     "solvability": "no order of events leaves the new test-case solvable",
     "noCollision": "every order that works needs two cars in each other's lanes at once",
 }
-HEADWAY_SECONDS = 2.0  # a new car behind another on the same fork comes this much later
 STOP_DELAY = 4.0  # seconds a stop at a sign adds to a car's nominal schedule
 NOMINAL_SPREAD = 6.0  # seconds a new car's nominal schedule is late by at most (seeded)
 
@@ -248,33 +253,16 @@ def _nominal(
     return facts
 
 
-def headways(cars: Sequence[OrderingCar]) -> list[tuple[clingo.Symbol, clingo.Symbol, float]]:
-    """New cars that start on one fork drive one after the other: at every event both have
-    (same kind, same lane), the one behind comes HEADWAY_SECONDS after the one ahead.
-    (S, T, seconds): T at least that long after S."""
-    by_fork: dict[str, list[OrderingCar]] = {}
-    for car in cars:
-        if car.kind is CarKind.NEW:
-            by_fork.setdefault(car.fork, []).append(car)
-    found = []
-    for group in by_fork.values():
-        for leader, follower in itertools.pairwise(group):
-            behind = {(t.event.kind, t.event.lane): t.symbol for t in timed_events(follower)}
-            for ahead in timed_events(leader):
-                symbol = behind.get((ahead.event.kind, ahead.event.lane))
-                if symbol is not None:
-                    found.append((ahead.symbol, symbol, HEADWAY_SECONDS))
-    return found
-
-
 def ordering_facts(
     intersection: Intersection,
     cars: Sequence[OrderingCar],
     m: float,
     limits: Limits,
     seed: int = 0,
+    queue: QueueBounds | None = None,
 ) -> tuple[list[clingo.Symbol], dict[clingo.Symbol, TimedEvent]]:
-    """Facts of Step 2 and the events behind every time symbol."""
+    """Facts of Step 2 and the events behind every time symbol; ``queue``: what the
+    queues ask of the symbolic cars (service.core.following)."""
     facts = geometry_facts(intersection)
     symbols: dict[clingo.Symbol, TimedEvent] = {}
     old_timed: list[TimedEvent] = []
@@ -305,8 +293,14 @@ def ordering_facts(
         facts += [REAL_LTE(a, b) for a, b in itertools.pairwise(distinct)]
     facts += perceptible_order(old_timed, m)
     facts += [NOMINAL(t.symbol, round(t.event.time * 1000)) for t in old_timed]
-    facts += [HEADWAY(a, b, round(gap * 1000)) for a, b, gap in headways(cars)]
-    facts.append(HORIZON(math.floor((limits.duration - limits.margin) * 1000)))
+    horizon = math.floor((limits.duration - limits.margin) * 1000)
+    facts.append(HORIZON(horizon))
+    if queue is not None:
+        facts += [HEADWAY(a, b, math.floor(gap * 1000)) for a, b, gap in queue.headways]
+        facts += [EARLIEST(s, min(math.ceil(t * 1000 - 1e-6), horizon + 1))
+                  for s, t in queue.earliest]  # fmt: skip
+        facts += [LATEST(s, math.floor(t * 1000 + 1e-6)) for s, t in queue.latest]
+        facts += [AHEAD_OF(clingo.String(a), clingo.String(b)) for a, b in queue.ahead]
     return facts, symbols
 
 
@@ -323,9 +317,10 @@ class OrderingSearch:
         m: float,
         seed: int,
         limits: Limits,
+        queue: QueueBounds | None = None,
     ) -> None:
         self.cars = {car.car: car for car in cars}
-        self.facts, self.symbols = ordering_facts(intersection, cars, m, limits, seed)
+        self.facts, self.symbols = ordering_facts(intersection, cars, m, limits, seed, queue)
         self.theory = self._theory()
         self.control = clingo.Control(
             [

@@ -74,6 +74,12 @@ class Params(_Model):
     arrival_distance: Positive = Field(
         10.0, description="a car has arrived at its fork when its front is this close (m)"
     )
+    gap: NonNegative = Field(
+        2.0, description="distance a car keeps behind the car ahead on its lane (m)"
+    )
+    headway: NonNegative = Field(
+        1.0, description="time headway a car keeps on top of the gap: gap + headway x speed (s)"
+    )
 
     @model_validator(mode="after")
     def _speeds_ordered(self) -> Params:

@@ -31,9 +31,12 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
+
+import numpy as np
 
 from service.core.kinematics import SAME, Bounds, duration_range, least_gaps, speed_caps
 from service.core.linear import Linear, LinearProgram, combine, rational, total, values
@@ -70,8 +73,27 @@ class CarPlan:
 
 
 @dataclass(frozen=True)
+class Following:
+    """``follower`` keeps behind ``leader`` on their fork (service.core.queues): while the
+    leader's rear is before ``parting``, the follower's front stays ``gap + headway x its
+    speed`` behind it. Places are distances minus each car's ``line``. An old car of the
+    pair (``fixed``: its samples as (t, distance, speed)) is given; a symbolic leader is
+    fitted before its followers."""
+
+    leader: str
+    follower: str
+    leader_line: float
+    follower_line: float
+    leader_length: float
+    parting: float
+    gap: float
+    headway: float
+    fixed: tuple[tuple[float, float, float], ...] = ()  # the old car's samples, if any
+
+
+@dataclass(frozen=True)
 class TimingProblem:
-    cars: tuple[CarPlan, ...]
+    cars: tuple[CarPlan, ...]  # a leader before its followers
     fixed: tuple[tuple[str, float], ...]  # old cars' time symbols and their times
     relations: tuple[tuple[str, str, str], ...]  # ("lessThan"|"equal", s, t)
     gaps: tuple[tuple[str, str, float], ...]  # (s, t, g): t at least g after s (headways)
@@ -83,6 +105,10 @@ class TimingProblem:
     v_stop: float
     v_run: float
     v_max: float
+    earliest: tuple[tuple[str, float], ...] = ()  # (s, t): s at least t (queues)
+    latest: tuple[tuple[str, float], ...] = ()  # (s, t): s at most t (queues)
+    follows: tuple[Following, ...] = ()
+    timestep: float = 0.1  # the test-case's: where the following is kept
 
     @property
     def bounds(self) -> Bounds:
@@ -164,6 +190,12 @@ class _Plan:
                 program.at_most(self.term(a) - self.term(b), p.m - p.margin, label)
         for a, b, gap in p.gaps:
             program.at_least(self.term(b) - self.term(a), gap)
+        for symbol, t in p.earliest:
+            if symbol in self.var:
+                program.at_least(self.var[symbol], t)
+        for symbol, t in p.latest:
+            if symbol in self.var:
+                program.at_most(self.var[symbol], t)
 
     def _kinematics(self, number: int, car: CarPlan, share: float) -> Linear:
         p, program = self.problem, self.program
@@ -368,9 +400,96 @@ def _boundaries(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -
     return found
 
 
-def fit_curve(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -> Curve | None:
-    """The smoothest curve of one car through its knots at the planned times; None when the
-    bounds allow none (or z3's work limit was reached)."""
+def _on_piece(
+    points: Sequence[_Boundary], d: Sequence[Linear], v: Sequence[Linear], t: Fraction
+) -> tuple[int, Linear, Linear]:
+    """(piece, distance, speed) of the curve at time t, linear in the piece's unknowns:
+    with controls d0 + v0 h/3 and d1 - v1 h/3, d(t) = d0 (u^3 + 3u^2 s) + v0 u^2 s h
+    + d1 (3 u s^2 + s^3) - v1 u s^2 h and v(t) = u^2 v0 + s^2 v1 + 6us (d1 - d0)/h
+    - 2us (v0 + v1), for s the share of the piece and u = 1 - s."""
+    times = [p.t for p in points]
+    k = min(max(bisect.bisect_right(times, t) - 1, 0), len(points) - 2)
+    h = times[k + 1] - times[k]
+    s = (t - times[k]) / h
+    u = 1 - s
+    distance = combine((u**3 + 3 * u * u * s, d[k]), (u * u * s * h, v[k]),
+                       (3 * u * s * s + s**3, d[k + 1]), (-u * s * s * h, v[k + 1]))  # fmt: skip
+    speed = combine((u * u - 2 * u * s, v[k]), (s * s - 2 * u * s, v[k + 1]),
+                    (6 * u * s / h, d[k + 1]), (-6 * u * s / h, d[k]))  # fmt: skip
+    return k, distance, speed
+
+
+FOLLOW_SLACK = 0.05  # metres a planned follower keeps beyond the gap (samples are rounded)
+
+
+def _places(
+    follow: Following, name: str, fitted: dict[str, Curve]
+) -> Callable[[float], tuple[float, float]]:
+    """(place, speed) over time of the other car of ``follow`` (fitted or old)."""
+    line = follow.leader_line if name == follow.leader else follow.follower_line
+    if follow.fixed:
+        ts = [row[0] for row in follow.fixed]
+        ds = [row[1] for row in follow.fixed]
+        vs = [row[2] for row in follow.fixed]
+        return lambda t: (float(np.interp(t, ts, ds)) - line, float(np.interp(t, ts, vs)))
+    curve = fitted[name]
+    return lambda t: (curve.at(t)[0] - line, curve.at(t)[1])
+
+
+def _following(
+    problem: TimingProblem,
+    car: CarPlan,
+    points: Sequence[_Boundary],
+    d: Sequence[Linear],
+    v: Sequence[Linear],
+    fitted: dict[str, Curve],
+    program: LinearProgram,
+) -> None:
+    """The car keeps behind the cars ahead of it and ahead of the old cars behind it, at
+    every time step (the checker's samples), with FOLLOW_SLACK and the plan's headway."""
+    steps = round(problem.duration / problem.timestep)
+    highs = [p.high for p in points]
+    lows = [p.low for p in points]
+    for follow in problem.follows:
+        if car.car not in (follow.leader, follow.follower):
+            continue
+        behind = car.car == follow.follower
+        if not behind and not follow.fixed:
+            continue  # a symbolic follower keeps behind this car when it is fitted
+        other = _places(follow, follow.leader if behind else follow.follower, fitted)
+        gap = follow.gap + FOLLOW_SLACK
+        for n in range(1, steps + 1):
+            t = rational(round(n * problem.timestep, 9))
+            place, speed = other(float(t))
+            if behind:
+                rear = place - follow.leader_length
+                if rear >= follow.parting:
+                    continue
+                bound = rear - gap + follow.follower_line
+                k = min(max(bisect.bisect_right([p.t for p in points], t) - 1, 0), len(points) - 2)
+                if bound >= highs[k + 1] + follow.headway * problem.v_max:
+                    continue  # the car cannot be that far yet
+                _, distance, pace = _on_piece(points, d, v, t)
+                program.at_most(distance + pace * rational(follow.headway), bound)
+            else:
+                needed = min(follow.parting, place + gap + follow.headway * max(speed, 0.0))
+                least = needed + follow.leader_length + follow.leader_line
+                k = min(max(bisect.bisect_right([p.t for p in points], t) - 1, 0), len(points) - 2)
+                if least <= lows[k]:
+                    continue
+                _, distance, _ = _on_piece(points, d, v, t)
+                program.at_least(distance, least)
+
+
+def fit_curve(
+    problem: TimingProblem,
+    car: CarPlan,
+    knot_times: list[float],
+    fitted: dict[str, Curve] | None = None,
+) -> Curve | None:
+    """The smoothest curve of one car through its knots at the planned times, behind the
+    cars ahead of it (``fitted``: their curves) and ahead of the old cars behind it; None
+    when the bounds allow none (or z3's work limit was reached)."""
     points = _boundaries(problem, car, knot_times)
     program = LinearProgram(WORK)
     d: list[Linear] = []
@@ -384,6 +503,7 @@ def fit_curve(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -> 
             v.append(Linear.of(point.speed))
         else:
             v.append(program.variable(f"v{k}", point.least_speed, problem.v_max))
+    _following(problem, car, points, d, v, fitted or {}, program)
     running = _running_span(car, knot_times)
     peak = program.variable("peak")
     one = Fraction(1)
@@ -446,21 +566,35 @@ class _Fitter:
         self.problem = problem
         self.order = [car.car for car in problem.cars]
         self.cars = {car.car: car for car in problem.cars}
-        self.fitted: dict[tuple[str, tuple[float, ...]], Curve | None] = {}
+        self.fitted: dict[tuple[Any, ...], Curve | None] = {}
+        self.leaders = {
+            car.car: sorted(
+                {f.leader for f in problem.follows if f.follower == car.car and not f.fixed}
+            )
+            for car in problem.cars
+        }
+
+    def _key(self, name: str, planned: dict[str, list[float]]) -> tuple[Any, ...]:
+        """A curve depends on its knot times and on those of the cars it follows."""
+        ahead = tuple(self._key(leader, planned) for leader in self.leaders[name])
+        return (name, tuple(planned[name]), ahead)
 
     def fit_all(self, planned: dict[str, list[float]] | None) -> dict[str, Curve]:
-        """Every car's curve; empty unless all of them fit."""
+        """Every car's curve; empty unless all of them fit. A car that failed is tried
+        first next time, unless it follows another symbolic car (leaders come first)."""
         if planned is None:
             return {}
-        curves = {}
+        curves: dict[str, Curve] = {}
         for name in self.order:
-            key = (name, tuple(planned[name]))
+            key = self._key(name, planned)
             if key not in self.fitted:
-                self.fitted[key] = fit_curve(self.problem, self.cars[name], planned[name])
+                self.fitted[key] = fit_curve(self.problem, self.cars[name], planned[name],
+                                             curves)  # fmt: skip
             curve = self.fitted[key]
             if curve is None:
-                self.order.remove(name)
-                self.order.insert(0, name)
+                if not self.leaders[name]:
+                    self.order.remove(name)
+                    self.order.insert(0, name)
                 return {}
             curves[name] = curve
         return {car.car: curves[car.car] for car in self.problem.cars}

@@ -36,15 +36,21 @@ class Violation:
         return f"violated CVC {self.law} ({self.rule}){against}: {times}"
 
 
+REAR_END = "rear-end"
+CROSSING = "crossing"
+
+
 @dataclass(frozen=True)
 class CollisionRecord:
     other: str
     t: float
     x: float
     y: float
+    kind: str = CROSSING  # REAR_END: two cars of one fork, one drove into the other
 
     def describe(self) -> str:
-        return f"collided with {self.other} at {self.t:.2f} s at ({self.x:.1f}, {self.y:.1f})"
+        what = "rear-end collision with" if self.kind == REAR_END else "collided with"
+        return f"{what} {self.other} at {self.t:.2f} s at ({self.x:.1f}, {self.y:.1f})"
 
 
 @dataclass(frozen=True)

@@ -104,7 +104,7 @@ class Batch(BaseModel):
                     "items": [
                         {
                             "kind": "chain",
-                            "testcase_id": "ecf9aef2eb19a2b5",
+                            "testcase_id": "132282f84a7020de",
                             "levels": 2,
                             "seed": 1,
                         },

@@ -7,6 +7,7 @@ import clingo.ast
 import pytest
 from clingodl import ClingoDLTheory
 
+from service.core.check import Judge
 from service.core.events import EventKind, LaneEvent
 from service.core.generate import _limits, _ordering_cars, _validate
 from service.core.network import Intersection
@@ -86,7 +87,13 @@ def test_every_answer_set_comes_with_times_that_keep_its_relations(
     )
     ids = ["car1", "car2"]
     cars = _ordering_cars(
-        old, four_way, tracks[0], dict(zip(ids, tracks[1:], strict=True)), routes, ids
+        old,
+        Judge(old, four_way),
+        four_way,
+        tracks[0],
+        dict(zip(ids, tracks[1:], strict=True)),
+        routes,
+        ids,
     )
     limits = _limits(old)
     search = OrderingSearch(four_way, cars, old.params.m, seed, limits)

@@ -72,6 +72,8 @@ def test_new_testcase_fields(ego_only: TestCase) -> None:
         "v_run",
         "v_max",
         "arrival_distance",
+        "gap",
+        "headway",
     }
 
 

@@ -11,7 +11,7 @@ from service.core.errors import InvalidInput
 from service.jobs.batch import ChainItem, dependencies, parse_batch
 from service.submit import read_batch
 
-ROOT = {"testcase_id": "ecf9aef2eb19a2b5"}
+ROOT = {"testcase_id": "132282f84a7020de"}
 
 
 def test_a_batch_with_every_kind_of_item() -> None:

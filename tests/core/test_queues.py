@@ -1,0 +1,166 @@
+"""Queues: cars that share a fork, in the checker (the queue reading of the law, rear-end
+collisions, the gap) and in the generator (a new car ahead of the ego)."""
+
+from __future__ import annotations
+
+import functools
+
+import pytest
+
+from service.core.check import Judge, check_testcase
+from service.core.collisions import Motion, first_collision
+from service.core.errors import InvalidInput
+from service.core.events import EventKind
+from service.core.generate import extend_testcase
+from service.core.network import Intersection, load_intersection
+from service.core.poses import PoseSample, PoseTrack, generate_poses
+from service.core.queues import Follow, Places, QueueCar, follows, gap_fault
+from service.core.testcase import TestCase, new_testcase
+from service.core.verdict import REAR_END
+from tests.helpers import drive_with_stops, retime, with_nonegos
+
+NET = "4way-stop"
+EGO = "E2C_0:C2N_0"  # all-way stop: every fork has a stop sign
+LEAD_START = 12.0  # the car ahead starts this far before the line; the ego at 30 m
+
+
+@functools.cache
+def junction() -> Intersection:
+    return load_intersection(NET)
+
+
+@functools.cache
+def tracks() -> tuple[PoseTrack, PoseTrack]:
+    """Step 1 poses of the ego (30 m) and of a car ahead of it (12 m) on one route."""
+    route = junction().route(EGO)
+    ego, lead = generate_poses(junction(), [(route, 30.0), (route, LEAD_START)], 8.0, 30.0, 0.1)
+    return ego, lead
+
+
+def queue_case() -> TestCase:
+    """The ego behind "lead", which stops at the line for 2 s and drives on."""
+    base = new_testcase(NET, EGO, duration=30.0)
+    lead = retime(
+        tracks()[1],
+        drive_with_stops([(LEAD_START - 0.5, 2.0)], cruise=5.0, start_speed=0.0),
+        30.0,
+        0.1,
+    )
+    return with_nonegos(base, [("lead", EGO, lead)])
+
+
+def ego_drive(stops: list[tuple[float, float]], crawl: float | None = None) -> list[PoseSample]:
+    return retime(tracks()[0], drive_with_stops(stops, crawl=crawl), 30.0, 0.1)
+
+
+def test_a_car_behind_another_arrives_when_the_one_ahead_has_entered() -> None:
+    case = queue_case()
+    judge = Judge(case, junction())
+    ego = judge.ego_car(ego_drive([(22.0, 8.0), (29.5, 1.5)]))  # front 8 m back, then the line
+    verdict = judge.verdict(ego)
+    lead = next(car for car in judge.nonegos if car.id == "lead")
+    entered = next(e.time for e in lead.events if e.kind is EventKind.ENTERED)
+    arrived = next(e.t for e in verdict.ego_events if e.kind == "arrived")
+    assert arrived == pytest.approx(entered, abs=1e-6)  # it stood 8 m back well before
+    assert verdict.passed, verdict.reasons
+
+
+def _first_moving_after_stand(profile: list[PoseSample], at: float) -> float:
+    stood = [s.t for s in profile if abs(s.distance - at) < 1e-6 and s.speed == 0.0]
+    return max(stood)
+
+
+def test_a_stop_behind_the_car_ahead_is_no_stop_at_the_line() -> None:
+    """22450(a) for a queue: the ego stands 8 m back (within the arrival distance) while
+    the car ahead stands at the line, and drives on when it does, following it through:
+    it stopped, but never at the line (it had not arrived while a car was ahead)."""
+    case = queue_case()
+    lead = [PoseSample(**s.model_dump()) for s in case.nonegos[0].trajectory]
+    leaves = _first_moving_after_stand(lead, LEAD_START - 0.5)
+    reaches = min(s.t for s in ego_drive([(22.0, 30.0)]) if s.distance >= 22.0 - 1e-6)
+    ego = ego_drive([(22.0, leaves - reaches)], crawl=3.0)  # slower than the car ahead
+    verdict = check_testcase(case, ego, "ego", junction())
+    assert [v.rule for v in verdict.violations] == ["stopAtSign"]
+    assert not verdict.collisions
+    standing = [s for s in ego if s.speed == 0.0]
+    assert standing and all(s.distance == pytest.approx(22.0) for s in standing)
+
+
+def test_driving_into_the_car_ahead_is_a_rear_end_collision() -> None:
+    verdict = check_testcase(queue_case(), ego_drive([]), "ego", junction())
+    assert [(c.other, c.kind) for c in verdict.collisions] == [("lead", REAR_END)]
+    assert any("rear-end collision with lead" in reason for reason in verdict.reasons)
+
+
+def test_who_is_ahead_and_where_paths_part() -> None:
+    lanes = {r.id: r.connecting_lane for r in junction().routes.values()}
+    left = "E2C_0:C2W_0"
+    cars = [
+        QueueCar("b", "E2C_0", lanes[EGO], 5.0, 1.8, 30.0, 0.0),
+        QueueCar("a", "E2C_0", lanes[left], 5.0, 1.8, 12.0, 0.0),
+        QueueCar("c", "E2C_0", lanes[EGO], 5.0, 1.8, 40.0, 0.0),
+        QueueCar("x", "N2C_0", lanes["N2C_0:C2S_0"], 5.0, 1.8, 30.0, 0.0),
+    ]
+    found = {(f.leader, f.follower): f.parting for f in follows(cars, junction())}
+    assert set(found) == {("a", "b"), ("a", "c"), ("b", "c")}
+    assert found[("b", "c")] == float("inf")  # one route: they never part
+    assert 0.0 < found[("a", "b")] < junction().connecting_lanes[lanes[EGO]].centreline.length
+
+
+def test_the_gap_is_checked_at_every_sample() -> None:
+    def places(distances: list[float], speed: float) -> Places:
+        return Places.of(
+            [PoseSample(0.1 * k, 0.0, 0.0, 0.0, speed, d) for k, d in enumerate(distances)],
+            QueueCar("c", "f", "l", 5.0, 1.8, 0.0, 0.0),
+        )
+
+    follow = Follow("lead", "back", "f", float("inf"))
+    lead = places([10.0, 10.0, 10.0], 0.0)
+    assert gap_fault(follow, lead, places([2.9, 2.9, 2.9], 0.0), 2.0, 1.0) is None
+    fault = gap_fault(follow, lead, places([2.9, 3.5, 3.5], 0.0), 2.0, 1.0)
+    assert fault is not None and "0.10 s" in fault
+    moving = gap_fault(follow, lead, places([1.0, 1.0, 1.0], 2.5), 2.0, 1.0)
+    assert moving is not None and "4.50 m" in moving  # 2 m + 1 s x 2.5 m/s
+
+
+def test_a_new_car_ahead_of_the_ego() -> None:
+    """The complexity certificate fails the new test-case only by driving into the new car;
+    the solvability certificate follows it at the gap, and arrives once it has entered."""
+    old = new_testcase(NET, EGO, duration=45.0)
+    extension = extend_testcase(old, ["E2C_0:C2W_0"], seed=0, budget=120)
+    new = extension.testcase
+    assert new.certificates is not None and new.provenance is not None
+    assert new.provenance["complexity_certificate"]["kind"] == "rear-end"
+    car = new.nonegos[0]
+    car_samples = [PoseSample(**s.model_dump()) for s in car.trajectory]
+    complexity = [PoseSample(**s.model_dump()) for s in new.certificates.complexity]
+    solvability = [PoseSample(**s.model_dump()) for s in new.certificates.solvability]
+
+    assert check_testcase(old, complexity, "c", junction()).passed
+    failed = check_testcase(new, complexity, "c", junction())
+    assert [(c.other, c.kind) for c in failed.collisions] == [(car.id, REAR_END)]
+    assert not failed.violations and failed.goal_reached
+
+    judge = Judge(new, junction())
+    ego = judge.ego_car(solvability)
+    verdict = judge.verdict(ego)
+    assert verdict.passed, verdict.reasons
+    lead = judge.nonegos[0]
+    assert first_collision(Motion(solvability, 5.0, 1.8), Motion(car_samples, 5.0, 1.8)) is None
+    pairs = follows([lead.in_queue, ego.in_queue], junction())
+    assert [(f.leader, f.follower) for f in pairs] == [(car.id, "ego")]
+    places = Places.of(car_samples, lead.in_queue), Places.of(solvability, ego.in_queue)
+    assert gap_fault(pairs[0], *places, new.params.gap, new.params.headway) is None
+    entered = next(e.time for e in lead.events if e.kind is EventKind.ENTERED)
+    arrived = next(e.t for e in verdict.ego_events if e.kind == "arrived")
+    assert arrived >= entered
+
+
+def test_a_new_car_behind_the_ego_is_refused() -> None:
+    old = new_testcase(NET, EGO, duration=45.0)
+    with pytest.raises(InvalidInput, match="behind the ego"):
+        extend_testcase(old, ["E2C_0:C2W_0"], start_distance=40.0)
+    with pytest.raises(InvalidInput, match="gap"):
+        extend_testcase(old, ["E2C_0:C2W_0"], start_distance=27.0)
+    with pytest.raises(InvalidInput, match="one start distance per new route"):
+        extend_testcase(old, ["E2C_0:C2W_0"], start_distance=[10.0, 20.0])
