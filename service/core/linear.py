@@ -93,6 +93,13 @@ class LinearProgram:
         self.constraints: list[tuple[str, str | None]] = []  # (SMT-LIB atom, label)
         self.objective: Linear | None = None
 
+    def copy(self) -> LinearProgram:
+        """The same variables, constraints and objective, to add more to."""
+        twin = LinearProgram(self.work)
+        twin.names, twin.booleans = list(self.names), list(self.booleans)
+        twin.constraints, twin.objective = list(self.constraints), self.objective
+        return twin
+
     def choice(self, prefix: str, count: int) -> list[str]:
         """``count`` new Booleans of which exactly one holds."""
         names = [f"{prefix}_{k}" for k in range(count)]
@@ -170,27 +177,58 @@ class LinearProgram:
                 lines.append(f"(assert (! {atom} :named {label}@{k}))")
             else:
                 lines.append(f"(assert {atom})")
-        if self.objective is not None and not named:
-            lines.append(f"(minimize {self.objective.smt()})")
         return "\n".join(lines)
 
     def solve(self) -> dict[str, Fraction] | None:
-        """The optimum (every variable's value, 1 or 0 for a Boolean), or None when there is
-        none or z3 ran out of work. Without an objective, any solution."""
-        context = z3.Context()  # a fresh context: no history
-        solver = z3.Optimize(ctx=context) if self.objective is not None else z3.Solver(ctx=context)
-        solver.set("rlimit", self.work)
-        solver.from_string(self._text(named=False))
-        if solver.check() != z3.sat:
+        """The optimum (every variable's value, 1 or 0 for a Boolean), or None when there
+        is none or z3 ran out of work. Without an objective, any solution.
+
+        z3's optimiser (and its default arithmetic solver) sometimes takes thousands of
+        pivots on one of these programs where z3's older simplex (``smt.arith.solver=2``)
+        takes a few dozen. When the optimiser runs out of its share of the work
+        (1 / OPTIMISER_SHARE), the optimum is found again by bisection on the objective
+        with that simplex (``_bisect``)."""
+        text = self._text(named=False)
+        if self.objective is not None:
+            text += f"\n(minimize {self.objective.smt()})"
+        try:
+            work = self.work // OPTIMISER_SHARE if self.objective is not None else self.work
+            return _check(text, work, optimise=self.objective is not None)
+        except _OutOfWork:
+            return self._bisect() if self.objective is not None else None
+
+    def _bisect(self) -> dict[str, Fraction] | None:
+        """The optimum within OPTIMUM_GAP by bisection (the objective is non-negative, a
+        sum of magnitudes): each check asks for a solution at most halfway between the best
+        found and the best bound shown, ``work`` per check, at most BISECTIONS checks. A
+        check that runs out of work ends it with the best solution found."""
+        assert self.objective is not None
+        constraints = self._text(named=False)
+        try:
+            found = _check(constraints, self.work, old_simplex=True)
+        except _OutOfWork:
             return None
-        model = solver.model()
-        found = {}
-        for declaration in model.decls():
-            value = model[declaration]
-            found[declaration.name()] = (
-                Fraction(int(z3.is_true(value))) if z3.is_bool(value) else value.as_fraction()
-            )
-        return found
+        if found is None:
+            return None
+        objective = self.objective.smt()
+        best, value = found, value_of(self.objective, found)
+        if value < 0:
+            raise ValueError(f"the objective must be non-negative, it is {float(value):g} here")
+        low = Fraction(0)
+        for _ in range(BISECTIONS):
+            if value - low <= OPTIMUM_GAP * max(Fraction(1), value):
+                break
+            middle = (low + value) / 2
+            bounded = f"{constraints}\n(assert (<= {objective} {_number(middle)}))"
+            try:
+                better = _check(bounded, self.work, old_simplex=True)
+            except _OutOfWork:
+                break
+            if better is None:
+                low = middle
+            else:
+                best, value = better, value_of(self.objective, better)
+        return best
 
     def conflict(self) -> list[str] | None:
         """Labels of labelled constraints that cannot hold together with the unlabelled
@@ -202,6 +240,48 @@ class LinearProgram:
         if solver.check() != z3.unsat:
             return None
         return sorted({str(name).split("@")[0] for name in solver.unsat_core()})
+
+
+OPTIMISER_SHARE = 8  # the optimiser's share of the work is 1 / 8; then bisection
+OPTIMUM_GAP = Fraction(1, 100)  # a solution this close to the optimum (a share) is taken
+BISECTIONS = 24  # checks at most in one optimisation (then the best found)
+
+
+class _OutOfWork(Exception):
+    """z3 neither found a solution nor showed there is none within its work limit."""
+
+
+def _check(
+    text: str, work: int, optimise: bool = False, old_simplex: bool = False
+) -> dict[str, Fraction] | None:
+    """A solution of the SMT-LIB text (the optimum, with ``optimise``), or None when there
+    is none; _OutOfWork when z3 cannot tell within ``work``."""
+    context = z3.Context()  # a fresh context: no history
+    solver = z3.Optimize(ctx=context) if optimise else z3.Solver(ctx=context)
+    solver.set("rlimit", work)
+    if old_simplex:
+        solver.set("smt.arith.solver", 2)
+    solver.from_string(text)
+    outcome = solver.check()
+    if outcome == z3.unknown:
+        raise _OutOfWork
+    if outcome != z3.sat:
+        return None
+    model = solver.model()
+    found = {}
+    for declaration in model.decls():
+        value = model[declaration]
+        found[declaration.name()] = (
+            Fraction(int(z3.is_true(value))) if z3.is_bool(value) else value.as_fraction()
+        )
+    return found
+
+
+def value_of(term: Linear, solution: dict[str, Fraction]) -> Fraction:
+    """The value of ``term`` at a solution (0 for a variable z3 left out)."""
+    return term.constant + sum(
+        (c * solution.get(n, Fraction(0)) for n, c in term.terms.items()), Fraction(0)
+    )
 
 
 def combine(*pairs: tuple[Fraction, Linear]) -> Linear:

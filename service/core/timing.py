@@ -39,7 +39,15 @@ from typing import Any
 import numpy as np
 
 from service.core.kinematics import SAME, Bounds, duration_range, least_gaps, speed_caps
-from service.core.linear import Linear, LinearProgram, combine, rational, total, values
+from service.core.linear import (
+    Linear,
+    LinearProgram,
+    combine,
+    rational,
+    total,
+    value_of,
+    values,
+)
 
 PIECE = 2.0  # seconds: the longest piece of a curve (free knots between events)
 SHARES = (0.7, 0.85)  # shares of the bounds a plan may use (the curves keep the rest)
@@ -157,7 +165,7 @@ class _Plan:
     them (labelled ``rel:I``, I the relation's index), the necessary kinematic conditions
     with a share of the bounds, and the pace changes to keep small."""
 
-    def __init__(self, problem: TimingProblem, share: float) -> None:
+    def __init__(self, problem: TimingProblem, share: float, queued: bool = True) -> None:
         self.problem = problem
         self.program = LinearProgram(WORK)
         self.var: dict[str, Linear] = {}
@@ -171,6 +179,8 @@ class _Plan:
                     self.var[knot.symbol] = term
         self.fixed = dict(problem.fixed)
         self._order()
+        if queued:
+            self._queues()
         self.cost = total([self._kinematics(number, car, share)
                            for number, car in enumerate(problem.cars)])  # fmt: skip
 
@@ -196,6 +206,35 @@ class _Plan:
         for symbol, t in p.latest:
             if symbol in self.var:
                 program.at_most(self.var[symbol], t)
+
+    def _queues(self) -> None:
+        """A follower reaches each of its knots only ``headway`` after its leader has
+        reached the first of its own knots at or beyond where the leader must then be
+        (queues.needed place: the gap and the leader's length ahead, up to the parting).
+        Sufficient at the knots, not necessary (the leader may pass that place before its
+        knot), so kept out of Step 2 and of proofs: the curves then have room to follow."""
+        p = self.problem
+        cars = {car.car: car for car in p.cars}
+        for follow in p.follows:
+            follower = cars.get(follow.follower)
+            if follower is None:
+                continue
+            names = self.knots[follower.car]
+            leader = cars.get(follow.leader)
+            for knot, name in zip(follower.knots, names, strict=True):
+                place = knot.distance - follow.follower_line
+                target = min(follow.parting, place + follow.gap) + follow.leader_length
+                term = Linear({name: Fraction(1)})
+                if leader is None:  # an old leader: its samples give the time
+                    reached = _first_time(follow.fixed, target + follow.leader_line)
+                    if reached is not None:
+                        self.program.at_least(term, reached + follow.headway)
+                    continue
+                at = next((j for j, k in enumerate(leader.knots)
+                           if k.distance - follow.leader_line >= target - SAME), None)  # fmt: skip
+                if at is not None:
+                    ahead = Linear({self.knots[leader.car][at]: Fraction(1)})
+                    self.program.at_least(term - ahead, follow.headway)
 
     def _kinematics(self, number: int, car: CarPlan, share: float) -> Linear:
         p, program = self.problem, self.program
@@ -349,7 +388,7 @@ def plan_on_speed_grid(problem: TimingProblem, share: float, core: bool = False)
 def order_core(problem: TimingProblem) -> list[int] | None:
     """Indices of order relations that cannot hold together under the full bounds (a
     proof: the conditions are necessary); None when they can, or z3 cannot tell."""
-    core = _Plan(problem, 1.0).program.conflict()
+    core = _Plan(problem, 1.0, queued=False).program.conflict()
     return None if core is None else sorted({int(label[3:]) for label in core})
 
 
@@ -419,6 +458,11 @@ def _on_piece(
     return k, distance, speed
 
 
+def _first_time(rows: Sequence[tuple[float, float, float]], distance: float) -> float | None:
+    """The first sample time at which an old car's distance reaches ``distance``."""
+    return next((t for t, d, _ in rows if d >= distance - SAME), None)
+
+
 FOLLOW_SLACK = 0.05  # metres a planned follower keeps beyond the gap (samples are rounded)
 
 
@@ -436,6 +480,26 @@ def _places(
     return lambda t: (curve.at(t)[0] - line, curve.at(t)[1])
 
 
+@dataclass(frozen=True)
+class _GapRow:
+    """One time step's gap condition on a curve: ``term <= bound`` (behind a leader) or
+    ``term >= bound`` (ahead of an old follower)."""
+
+    term: Linear
+    bound: Fraction
+    behind: bool
+
+    def add_to(self, program: LinearProgram) -> None:
+        if self.behind:
+            program.at_most(self.term, self.bound)
+        else:
+            program.at_least(self.term, self.bound)
+
+    def holds(self, solution: dict[str, Fraction]) -> bool:
+        value = value_of(self.term, solution)
+        return value <= self.bound if self.behind else value >= self.bound
+
+
 def _following(
     problem: TimingProblem,
     car: CarPlan,
@@ -443,13 +507,15 @@ def _following(
     d: Sequence[Linear],
     v: Sequence[Linear],
     fitted: dict[str, Curve],
-    program: LinearProgram,
-) -> None:
+) -> list[_GapRow]:
     """The car keeps behind the cars ahead of it and ahead of the old cars behind it, at
-    every time step (the checker's samples), with FOLLOW_SLACK and the plan's headway."""
+    every time step (the checker's samples), with FOLLOW_SLACK and the plan's headway:
+    one row per step at which the condition can bind."""
     steps = round(problem.duration / problem.timestep)
     highs = [p.high for p in points]
     lows = [p.low for p in points]
+    times = [p.t for p in points]
+    rows: list[_GapRow] = []
     for follow in problem.follows:
         if car.car not in (follow.leader, follow.follower):
             continue
@@ -461,24 +527,50 @@ def _following(
         for n in range(1, steps + 1):
             t = rational(round(n * problem.timestep, 9))
             place, speed = other(float(t))
+            k = min(max(bisect.bisect_right(times, t) - 1, 0), len(points) - 2)
             if behind:
                 rear = place - follow.leader_length
                 if rear >= follow.parting:
                     continue
                 bound = rear - gap + follow.follower_line
-                k = min(max(bisect.bisect_right([p.t for p in points], t) - 1, 0), len(points) - 2)
                 if bound >= highs[k + 1] + follow.headway * problem.v_max:
                     continue  # the car cannot be that far yet
                 _, distance, pace = _on_piece(points, d, v, t)
-                program.at_most(distance + pace * rational(follow.headway), bound)
+                rows.append(_GapRow(distance + pace * rational(follow.headway),
+                                    rational(bound), True))  # fmt: skip
             else:
                 needed = min(follow.parting, place + gap + follow.headway * max(speed, 0.0))
                 least = needed + follow.leader_length + follow.leader_line
-                k = min(max(bisect.bisect_right([p.t for p in points], t) - 1, 0), len(points) - 2)
                 if least <= lows[k]:
                     continue
                 _, distance, _ = _on_piece(points, d, v, t)
-                program.at_least(distance, least)
+                rows.append(_GapRow(distance, rational(least), False))
+    return rows
+
+
+GAP_ROUNDS = 12  # rounds of adding the violated gap rows before adding all of them
+
+
+def _solve_with_gaps(program: LinearProgram, rows: Sequence[_GapRow]) -> dict[str, Fraction] | None:
+    """The optimum of ``program`` that keeps every gap row. Rows are added where the
+    optimum without them breaks them, round by round (most never bind, and each one makes
+    z3's optimisation slower); after GAP_ROUNDS rounds, all of them. A relaxation without
+    a solution has none with every row either."""
+    chosen: set[int] = set()
+    for _ in range(GAP_ROUNDS):
+        attempt = program.copy()
+        for index in sorted(chosen):
+            rows[index].add_to(attempt)
+        solution = attempt.solve()
+        if solution is None:
+            return None
+        broken = {index for index, row in enumerate(rows) if not row.holds(solution)}
+        if not broken:
+            return solution
+        chosen |= broken
+    for row in rows:
+        row.add_to(program)
+    return program.solve()
 
 
 def fit_curve(
@@ -503,7 +595,7 @@ def fit_curve(
             v.append(Linear.of(point.speed))
         else:
             v.append(program.variable(f"v{k}", point.least_speed, problem.v_max))
-    _following(problem, car, points, d, v, fitted or {}, program)
+    rows = _following(problem, car, points, d, v, fitted or {})
     running = _running_span(car, knot_times)
     peak = program.variable("peak")
     one = Fraction(1)
@@ -529,7 +621,7 @@ def fit_curve(
         if points[k].least_speed and points[k + 1].least_speed:
             program.at_least(middle, min(points[k].least_speed, points[k + 1].least_speed))
     program.minimize(total(cost))
-    solution = program.solve()
+    solution = _solve_with_gaps(program, rows)
     if solution is None:
         return None
     distances = [_evaluate(term, solution) for term in d]
@@ -545,10 +637,7 @@ def fit_curve(
 
 
 def _evaluate(term: Linear, solution: dict[str, Fraction]) -> float:
-    found = term.constant + sum(
-        (c * solution.get(n, Fraction(0)) for n, c in term.terms.items()), Fraction(0)
-    )
-    return float(found)
+    return float(value_of(term, solution))
 
 
 def _running_span(car: CarPlan, knot_times: list[float]) -> tuple[Fraction, Fraction] | None:
