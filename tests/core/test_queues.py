@@ -4,6 +4,8 @@ collisions, the gap) and in the generator (a new car ahead of the ego)."""
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
+from typing import Any
 
 import pytest
 
@@ -164,3 +166,39 @@ def test_a_new_car_behind_the_ego_is_refused() -> None:
         extend_testcase(old, ["E2C_0:C2W_0"], start_distance=27.0)
     with pytest.raises(InvalidInput, match="one start distance per new route"):
         extend_testcase(old, ["E2C_0:C2W_0"], start_distance=[10.0, 20.0])
+
+
+def _samples(rows: Sequence[Any]) -> list[PoseSample]:
+    return [PoseSample(**s.model_dump()) for s in rows]
+
+
+def test_two_new_cars_queue_on_one_fork() -> None:
+    """Two new cars on one free fork of the all-way stop, in one extension: the second
+    starts behind the first (automatic spacing), keeps the gap at every sample, never
+    overlaps it, and arrives only once the first has entered; the certificates hold."""
+    old = new_testcase(NET, "E2C_1:C2S_1", duration=20.0)
+    extension = extend_testcase(old, ["S2C_1:C2N_1", "S2C_1:C2N_1"], seed=0, budget=240)
+    new = extension.testcase
+    assert new.certificates is not None
+    complexity, solvability = (
+        _samples(new.certificates.complexity),
+        _samples(new.certificates.solvability),
+    )
+    assert check_testcase(old, complexity, "c", junction()).passed
+    assert not check_testcase(new, complexity, "c", junction()).passed
+    assert check_testcase(new, solvability, "s", junction()).passed
+
+    judge = Judge(new, junction())
+    first, second = judge.nonegos[-2:]
+    pairs = follows([first.in_queue, second.in_queue], junction())
+    assert [(f.leader, f.follower) for f in pairs] == [(first.id, second.id)]
+    cars = {n.id: n for n in new.nonegos}
+    lead, behind = _samples(cars[first.id].trajectory), _samples(cars[second.id].trajectory)
+    motions = [Motion(rows, cars[c.id].length, cars[c.id].width)
+               for rows, c in ((lead, first), (behind, second))]  # fmt: skip
+    assert first_collision(*motions) is None
+    places = Places.of(lead, first.in_queue), Places.of(behind, second.in_queue)
+    assert gap_fault(pairs[0], *places, new.params.gap, new.params.headway) is None
+    entered = next(e.time for e in first.events if e.kind is EventKind.ENTERED)
+    arrived = next(e.time for e in second.events if e.kind is EventKind.ARRIVED)
+    assert arrived >= entered

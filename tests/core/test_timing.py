@@ -17,12 +17,14 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from service.core.invariants import motion_fault
 from service.core.kinematics import DWELL
+from service.core.linear import OPTIMUM_GAP, LinearProgram, total, value_of
 from service.core.testcase import Params
 from service.core.timing import (
     CarPlan,
@@ -215,3 +217,24 @@ def test_step3_keeps_every_invariant_on_solvable_problems(
             assert gap >= problem.m + problem.margin - 1e-3, (kind, a, b, gap)
         else:
             assert abs(gap) <= problem.m - problem.margin + 1e-3, (kind, a, b, gap)
+
+
+def test_bisection_finds_the_optimisers_optimum() -> None:
+    """When z3's optimiser runs out of its share of the work, the optimum is found by
+    bisection with the older simplex: the same optimum within OPTIMUM_GAP, every
+    constraint kept (a small transport-like program with magnitudes in the objective)."""
+    program = LinearProgram(4_000_000)
+    xs = [program.variable(f"x{k}", 0, 10) for k in range(6)]
+    program.at_least(total(xs), 17)
+    for a, b in itertools.pairwise(xs):
+        program.at_most(a - b, 2)
+    cost = total([program.magnitude(x - Fraction(k, 3)) for k, x in enumerate(xs)])
+    program.minimize(cost)
+    optimum = program.solve()  # the optimiser: enough work for this one
+    assert optimum is not None
+    found = program._bisect()
+    assert found is not None
+    exact, near = value_of(cost, optimum), value_of(cost, found)
+    assert exact <= near <= exact * (1 + OPTIMUM_GAP) + Fraction(1, 10**9)
+    assert value_of(total(xs), found) >= 17
+    assert all(0 <= found[f"x{k}"] <= 10 for k in range(6))
