@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import os
 import sys
 import time
@@ -27,7 +28,7 @@ from service.core.errors import (
 )
 from service.core.events import compute_events
 from service.core.export import export_bundle
-from service.core.generate import extend_testcase
+from service.core.generate import StartDistances, extend_testcase
 from service.core.network import ControlType, Intersection, bundled_networks, load_intersection
 from service.core.network.describe import describe_intersection
 from service.core.poses import PoseSample, generate_poses
@@ -158,9 +159,12 @@ def _parser() -> argparse.ArgumentParser:
     )
     extend.add_argument(
         "--start-distance",
-        type=float,
+        action="append",
+        type=_distance_or_auto,
         metavar="M",
-        help="new cars' front before their stop line at t = 0 (default: the ego's)",
+        help="a new car's front before its stop line at t = 0 (m), or 'auto'; once for every "
+        "new car, or once per --add in the same order (default auto: behind the last car on "
+        "its fork, ahead of the ego on the ego's fork, where the ego starts on a free fork)",
     )
     extend.add_argument(
         "--name",
@@ -169,7 +173,7 @@ def _parser() -> argparse.ArgumentParser:
     )
     extend.add_argument("-o", "--output", type=Path, metavar="FILE", help="write here")
     _network_file_argument(extend)
-    extend.set_defaults(run=_run_extend)
+    extend.set_defaults(run=_run_extend, usage=extend)
 
     example = commands.add_parser(
         "example", help="run one of the paper's experiments: a chain of extensions"
@@ -594,7 +598,35 @@ def _progress(started: float) -> Callable[[str], None]:
     return say
 
 
+def _distance_or_auto(text: str) -> float | None:
+    """A --start-distance value: metres, or None for 'auto'."""
+    if text.strip().lower() == "auto":
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"a distance >= 0 (m) or 'auto', not {text!r}")
+    return value
+
+
+def _start_distances(args: argparse.Namespace) -> StartDistances:
+    """--start-distance as extend_testcase takes it: none given, automatic for all; one, for
+    every new car; one per --add, for each car in turn. Other counts are a usage error."""
+    given: list[float | None] = args.start_distance or []
+    if len(given) <= 1:
+        return given[0] if given else None
+    if len(given) != len(args.add):
+        args.usage.error(
+            "give --start-distance once (for every new car) or once per --add: "
+            f"{len(args.add)} --add, {len(given)} --start-distance"
+        )
+    return given
+
+
 def _run_extend(args: argparse.Namespace) -> int:
+    start_distance = _start_distances(args)
     old = read_testcase(args.testcase)
     if args.name is not None:
         renamed(old, args.name)  # a name that cannot be stored fails before the search
@@ -604,7 +636,7 @@ def _run_extend(args: argparse.Namespace) -> int:
         args.add,
         args.seed,
         args.budget,
-        args.start_distance,
+        start_distance,
         _progress(started),
         _intersection(old, args),
     )
@@ -612,16 +644,25 @@ def _run_extend(args: argparse.Namespace) -> int:
     name = args.name or readable_name(new, name_stem(old.name))
     new = renamed(new, name)
     provenance = new.provenance or {}
-    violated = ", ".join(
-        f"{v['car']} ({v['rule']})" for v in provenance.get("complexity_certificate_violates", [])
-    )
     print(
         f"extended in {time.monotonic() - started:.1f} s after {len(extension.attempts)} "
         f"answer sets: added {', '.join(provenance.get('new_nonegos', []))}; the complexity "
-        f"certificate violates the right-of-way of {violated}",
+        f"certificate {_what_certificate_breaks(provenance)}",
         file=sys.stderr,
     )
     return _emit(new, args.output)
+
+
+def _what_certificate_breaks(provenance: dict[str, Any]) -> str:
+    """How the complexity certificate fails the new test-case: a right-of-way it violates,
+    or, for a new car ahead of the ego, the car it drives into."""
+    violated = ", ".join(
+        f"{v['car']} ({v['rule']})" for v in provenance.get("complexity_certificate_violates", [])
+    )
+    rear_end = ", ".join(provenance.get("complexity_certificate", {}).get("rear_end", []))
+    broken = [f"violates the right-of-way of {violated}"] if violated else []
+    broken += [f"drives into {rear_end} (rear-end)"] if rear_end else []
+    return " and ".join(broken) or "fails the new test-case"
 
 
 def _run_example(args: argparse.Namespace) -> int:

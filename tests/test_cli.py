@@ -13,6 +13,8 @@ import pytest
 from service import cli
 from service import submit as _submit  # noqa: F401 (its errors join the tree: collected always)
 from service.core import errors
+from service.core.check import Judge
+from service.core.network import load_intersection
 from service.core.testcase import read_testcase
 from service.examples import EXAMPLES
 from tests.conftest import TOWN05, TOWN07
@@ -214,6 +216,65 @@ def test_extend_unknown_route_exits_2(tmp_path: Path) -> None:
     result = run("extend", str(old), "--add", "S2C_1:C2E_1")
     assert result.returncode == 2
     assert "valid routes" in result.stderr
+
+
+@pytest.mark.parametrize(
+    ("given", "expected"),
+    [
+        ([], None),
+        (["12"], 12.0),
+        (["auto"], None),
+        (["12", "auto"], [12.0, None]),
+    ],
+)
+def test_extend_start_distances_none_one_or_one_per_car(given: list[str], expected: object) -> None:
+    starts = [arg for value in given for arg in ("--start-distance", value)]
+    adds = ["--add", "E2C_0:C2W_0", "--add", "S2C_1:C2N_1"]
+    args = cli._parser().parse_args(["extend", "old.json", *adds, *starts])
+    assert cli._start_distances(args) == expected
+
+
+@pytest.mark.parametrize(
+    ("starts", "words"),
+    [
+        (["12", "auto", "3"], "2 --add, 3 --start-distance"),
+        (["-4"], "argument --start-distance: a distance >= 0 (m) or 'auto', not '-4'"),
+        (["far"], "not 'far'"),
+        (["nan"], "not 'nan'"),
+    ],
+)
+def test_extend_start_distance_usage_errors_exit_2(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path, starts: list[str], words: str
+) -> None:
+    """Checked before the old test-case is read (it does not exist here)."""
+    adds = ["--add", "E2C_0:C2W_0", "--add", "S2C_1:C2N_1"]
+    given = [arg for value in starts for arg in ("--start-distance", value)]
+    with pytest.raises(SystemExit) as caught:
+        cli.main(["extend", str(tmp_path / "missing.json"), *adds, *given])
+    assert caught.value.code == 2
+    error = capsys.readouterr().err
+    assert error.startswith("usage: scengen extend") and words in error
+
+
+def test_extend_starts_each_new_car_at_its_own_distance(tmp_path: Path) -> None:
+    """One --start-distance per --add, in order: a car 12 m before the line ahead of the
+    ego on the ego's fork, and one on a free fork that starts automatically, where the ego
+    starts (30 m)."""
+    old, new = tmp_path / "old.json", tmp_path / "new.json"
+    assert cli.main(["new", "4way-stop", "--ego", "E2C_0:C2N_0", "--duration", "45",
+                     "-o", str(old)]) == 0  # fmt: skip
+    result = run("extend", str(old), "--add", "E2C_0:C2W_0", "--start-distance", "12",
+                 "--add", "S2C_1:C2N_1", "--start-distance", "auto", "-o", str(new))  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "the complexity certificate drives into car1 (rear-end)" in result.stderr
+    testcase = read_testcase(new)
+    judge = Judge(testcase, load_intersection("4way-stop"))
+    starts = {car.id: (car.fork, car.in_queue.start) for car in judge.nonegos}
+    assert starts == {
+        "car1": ("E2C_0", pytest.approx(12.0, abs=0.01)),
+        "car2": ("S2C_1", pytest.approx(testcase.ego.start.distance, abs=0.01)),
+    }
+    assert testcase.ego.start.distance == 30.0
 
 
 @pytest.mark.parametrize("name", sorted(EXAMPLES))

@@ -19,6 +19,8 @@ from service.core.testcase import (
     Params,
     check_name,
 )
+from service.start_distances import DESCRIPTION as START_DISTANCES
+from service.start_distances import StartDistancesField, check_start_count
 
 MAX_SEED = 2**32 - 1  # clingo's and z3's seeds are unsigned 32-bit
 EXAMPLE_NETWORK = "4way-stop"
@@ -141,14 +143,13 @@ class ExtendRequest(_Body):
     routes: list[str] = Field(min_length=1, max_length=6, description="one new car per route")
     seed: int = Field(0, ge=0, le=MAX_SEED, description="same seed, same bytes")
     budget: float | None = Field(None, gt=0, description="seconds (default SCENGEN_EXTEND_BUDGET)")
-    start_distance: float | None = Field(
-        None, ge=0, description="new cars' distance before their stop line (default: varied)"
-    )
+    start_distance: StartDistancesField = Field(None, description=START_DISTANCES)
 
     @model_validator(mode="after")
     def _one_base(self) -> ExtendRequest:
         if (self.testcase is None) == (self.testcase_id is None):
             raise ValueError("give exactly one of testcase (inline) and testcase_id")
+        check_start_count(self.routes, self.start_distance)
         return self
 
 

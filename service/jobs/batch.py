@@ -14,6 +14,8 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from service.core.errors import InvalidInput
+from service.start_distances import DESCRIPTION as START_DISTANCES
+from service.start_distances import StartDistancesField, check_start_count
 
 MAX_SEED = 2**32 - 1  # clingo's and z3's seeds are unsigned 32-bit
 
@@ -44,6 +46,12 @@ class ExtendItem(_Based):
     routes: list[str] = Field(min_length=1, max_length=6)
     seed: int = Field(0, ge=0, le=MAX_SEED)
     budget: float | None = Field(None, gt=0, description="seconds (default: the server's)")
+    start_distance: StartDistancesField = Field(None, description=START_DISTANCES)
+
+    @model_validator(mode="after")
+    def _one_start_per_route(self) -> ExtendItem:
+        check_start_count(self.routes, self.start_distance)
+        return self
 
 
 class ChainItem(_Based):
@@ -131,8 +139,14 @@ class Batch(BaseModel):
         return self
 
     def fingerprint(self) -> str:
-        """What an Idempotency-Key is bound to: the batch, not its formatting."""
-        canonical = json.dumps(self.model_dump(mode="json"), sort_keys=True)
+        """What an Idempotency-Key is bound to: the batch, not its formatting. An extend
+        item's automatic start (``start_distance`` null) is left out, so that batches stored
+        before the field existed keep their fingerprint."""
+        document = self.model_dump(mode="json")
+        for item in document["items"]:
+            if item.get("kind") == "extend" and item.get("start_distance") is None:
+                item.pop("start_distance", None)
+        canonical = json.dumps(document, sort_keys=True)
         return hashlib.sha256(canonical.encode()).hexdigest()
 
 

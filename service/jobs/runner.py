@@ -145,7 +145,7 @@ class Work:
             return  # made before this worker was killed: never recomputed
         old = self._source(spec)
         self.jobs.record(self.item.job, self.item.position, self.owner, "extending")
-        made = self._extension(old, spec.routes, spec.seed, spec.budget)
+        made = self._extension(old, spec.routes, spec.seed, spec.budget, spec.start_distance)
         self.jobs.record(self.item.job, self.item.position, self.owner, "done", [made.id])
 
     def _chain(self, spec: ChainItem) -> None:
@@ -204,9 +204,11 @@ class Work:
         return found
 
     def _extension(
-        self, old: TestCaseRecord, routes: list[str] | None, seed: int, budget: float | None
-    ) -> TestCaseRecord:
-        """``old`` extended by cars on ``routes``, or on a route the service picks (None)."""
+        self, old: TestCaseRecord, routes: list[str] | None, seed: int, budget: float | None,
+        start_distance: float | list[float | None] | None = None,
+    ) -> TestCaseRecord:  # fmt: skip
+        """``old`` extended by cars on ``routes``, or on a route the service picks (None);
+        the new cars start ``start_distance`` before their stop lines (None: automatic)."""
         chosen = budget or self.settings.extend_budget
         common = (old.document, self.store.network_file_for(old.testcase), self.settings.cache_dir)
         call: Callable[..., Any]
@@ -214,7 +216,7 @@ class Work:
         if routes is None:
             call, args, what = tasks.extend_any, (*common, seed, chosen), f"extending {old.id}"
         else:
-            call, args = tasks.extend, (*common, routes, seed, chosen, None)
+            call, args = tasks.extend, (*common, routes, seed, chosen, start_distance)
             what = f"extending {old.id} by {', '.join(routes)}"
         result = self._call(call, args, chosen + 5.0, what)
         return self.store.add_testcase(parse_testcase(result["document"]), parent=old.id)

@@ -114,10 +114,11 @@ def extend(
     routes: list[str],
     seed: int,
     budget: float,
-    start_distance: float | None,
+    start_distance: float | list[float | None] | None,
     deadline: float | None = None,
 ) -> dict[str, Any]:
     """The extension of a test-case: the new document, the attempts and the step timings.
+    ``start_distance`` is one for all new cars, one (or None) per route, or None: automatic.
     With ``deadline`` (a Unix time), the generator gets only what is left of ``budget``."""
     from service.core.generate import extend_testcase
 

@@ -112,6 +112,22 @@ def test_malformed_json_is_a_400(client: TestClient) -> None:
         ({"routes": [EXAMPLE_NEW_ROUTE]}, ["exactly one of testcase"]),
         ({"testcase_id": "x", "routes": []}, ["routes", "at least 1"]),
         ({"testcase_id": "x", "routes": ["a"], "colour": 1}, ["colour", "Extra inputs"]),
+        (
+            {"testcase_id": "x", "routes": ["a:b", "c:d"], "start_distance": [12, None, 3]},
+            ["start_distance", "one entry per route", "2 routes, 3 start distances"],
+        ),
+        (
+            {"testcase_id": "x", "routes": ["a:b"], "start_distance": -1},
+            ["start_distance: ", ">= 0 m, got -1"],
+        ),
+        (
+            {"testcase_id": "x", "routes": ["a:b", "c:d"], "start_distance": [None, -2.5]},
+            ["start_distance: entry 1 (for routes[1]) is -2.5", ">= 0"],
+        ),
+        (
+            {"testcase_id": "x", "routes": ["a:b"], "start_distance": "auto"},
+            ["start_distance: ", "or a list with one number or null per route, not 'auto'"],
+        ),
     ],
 )
 def test_invalid_extend_bodies_are_named(
@@ -155,6 +171,15 @@ def test_domain_errors_from_a_worker(client: TestClient) -> None:
         headers=AUTH,
     )
     assert_problem(reply, 422, "invalid-input", "900 m")
+
+
+def test_start_distances_per_route_reach_the_generator(client: TestClient) -> None:
+    """One start distance per route, in order: the second car (on the ego's fork, 40 m
+    before the line) would start behind the ego (30 m), which the generator refuses."""
+    body = {"testcase": example_testcase(), "routes": [EXAMPLE_NEW_ROUTE, "E2C_1:C2W_1"],
+            "start_distance": [None, 40]}  # fmt: skip
+    reply = client.post("/extend", json=body, headers=AUTH)
+    assert_problem(reply, 422, "invalid-input", "new car 2 (E2C_1:C2W_1)", "40 m", "behind the ego")
 
 
 def test_a_budget_too_small_is_a_504(client: TestClient) -> None:

@@ -73,6 +73,25 @@ def test_a_failing_item_fails_the_job_with_its_reason(server: Server) -> None:
     assert all("no stored test-case 'nope'" in item["error"] for item in job["items"])
 
 
+def test_an_extend_item_passes_a_start_distance_per_route(server: Server) -> None:
+    """The second car, on the ego's fork, would start behind the ego: the item's error says
+    so, naming that car, so the list reached the generator in the order of the routes."""
+    item = {"kind": "extend", "testcase": regression_batch()["items"][0]["testcase"],
+            "routes": ["S2C_1:C2N_1", "E2C_1:C2W_1"], "start_distance": [None, 40]}  # fmt: skip
+    job = server.wait_for_job(server.client.post("/jobs", json={"items": [item]}).json()["id"])
+    assert job["state"] == "failed"
+    error = job["items"][0]["error"]
+    assert "new car 2 (E2C_1:C2W_1) would start 40 m" in error and "behind the ego" in error
+
+
+def test_a_bad_start_distance_list_is_refused_before_the_job(api: httpx.Client) -> None:
+    batch = {"items": [{"kind": "extend", "testcase_id": "x", "routes": ["a:b"],
+                        "start_distance": [1, 2]}]}  # fmt: skip
+    reply = api.post("/jobs", json=batch)
+    assert reply.status_code == 422
+    assert "1 route, 2 start distances" in reply.json()["detail"]
+
+
 def test_cancelling_stops_a_running_job(server: Server, api: httpx.Client) -> None:
     batch = {"items": [{"kind": "chain", "testcase": regression_batch()["items"][0]["testcase"],
                         "levels": 3, "budget": 120}]}  # fmt: skip

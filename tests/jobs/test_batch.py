@@ -8,7 +8,7 @@ from typing import Any
 import pytest
 
 from service.core.errors import InvalidInput
-from service.jobs.batch import ChainItem, dependencies, parse_batch
+from service.jobs.batch import ChainItem, ExtendItem, dependencies, parse_batch
 from service.submit import read_batch
 
 ROOT = {"testcase_id": "132282f84a7020de"}
@@ -29,6 +29,15 @@ def test_a_batch_with_every_kind_of_item() -> None:
     assert [dependencies(item) for item in batch.items] == [[], [0], [], [0, 1, 2]]
     chain = batch.items[2]
     assert isinstance(chain, ChainItem) and chain.count == 2
+
+
+@pytest.mark.parametrize("start", [None, 12, 12.5, [12, None], [None, None]])
+def test_extend_items_take_one_start_distance_or_one_per_route(start: object) -> None:
+    item = {"kind": "extend", **ROOT, "routes": ["E2C_1:C2W_1", "S2C_1:C2N_1"]}
+    batch = parse_batch({"items": [{**item, "start_distance": start}]})
+    extend = batch.items[0]
+    assert isinstance(extend, ExtendItem) and extend.start_distance == start
+    assert ExtendItem.model_validate(extend.model_dump(mode="json")) == extend  # as stored
 
 
 def test_the_fingerprint_ignores_formatting_not_content() -> None:
@@ -54,6 +63,20 @@ def test_the_fingerprint_ignores_formatting_not_content() -> None:
         ),
         ([{"kind": "evaluate", **ROOT, "controllers": []}], "controllers"),
         ([{"kind": "extend", **ROOT, "routes": ["a:b"], "colour": 1}], "colour"),
+        (
+            [{"kind": "extend", **ROOT, "routes": ["a:b"], "start_distance": [12, None]}],
+            "items.0.extend: Value error, start_distance: give one number for every new car "
+            "or one entry per route: 1 route, 2 start distances",
+        ),
+        (
+            [{"kind": "extend", **ROOT, "routes": ["a:b", "c:d"], "start_distance": [12, -1]}],
+            "items.0.extend.start_distance: entry 1 (for routes[1]) is -1",
+        ),
+        (
+            [{"kind": "extend", **ROOT, "routes": ["a:b"], "start_distance": -3}],
+            "items.0.extend.start_distance: a start distance must be a finite number >= 0 m",
+        ),
+        ([{"kind": "extend", **ROOT, "routes": ["a:b"], "start_distance": [True]}], "True"),
     ],
 )  # fmt: skip
 def test_bad_batches_are_named(items: list[dict[str, Any]], message: str) -> None:
