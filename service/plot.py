@@ -13,11 +13,15 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.text import Annotation
 from shapely.geometry import Polygon
 
+from service.core.check import EGO, Judge
 from service.core.events import rectangles
 from service.core.network import Intersection
 from service.core.poses import PoseSample
+from service.core.queues import QueueCar, follows
 from service.core.testcase import TestCase
 from service.core.verdict import Verdict
 
@@ -150,6 +154,176 @@ CAR_COLOURS = ["tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", 
 CERTIFICATE_COLOURS = {"solvability": "tab:green", "complexity": "tab:red"}
 
 
+QUEUE_START = "D"  # the start marker of a car that shares its fork with another car
+DrawnPath = tuple[str, str, str, Sequence[PoseSample], float, float]  # car, label, colour, ...
+
+
+def queue_leaders(testcase: TestCase, intersection: Intersection) -> dict[str, str | None]:
+    """Every car (the ego included) that starts on a fork it shares with another car: the
+    id of the car right ahead of it at the start, or None for the first car of its fork
+    (who is ahead of whom as service.core.queues has it; the ego by its start)."""
+    route = intersection.route(testcase.ego.route.id)
+    ego = testcase.ego
+    cars = [car.in_queue for car in Judge(testcase, intersection).nonegos]
+    cars.append(QueueCar(EGO, route.fork, route.connecting_lane, ego.length, ego.width,
+                         ego.start.distance, 0.0))  # fmt: skip
+    start = {car.id: car.start for car in cars}
+    ahead: dict[str, str | None] = {}
+    for follow in follows(cars, intersection):
+        ahead.setdefault(follow.leader, None)
+        nearest = ahead.get(follow.follower)
+        if nearest is None or start[follow.leader] > start[nearest]:
+            ahead[follow.follower] = follow.leader
+    return ahead
+
+
+def start_label(car: str, queues: dict[str, str | None]) -> str:
+    """The text beside a car's start: its id, and the car it starts behind."""
+    ahead = queues.get(car)
+    return car if ahead is None else f"{car} behind {ahead}"
+
+
+def _testcase_paths(
+    testcase: TestCase, ego: Sequence[PoseSample], ego_label: str
+) -> list[DrawnPath]:
+    """What plot_testcase draws: every non-ego, then the evaluated ego or the certificates."""
+    paths: list[DrawnPath] = []
+    for k, nonego in enumerate(testcase.nonegos):
+        samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
+        colour = CAR_COLOURS[k % len(CAR_COLOURS)]
+        paths.append((nonego.id, f"{nonego.id} (level {nonego.added_in})", colour, samples,
+                      nonego.length, nonego.width))  # fmt: skip
+    if ego:
+        paths.append((EGO, ego_label or "ego", "black", list(ego), testcase.ego.length,
+                      testcase.ego.width))  # fmt: skip
+    elif testcase.certificates is not None:
+        for kind, colour in CERTIFICATE_COLOURS.items():
+            certificate = [
+                PoseSample(**s.model_dump()) for s in getattr(testcase.certificates, kind)
+            ]
+            paths.append((EGO, f"ego: {kind} certificate", colour, certificate,
+                          testcase.ego.length, testcase.ego.width))  # fmt: skip
+    return paths
+
+
+def _normal(heading: float) -> tuple[float, float]:
+    """The unit vector to the right of the direction of travel (plot axes: x east, y north)."""
+    rad = math.radians(heading)  # clockwise from north
+    return math.cos(rad), -math.sin(rad)
+
+
+def time_labels(shown: Sequence[PoseSample], near: float = 3.0) -> list[tuple[PoseSample, str]]:
+    """The times beside a path's rectangles (none at t = 0, the start has its own label):
+    rectangles within ``near`` metres of the first of a run share one label, "8-14s", so a
+    car that stands or crawls gets one label for its stay."""
+    runs: list[list[PoseSample]] = []
+    for sample in shown:
+        if sample.t <= 0:
+            continue
+        if runs and math.dist((sample.x, sample.y), (runs[-1][0].x, runs[-1][0].y)) < near:
+            runs[-1].append(sample)
+        else:
+            runs.append([sample])
+    return [(run[0], f"{run[0].t:g}s" if len(run) == 1 else f"{run[0].t:g}-{run[-1].t:g}s")
+            for run in runs]  # fmt: skip
+
+
+def _draw_path(axes: Axes, panel: Axes, path: DrawnPath, every: int, rank: int) -> list[Annotation]:
+    """One car's path, its rectangles every ``every`` samples with their times (to the right
+    of the direction of travel, towards the kerb and away from oncoming lanes; further out
+    for each earlier path on its fork, so that cars that drive one lane keep their times
+    apart), its arrow, and its time-distance curve. The time labels drawn."""
+    _, label, colour, drawn, length, width = path
+    dashed = "--" if "complexity" in label else "-"
+    axes.plot([s.x for s in drawn], [s.y for s in drawn], dashed, color=colour,
+              linewidth=1.6, label=label, zorder=3)  # fmt: skip
+    shown = list(drawn[::every])
+    for rect in rectangles(
+        np.array([s.x for s in shown]), np.array([s.y for s in shown]),
+        np.array([s.heading for s in shown]), length, width,
+    ):  # fmt: skip
+        xs, ys = rect.exterior.xy
+        axes.plot(xs, ys, color=colour, linewidth=0.6, alpha=0.7, zorder=3)
+    labels = []
+    for sample, text in time_labels(shown):
+        right_x, right_y = _normal(sample.heading)
+        if abs(right_x) > abs(right_y):  # beside a road up or down the picture: a column each
+            out, ha = 4.0 + 22.0 * rank, "left" if right_x > 0 else "right"
+        else:  # above or below a road across it: a row each
+            out, ha = 7.0 + 9.0 * rank, "center"
+        labels.append(axes.annotate(
+            text, (sample.x, sample.y), xytext=(right_x * out, right_y * out),
+            textcoords="offset points", fontsize=5, color=colour, zorder=5, ha=ha, va="center",
+        ))  # fmt: skip
+    _arrow(axes, drawn, colour)
+    panel.plot([s.t for s in drawn], [s.distance for s in drawn], dashed, color=colour,
+               label=label)  # fmt: skip
+    return labels
+
+
+def _draw_starts(
+    axes: Axes, paths: Sequence[DrawnPath], queues: dict[str, str | None], forks: dict[str, str]
+) -> list[Annotation]:
+    """Each path's start: a hollow circle, a diamond on a shared fork; each car's id once
+    (the certificates start together) with the car it starts behind, to the left of the
+    direction of travel (the times are on the right) and running towards the junction,
+    further out for each car labelled before on its fork. The labels drawn."""
+    labelled: list[str] = []
+    labels = []
+    for car, _, colour, drawn, _, _ in paths:
+        first = drawn[0]
+        marker = QUEUE_START if car in queues else "o"
+        axes.plot([first.x], [first.y], marker, mfc="white", mec=colour, ms=6, zorder=5)
+        if car in labelled:
+            continue
+        rank = sum(1 for other in labelled if forks[other] == forks[car])
+        labelled.append(car)
+        labels.append(_start_text(axes, start_label(car, queues), first, colour, rank))
+    axes.plot([], [], "o", mfc="white", mec="0.3", label="start (t = 0)")
+    if queues:
+        axes.plot([], [], QUEUE_START, mfc="white", mec="0.3",
+                  label="start on a shared fork (label: the car ahead)")  # fmt: skip
+    return labels
+
+
+def _start_text(axes: Axes, text: str, first: PoseSample, colour: str, rank: int) -> Annotation:
+    """A start's label, ``8 + 10 x rank`` points to the left of the direction of travel."""
+    left_x, left_y = (-v for v in _normal(first.heading))
+    out = 8.0 + 10.0 * rank
+    if abs(left_x) > abs(left_y):  # a road up or down the picture: beside it
+        ha, va = ("left" if left_x > 0 else "right"), "center"
+    else:  # across the picture: above or below it, running towards the junction
+        ahead = math.sin(math.radians(first.heading))
+        ha, va = ("right" if ahead < 0 else "left"), ("bottom" if left_y > 0 else "top")
+    return axes.annotate(text, (first.x, first.y), fontsize=8, color=colour, zorder=5,
+                         xytext=(left_x * out, left_y * out), textcoords="offset points",
+                         ha=ha, va=va)  # fmt: skip
+
+
+def _keep_apart(figure: Figure, labels: Sequence[Annotation], step: float = 8.0) -> None:
+    """Move each label that overlaps one placed before it further out from its point, by
+    ``step`` points at a time, or else to the other side, so that no label hides another
+    (one with no free place in reach stays where it was drawn)."""
+    renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]
+    placed: list[Any] = []
+    for label in labels:
+        dx, dy = label.xyann
+        reach = max(math.hypot(dx, dy), 1.0)
+        tries = [(side * (reach + step * k) / reach) for side in (1, -1) for k in range(4)]
+        for scale in tries:
+            label.xyann = (dx * scale, dy * scale)
+            if not any(_padded(label, renderer).overlaps(o) for o in placed):
+                break
+        else:
+            label.xyann = (dx, dy)
+        placed.append(_padded(label, renderer))
+
+
+def _padded(label: Annotation, renderer: Any) -> Any:
+    """A label's box on the canvas with a margin of a point and a half."""
+    return label.get_window_extent(renderer).padded(1.5 * label.figure.dpi / 72.0)
+
+
 def plot_testcase(
     testcase: TestCase,
     intersection: Intersection,
@@ -159,56 +333,25 @@ def plot_testcase(
     verdict: Verdict | None = None,
 ) -> None:
     """The intersection with every car's path (coloured by car, rectangles every 2 s, the
-    car's id at its start), the certificates (green solvability, red complexity) or an
-    evaluated ego's path, stop lines; and a time-distance panel with each car's curve and
-    its events (arrived, entered, exited). PNG or SVG by the file's suffix."""
+    car's id at its start, and the car ahead of it where it shares a fork), the
+    certificates (green solvability, red complexity) or an evaluated ego's path, stop
+    lines; and a time-distance panel with each car's curve and its events (arrived,
+    entered, exited). PNG or SVG by the file's suffix."""
     figure, (axes, panel) = plt.subplots(
-        1, 2, figsize=(15, 7.5), gridspec_kw={"width_ratios": [1, 1.1]}
-    )
+        1, 2, figsize=(15, 7.5), dpi=110, gridspec_kw={"width_ratios": [1, 1.1]}
+    )  # the dpi it is saved at: labels are kept apart on that canvas
     _draw_roads(axes, intersection)
     _draw_stop_lines(axes, intersection)
     if any(fork.stop_sign for fork in intersection.forks.values()):
         axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
-    paths: list[tuple[str, str, Sequence[PoseSample], float, float]] = []
-    for k, nonego in enumerate(testcase.nonegos):
-        samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
-        colour = CAR_COLOURS[k % len(CAR_COLOURS)]
-        paths.append((f"{nonego.id} (level {nonego.added_in})", colour, samples,
-                      nonego.length, nonego.width))  # fmt: skip
-    if ego:
-        paths.append((ego_label or "ego", "black", list(ego), testcase.ego.length,
-                       testcase.ego.width))  # fmt: skip
-    elif testcase.certificates is not None:
-        for kind, colour in CERTIFICATE_COLOURS.items():
-            certificate = [
-                PoseSample(**s.model_dump()) for s in getattr(testcase.certificates, kind)
-            ]
-            paths.append((f"ego: {kind} certificate", colour, certificate, testcase.ego.length,
-                          testcase.ego.width))  # fmt: skip
+    paths = _testcase_paths(testcase, ego, ego_label)
+    forks = {n.id: n.route.fork for n in testcase.nonegos} | {EGO: testcase.ego.route.fork}
     step = max(1, round(2.0 / testcase.timestep))
-    for label, colour, drawn, length, width in paths:
-        dashed = "--" if "complexity" in label else "-"
-        axes.plot([s.x for s in drawn], [s.y for s in drawn], dashed, color=colour,
-                  linewidth=1.6, label=label, zorder=3)  # fmt: skip
-        shown = list(drawn[::step])
-        for sample, rect in zip(shown, rectangles(
-            np.array([s.x for s in shown]), np.array([s.y for s in shown]),
-            np.array([s.heading for s in shown]), length, width,
-        ), strict=True):  # fmt: skip
-            xs, ys = rect.exterior.xy
-            axes.plot(xs, ys, color=colour, linewidth=0.6, alpha=0.7, zorder=3)
-            if sample.t > 0:  # the time of each rectangle, beside it
-                axes.annotate(f"{sample.t:g}s", (sample.x, sample.y), xytext=(3, 3),
-                              textcoords="offset points", fontsize=5, color=colour,
-                              zorder=5)  # fmt: skip
-        first = drawn[0]
-        axes.plot([first.x], [first.y], "o", mfc="white", mec=colour, ms=6, zorder=5)
-        axes.annotate(label.split(" ")[0].rstrip(":"), (first.x, first.y), xytext=(4, -10),
-                      textcoords="offset points", fontsize=8, color=colour,
-                      zorder=5)  # fmt: skip
-        _arrow(axes, drawn, colour)
-        panel.plot([s.t for s in drawn], [s.distance for s in drawn], dashed, color=colour,
-                   label=label)  # fmt: skip
+    times = []
+    for k, drawn in enumerate(paths):
+        rank = sum(1 for other in paths[:k] if forks[other[0]] == forks[drawn[0]])
+        times += _draw_path(axes, panel, drawn, step, rank)
+    starts = _draw_starts(axes, paths, queue_leaders(testcase, intersection), forks)
     for k, nonego in enumerate(testcase.nonegos):
         colour = CAR_COLOURS[k % len(CAR_COLOURS)]
         for event in nonego.events:
@@ -220,22 +363,10 @@ def plot_testcase(
             if ref.kind in EVENT_MARKERS and ego:
                 at = min(ego, key=lambda s: abs(s.t - ref.t))
                 panel.plot([ref.t], [at.distance], EVENT_MARKERS[ref.kind], color="black", ms=6)
-    axes.plot([], [], "o", mfc="white", mec="0.3", label="start (t = 0)")
     for kind, marker in EVENT_MARKERS.items():
         panel.plot([], [], marker, color="0.3", label=f"{kind} (in the car's colour)")
-    minx, miny, maxx, maxy = intersection.polygon.bounds
-    margin = 25.0
-    starts = [(drawn[0].x, drawn[0].y) for _, _, drawn, _, _ in paths if drawn]
-    low_x = min([minx - margin, *(x - 6.0 for x, _ in starts)])  # every start in view
-    low_y = min([miny - margin, *(y - 6.0 for _, y in starts)])
-    high_x = max([maxx + margin, *(x + 6.0 for x, _ in starts)])
-    high_y = max([maxy + margin, *(y + 6.0 for _, y in starts)])
-    axes.set_xlim(low_x, high_x)
-    axes.set_ylim(low_y, high_y)
-    axes.set_aspect("equal")
-    axes.set_xlabel("x (m)")
-    axes.set_ylabel("y (m)")
-    axes.legend(loc="upper left", fontsize=7)
+    _frame(axes, intersection, [drawn[3][0] for drawn in paths if drawn[3]])
+    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)
     title = testcase.name or f"{testcase.network.ref} {testcase.junction}"
     axes.set_title(f"{title}: {intersection.control.value}, ego {testcase.ego.route.id}")
     panel.set_xlabel("time (s)")
@@ -250,8 +381,24 @@ def plot_testcase(
     else:
         panel.set_title("distance over time; markers: events")
     figure.tight_layout()
-    figure.savefig(path, dpi=110)
+    _keep_apart(figure, [*starts, *times])
+    figure.savefig(path, dpi=110, bbox_inches="tight")  # the legend below the map included
     plt.close(figure)
+
+
+def _frame(axes: Axes, intersection: Intersection, starts: Sequence[PoseSample]) -> None:
+    """The junction with a margin, every start in view, metres on both axes."""
+    minx, miny, maxx, maxy = intersection.polygon.bounds
+    margin = 25.0
+    low_x = min([minx - margin, *(s.x - 6.0 for s in starts)])  # every start in view
+    low_y = min([miny - margin, *(s.y - 6.0 for s in starts)])
+    high_x = max([maxx + margin, *(s.x + 6.0 for s in starts)])
+    high_y = max([maxy + margin, *(s.y + 6.0 for s in starts)])
+    axes.set_xlim(low_x, high_x)
+    axes.set_ylim(low_y, high_y)
+    axes.set_aspect("equal")
+    axes.set_xlabel("x (m)")
+    axes.set_ylabel("y (m)")
 
 
 EVENT_MARKERS = {"arrived": "o", "entered": "^", "exited": "s"}
@@ -267,20 +414,23 @@ def animate_testcase(
     progress: Callable[[int, int], None] | None = None,
 ) -> None:
     """A GIF of the cars moving (one frame every ``every`` seconds of the test-case): every
-    non-ego, and the ego (an evaluation's trajectory, else the solvability certificate).
-    ``progress(frame, frames)`` hears of each frame as it is saved."""
+    non-ego, and the ego (an evaluation's trajectory, else the solvability certificate); the
+    legend names the car each starts behind on a shared fork. ``progress(frame, frames)``
+    hears of each frame as it is saved."""
     from matplotlib.animation import FuncAnimation, PillowWriter
 
-    cars: list[tuple[str, str, Sequence[PoseSample], float, float]] = []
+    cars: list[DrawnPath] = []
     for k, nonego in enumerate(testcase.nonegos):
         samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
-        cars.append((nonego.id, CAR_COLOURS[k % len(CAR_COLOURS)], samples, nonego.length,
-                     nonego.width))  # fmt: skip
+        cars.append((nonego.id, nonego.id, CAR_COLOURS[k % len(CAR_COLOURS)], samples,
+                     nonego.length, nonego.width))  # fmt: skip
     if not ego and testcase.certificates is not None:
         ego = [PoseSample(**s.model_dump()) for s in testcase.certificates.solvability]
         ego_label = ego_label or "ego (solvability certificate)"
     if ego:
-        cars.append((ego_label or "ego", "black", ego, testcase.ego.length, testcase.ego.width))
+        cars.append((EGO, ego_label or "ego", "black", ego, testcase.ego.length,
+                     testcase.ego.width))  # fmt: skip
+    queues = queue_leaders(testcase, intersection)
     figure, axes = plt.subplots(figsize=(7, 7))
     _draw_roads(axes, intersection)
     minx, miny, maxx, maxy = intersection.polygon.bounds
@@ -288,7 +438,9 @@ def animate_testcase(
     axes.set_ylim(miny - 25, maxy + 25)
     axes.set_aspect("equal")
     patches = []
-    for name, colour, _, _, _ in cars:
+    for car, name, colour, _, _, _ in cars:
+        ahead = queues.get(car)
+        name = name if ahead is None else f"{name}, starts behind {ahead}"
         (outline,) = axes.fill([], [], color=colour, alpha=0.8, label=name, zorder=3)
         label = axes.text(0, 0, "", fontsize=8, color=colour, zorder=4)
         patches.append((outline, label))
@@ -300,7 +452,9 @@ def animate_testcase(
     def draw(frame: int) -> list[Any]:
         t = frame * testcase.timestep
         title.set_text(f"{testcase.name or testcase.ego.route.id}  t = {t:4.1f} s")
-        for (outline, label), (car, _, samples, length, width) in zip(patches, cars, strict=True):
+        for (outline, label), (car, _, _, samples, length, width) in zip(
+            patches, cars, strict=True
+        ):
             if frame >= len(samples):
                 outline.set_xy(np.empty((0, 2)))
                 label.set_text("")
@@ -309,7 +463,7 @@ def animate_testcase(
             rect = rectangles(np.array([s.x]), np.array([s.y]), np.array([s.heading]),
                               length, width)[0]  # fmt: skip
             outline.set_xy(np.array(rect.exterior.coords))
-            label.set_text(car.split(" ")[0].rstrip(":"))
+            label.set_text(car)
             label.set_position((s.x + 2.0, s.y + 2.0))
         return [title, *(p for pair in patches for p in pair)]
 

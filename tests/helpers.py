@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from collections.abc import Callable
 
@@ -118,3 +119,14 @@ def with_nonegos(
             }
         )
     return parse_testcase(document)
+
+
+@functools.cache
+def car_ahead_of_ego() -> TestCase:
+    """The README's queue: on the four-way stop the ego (E2C_0:C2N_0, 30 m out) turns
+    right, and the generator adds a car ahead of it on its fork that goes straight on."""
+    from service.core.generate import extend_testcase
+    from service.core.testcase import new_testcase
+
+    old = new_testcase("4way-stop", "E2C_0:C2N_0", duration=45.0, name="queue")
+    return extend_testcase(old, ["E2C_0:C2W_0"], seed=0, budget=120).testcase

@@ -18,6 +18,7 @@ from typing import Any, Protocol, runtime_checkable
 from service.core.errors import InvalidInput
 
 ENTRY_POINT_GROUP = "scengen.controllers"
+LEADER_LOOKAHEAD = 100.0  # metres ahead of the ego's front within which a leader is reported
 
 
 @dataclass(frozen=True)
@@ -98,6 +99,16 @@ class Vehicle:
 
 
 @dataclass(frozen=True)
+class Leader:
+    """The nearest car ahead of the ego on the lanes of its route (the lanes SUMO drives
+    it on, internal lanes included), front or rear on one of them."""
+
+    id: str
+    gap: float  # metres from the ego's front bumper to the leader's rear bumper
+    speed: float  # m/s
+
+
+@dataclass(frozen=True)
 class Observation:
     """Everything a user controller is told at one step."""
 
@@ -111,6 +122,7 @@ class Observation:
     a_min: float  # the bounds the command is clipped to (m/s^2)
     a_max: float
     v_max: float
+    leader: Leader | None = None  # within LEADER_LOOKAHEAD metres; None: nobody ahead
 
 
 @runtime_checkable

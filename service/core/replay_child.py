@@ -12,8 +12,17 @@ from pathlib import Path
 from typing import Any
 
 from service.core import sumo_run
-from service.core.controllers import Controller, Observation, Vehicle, load_user_controller
+from service.core.controllers import (
+    LEADER_LOOKAHEAD,
+    Controller,
+    Leader,
+    Observation,
+    Vehicle,
+    load_user_controller,
+)
 from service.core.errors import ScengenError, SimulationFailed
+
+Lanes = dict[str, float]  # a car's lanes in driving order, each with where it starts (m)
 
 
 def run_replay(
@@ -44,17 +53,14 @@ def _user_step(user: Controller, name: str, plan: dict[str, Any]) -> sumo_run.On
     bounds = plan["bounds"]
     ego = plan["ego"]
     sizes = {car["id"]: (float(car["length"]), float(car["width"])) for car in plan["nonegos"]}
+    lanes: dict[str, Lanes] = {}  # every car's, from where it is at the first step
 
     def step(traci: Any, row: sumo_run.Row, present: set[str]) -> str | None:
+        for car in present - lanes.keys():
+            lanes[car] = route_lanes(traci, car)
         x, y = sumo_run.front_to_centre(row["x"], row["y"], row["angle"], float(ego["length"]))
         speed = row["speed"]
-        others = []
-        for car in sorted(present - {sumo_run.EGO}):
-            length, width = sizes[car]
-            heading = traci.vehicle.getAngle(car) % 360.0
-            fx, fy = traci.vehicle.getPosition(car)
-            cx, cy = sumo_run.front_to_centre(fx, fy, heading, length)
-            others.append(Vehicle(car, cx, cy, heading, traci.vehicle.getSpeed(car), length, width))
+        nonegos = sorted(present - {sumo_run.EGO})
         observation = Observation(
             t=row["t"],
             timestep=timestep,
@@ -62,10 +68,11 @@ def _user_step(user: Controller, name: str, plan: dict[str, Any]) -> sumo_run.On
             distance=row["odometer"],
             to_stop_line=float(ego["start_distance"]) - row["odometer"],
             lane=traci.vehicle.getLaneID(sumo_run.EGO),
-            others=tuple(others),
+            others=tuple(_vehicle(traci, car, *sizes[car]) for car in nonegos),
             a_min=bounds["a_min"],
             a_max=bounds["a_max"],
             v_max=bounds["v_max"],
+            leader=find_leader(traci, lanes, {car: sizes[car][0] for car in nonegos}),
         )
         try:
             command = float(user.step(observation))
@@ -79,3 +86,74 @@ def _user_step(user: Controller, name: str, plan: dict[str, Any]) -> sumo_run.On
         return None
 
     return step
+
+
+def _vehicle(traci: Any, car: str, length: float, width: float) -> Vehicle:
+    """A non-ego as the ego sees it: its rectangle's centre from SUMO's front bumper."""
+    heading = traci.vehicle.getAngle(car) % 360.0
+    fx, fy = traci.vehicle.getPosition(car)
+    cx, cy = sumo_run.front_to_centre(fx, fy, heading, length)
+    return Vehicle(car, cx, cy, heading, traci.vehicle.getSpeed(car), length, width)
+
+
+def route_lanes(traci: Any, car: str) -> Lanes:
+    """The lanes ``car`` drives on from the one it is on to the end of its route, internal
+    lanes included, each with the metres from the start of the first to its own start."""
+    edges = list(traci.vehicle.getRoute(car))
+    index = traci.vehicle.getRouteIndex(car)  # on an internal lane: the edge before it
+    lane = traci.vehicle.getLaneID(car)
+    found: Lanes = {}
+    at = 0.0
+    while lane and lane not in found:
+        found[lane] = at
+        at += traci.lane.getLength(lane)
+        if not lane.startswith(":"):
+            index = edges.index(traci.lane.getEdgeID(lane), index)
+        if index + 1 >= len(edges):
+            break
+        onward = [link for link in traci.lane.getLinks(lane)
+                  if traci.lane.getEdgeID(link[0]) == edges[index + 1]]  # fmt: skip
+        if not onward:
+            break
+        lane = onward[0][4] or onward[0][0]  # its internal lane, else the next edge's
+    return found
+
+
+def find_leader(traci: Any, lanes: dict[str, Lanes], lengths: dict[str, float]) -> Leader | None:
+    """The nearest car (of ``lengths``, by id) whose front is ahead of the ego's front and
+    whose rear or front is on one of the ego's lanes, within LEADER_LOOKAHEAD metres.
+    The gap, along the ego's lanes, is what SUMO's ``vehicle.getLeader`` gives plus the
+    ego's minGap (SUMO's excludes it). Computed here rather than asked of getLeader, which
+    can also name a car crossing the ego's path in the junction (a "link leader")."""
+    ego_lanes = lanes[sumo_run.EGO]
+    lane = traci.vehicle.getLaneID(sumo_run.EGO)
+    if lane not in ego_lanes:
+        return None
+    front = ego_lanes[lane] + traci.vehicle.getLanePosition(sumo_run.EGO)
+    nearest: Leader | None = None
+    for car, length in sorted(lengths.items()):
+        place = traci.vehicle.getLaneID(car), traci.vehicle.getLanePosition(car)
+        rear = _rear_along(ego_lanes, lanes[car], *place, length)
+        if rear is None or rear + length <= front or rear - front > LEADER_LOOKAHEAD:
+            continue
+        if nearest is None or rear - front < nearest.gap:
+            nearest = Leader(car, rear - front, traci.vehicle.getSpeed(car))
+    return nearest
+
+
+def _rear_along(
+    ego_lanes: Lanes, car_lanes: Lanes, lane: str, position: float, length: float
+) -> float | None:
+    """Where a car's rear is along the ego's lanes (None: neither its rear nor its front is
+    on one of them). A car partly on a lane of another turn counts while its rear is still
+    on the ego's lane, as in SUMO."""
+    if lane not in car_lanes:
+        return None
+    rear = car_lanes[lane] + position - length  # along its own lanes
+    behind = [name for name, start in car_lanes.items() if start <= rear]
+    rear_lane = behind[-1] if behind else next(iter(car_lanes))  # lanes in driving order
+    if rear_lane in ego_lanes:
+        return ego_lanes[rear_lane] + rear - car_lanes[rear_lane]
+    if lane in ego_lanes:  # merging into the ego's lane from another
+        return ego_lanes[lane] + position - length
+    return None

@@ -2,20 +2,24 @@
 
 from __future__ import annotations
 
+import json
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from service.core.chain import candidate_routes
+from service.core.check import Judge
 from service.core.errors import InvalidInput
 from service.core.export import export_bundle
 from service.core.generate import extend_testcase
-from service.core.poses import centre_to_front, plan_drive, start_front
+from service.core.poses import centre_to_front, generate_poses, plan_drive, start_front
 from service.core.replay import evaluate
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
 from tests.conftest import TOWN05, TOWN07
+from tests.helpers import car_ahead_of_ego, retime, with_nonegos
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "controllers.md"
 
@@ -202,3 +206,123 @@ def test_a_car_starting_fast_after_an_upstream_junction_is_inserted_at_once() ->
         evaluation = evaluate(extended, controller, intersection)
         assert evaluation.error is None and not evaluation.verdict.errors
         assert evaluation.verdict.passed, evaluation.verdict.reasons
+
+
+RECORDER = """
+import json
+
+import libsumo
+
+
+class Recorder:
+    \"\"\"Brakes to a stand, waits there until GO s, then drives on at 4 m/s; writes down
+    what it is told, what SUMO's getLeader says and every non-ego's lane at each step.\"\"\"
+
+    def step(self, obs):
+        leader = obs.leader
+        record = {
+            "t": obs.t,
+            "distance": obs.distance,
+            "leader": None if leader is None else [leader.id, leader.gap, leader.speed],
+            "sumo": libsumo.vehicle.getLeader("ego", 100.0),
+            "min_gap": libsumo.vehicle.getMinGap("ego"),
+            "lanes": {o.id: libsumo.vehicle.getLaneID(o.id) for o in obs.others},
+        }
+        with open(OUT, "a") as out:
+            out.write(json.dumps(record) + "\\n")
+        if obs.t < GO:
+            return obs.a_min
+        return 1.5 if obs.ego.speed < 4.0 else 0.0
+"""
+
+
+def _record_observations(testcase: TestCase, go: float, folder: Path) -> list[dict[str, Any]]:
+    """Replay ``testcase`` with the recorder driving the ego; what it wrote, step by step."""
+    out = folder / "observations.jsonl"
+    _write(folder, "recorder", f"GO = {go!r}\nOUT = {str(out)!r}\n" + RECORDER)
+    evaluation = evaluate(testcase, "recorder:Recorder")
+    assert evaluation.error is None
+    return [json.loads(line) for line in out.read_text().splitlines()]
+
+
+def _check_sumo_gap(record: dict[str, Any]) -> None:
+    """Where SUMO's getLeader names the same car, the gap is its distance plus the ego's
+    minGap (SUMO measures from the ego's front plus its minGap)."""
+    assert record["min_gap"] > 0
+    sumo = record["sumo"]
+    if sumo is not None and sumo[0] == record["leader"][0]:
+        assert record["leader"][1] == pytest.approx(sumo[1] + record["min_gap"], abs=1e-6)
+
+
+def test_the_leader_is_the_car_ahead_on_the_fork(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The README's queue: car1 starts ahead of the ego and goes straight on where the ego
+    turns right. Its gap (rear bumper to the ego's front) agrees with the test-case's
+    trajectory while its rear is on the fork; once its rear is on its own connecting lane,
+    nobody is ahead of the ego."""
+    case = car_ahead_of_ego()
+    monkeypatch.chdir(tmp_path)
+    records = _record_observations(case, 9.0, tmp_path)
+    car = case.nonegos[0]
+    ahead = Judge(case).nonegos[0].in_queue  # places on the fork: distance - line
+    gaps, left = [], 0
+    for record in records:
+        sample = car.trajectory[round(record["t"] / case.timestep)]
+        rear = sample.distance - ahead.line - ahead.length  # metres past the stop line
+        if rear > 0.5:
+            assert record["leader"] is None, record
+            left += 1
+        elif rear < -0.5:
+            expected = rear - (record["distance"] - case.ego.start.distance)
+            leader, gap, speed = record["leader"]
+            assert leader == car.id
+            assert gap == pytest.approx(expected, abs=0.5)
+            assert speed == pytest.approx(sample.speed, abs=0.5)
+            _check_sumo_gap(record)
+            gaps.append(gap)
+    assert left and gaps
+    closest = min(range(len(gaps)), key=gaps.__getitem__)
+    assert gaps[closest] < gaps[0] - 1.0 < gaps[-1] - 2.0  # the ego closes in, then car1 pulls away
+
+
+def _merging_case() -> TestCase:
+    """The ego (E2C_0:C2N_0, 30 m out) and "merge" from the south (S2C_0:C2N_0, 10 m out,
+    5 m/s throughout), which crosses into the ego's exit lane while the ego waits."""
+    base = new_testcase("4way-stop", "E2C_0:C2N_0", duration=20.0)
+    junction = load_testcase_intersection(base)
+    (track,) = generate_poses(junction, [(junction.route("S2C_0:C2N_0"), 10.0)], 5.0, 20.0, 0.1)
+    samples = retime(track, lambda t: (5.0 * t, 5.0), 20.0, 0.1)
+    return with_nonegos(base, [("merge", "S2C_0:C2N_0", samples)])
+
+
+def test_a_merging_car_is_the_leader_once_on_the_ego_lane(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """No leader while the car is on its own fork and connecting lane (SUMO's getLeader can
+    name it there, as a car to yield to); once it is on the ego's exit lane, it is."""
+    case = _merging_case()
+    junction = load_testcase_intersection(case)
+
+    def on_exit(route: str, start: float, distance: float) -> float:
+        """Metres of a front from the start of the exit lane (negative: before it)."""
+        lane = junction.connecting_lanes[junction.route(route).connecting_lane]
+        return distance - start - lane.centreline.length
+
+    monkeypatch.chdir(tmp_path)
+    records = _record_observations(case, 8.0, tmp_path)
+    before = after = 0
+    for record in records:
+        lane = record["lanes"]["merge"]
+        if lane in ("S2C_0", ":C_9_0"):
+            assert record["leader"] is None, record
+            before += 1
+        elif lane == "C2N_0":
+            sample = case.nonegos[0].trajectory[round(record["t"] / case.timestep)]
+            rear = on_exit("S2C_0:C2N_0", 10.0, sample.distance) - 5.0
+            expected = rear - on_exit(case.ego.route.id, 30.0, record["distance"])
+            assert record["leader"] is not None and record["leader"][0] == "merge", record
+            assert record["leader"][1] == pytest.approx(expected, abs=0.5)
+            _check_sumo_gap(record)
+            after += 1
+    assert before and after
