@@ -59,6 +59,17 @@ def satisfiable(facts: str, m_ms: int = 1000, margin_ms: int = 200) -> bool:
          True, "0.7 s after is simultaneous"),
         ("oldTime(o,0,0). oldTime(p,500,500). lessThan(o,p). horizon(9000).",
          True, "old cars' facts are numbers, judged without the margin"),
+        ("symbolicTime(a). earliest(a,6000). latest(a,5000). horizon(9000).",
+         False, "queue: a follower that must arrive after the leader entered (6 s) cannot "
+                "also arrive before the old car behind it (5 s)"),
+        ("symbolicTime(a). earliest(a,5000). latest(a,6000). horizon(9000).",
+         True, "queue: between the leader's entry and the arrival of the car behind"),
+        ("symbolicTime(a). earliest(a,9500). horizon(9000).",
+         False, "queue: a car whose leader enters after the duration never arrives in it"),
+        ("symbolicTime(a;b). headway(b,a,1000). lessThan(a,b). horizon(9000).",
+         False, "queue headway: a follower's event 1 s after its leader's cannot come first"),
+        ("symbolicTime(a;b). headway(b,a,1000). lessThan(b,a). horizon(9000).",
+         True, "queue headway: the follower after its leader"),
     ],
 )  # fmt: skip
 def test_difference_constraints_decide_the_times(facts: str, expected: bool, why: str) -> None:
