@@ -1,10 +1,15 @@
-"""Linear programs for z3, written as SMT-LIB text.
+"""Linear programs for Step 3: HiGHS for optima, z3 for choices and proofs.
 
-Step 3 solves many small linear programs. Building them through z3's Python objects costs
-more than solving them, so they are built here as plain sums of rational terms and handed
-to z3 as one SMT-LIB string. Numbers are rationals with small denominators (a float's exact
-value has 2^52 in its denominator, which slows z3's exact simplex down by orders of
-magnitude). Every check is limited by z3's resource count (``rlimit``), never by a clock.
+Step 3 solves many small linear programs (tens of variables, hundreds of rows). Their
+optima come from HiGHS's simplex (highspy), which solves one in about two milliseconds
+where z3's optimiser took from 0.05 to several seconds (docs/benchmarks.md). Programs with
+Boolean choices (the speed-grid plans) and unsatisfiable cores (the proofs that an order
+cannot be timed) stay with z3: exact over the rationals, the numbers written as SMT-LIB
+text with small denominators (a float's exact value has 2^52 in its denominator, which
+slows z3's exact simplex down by orders of magnitude). Every solve is limited by a count
+of work (HiGHS's simplex iterations, z3's ``rlimit``), never by a clock. HiGHS keeps every
+row to within its feasibility tolerance (1e-7); the samples of every curve are checked
+against the motion invariants and the checker afterwards, never the solver's word.
 """
 
 from __future__ import annotations
@@ -13,7 +18,10 @@ import functools
 from collections.abc import Iterable, Sequence
 from fractions import Fraction
 
+import highspy
+import numpy as np
 import z3
+from highspy._core import _Highs
 
 GRID = 10**6  # floats enter as multiples of a millionth
 
@@ -36,46 +44,51 @@ def _number(value: Fraction) -> str:
 
 
 class Linear:
-    """A linear expression: rational coefficients of variables, plus a constant."""
+    """A linear expression: coefficients of variables, plus a constant (floats; rationals
+    with small denominators only where z3 reads them)."""
 
     __slots__ = ("constant", "terms")
 
-    def __init__(self, terms: dict[str, Fraction] | None = None, constant: Fraction = Fraction(0)):
+    def __init__(self, terms: dict[str, float] | None = None, constant: float = 0.0):
         self.terms = terms or {}
         self.constant = constant
 
     @staticmethod
     def of(value: Linear | float | Fraction | int) -> Linear:
-        return value if isinstance(value, Linear) else Linear(constant=rational(value))
+        return value if isinstance(value, Linear) else Linear(constant=float(value))
 
     def __add__(self, other: Linear | float | Fraction | int) -> Linear:
         other = Linear.of(other)
         terms = dict(self.terms)
         for name, coefficient in other.terms.items():
-            terms[name] = terms.get(name, Fraction(0)) + coefficient
+            terms[name] = terms.get(name, 0.0) + coefficient
         return Linear(terms, self.constant + other.constant)
 
     __radd__ = __add__
 
     def __neg__(self) -> Linear:
-        return self * -1
+        return Linear({n: -c for n, c in self.terms.items()}, -self.constant)
 
     def __sub__(self, other: Linear | float | Fraction | int) -> Linear:
-        return self + (-Linear.of(other))
+        other = Linear.of(other)
+        terms = dict(self.terms)
+        for name, coefficient in other.terms.items():
+            terms[name] = terms.get(name, 0.0) - coefficient
+        return Linear(terms, self.constant - other.constant)
 
     def __rsub__(self, other: Linear | float | Fraction | int) -> Linear:
         return Linear.of(other) - self
 
     def __mul__(self, factor: float | Fraction | int) -> Linear:
-        scale = rational(factor)
+        scale = float(factor)
         return Linear({n: c * scale for n, c in self.terms.items()}, self.constant * scale)
 
     __rmul__ = __mul__
 
     def smt(self) -> str:
-        parts = [f"(* {_number(c)} {n})" for n, c in self.terms.items() if c != 0]
+        parts = [f"(* {_number(rational(c))} {n})" for n, c in self.terms.items() if c != 0]
         if self.constant != 0 or not parts:
-            parts.append(_number(self.constant))
+            parts.append(_number(rational(self.constant)))
         return parts[0] if len(parts) == 1 else f"(+ {' '.join(parts)})"
 
 
@@ -83,21 +96,25 @@ Operand = Linear | float | Fraction | int
 
 
 class LinearProgram:
-    """Variables, constraints and an objective; solved by z3 under a work limit. Boolean
-    choices may switch constraints on (a mixed-integer program, still exact)."""
+    """Variables, constraints and an objective. A program of real variables only is solved
+    by HiGHS's simplex (an optimum within HiGHS's tolerances, limited by a count of simplex
+    iterations); Boolean choices that switch constraints on (a mixed-integer program) and
+    unsatisfiable cores are z3's, exact over the rationals and limited by z3's ``rlimit``.
+    Every limit is a count of work, never a clock."""
 
     def __init__(self, work: int) -> None:
         self.work = work
         self.names: list[str] = []
         self.booleans: list[str] = []
-        self.constraints: list[tuple[str, str | None]] = []  # (SMT-LIB atom, label)
+        self.rows: list[_Row] = []
+        self.logic: list[str] = []  # SMT-LIB atoms over the Booleans (choices, conditions)
         self.objective: Linear | None = None
 
     def copy(self) -> LinearProgram:
         """The same variables, constraints and objective, to add more to."""
         twin = LinearProgram(self.work)
         twin.names, twin.booleans = list(self.names), list(self.booleans)
-        twin.constraints, twin.objective = list(self.constraints), self.objective
+        twin.rows, twin.logic, twin.objective = list(self.rows), list(self.logic), self.objective
         return twin
 
     def choice(self, prefix: str, count: int) -> list[str]:
@@ -105,7 +122,7 @@ class LinearProgram:
         names = [f"{prefix}_{k}" for k in range(count)]
         self.booleans += names
         ones = " ".join("1" for _ in names)
-        self.constraints.append((f"((_ pbeq 1 {ones}) {' '.join(names)})", None))
+        self.logic.append(f"((_ pbeq 1 {ones}) {' '.join(names)})")
         return names
 
     def when(
@@ -121,20 +138,20 @@ class LinearProgram:
         body = Linear(term.terms)
         atoms = []
         if low is not None:
-            atoms.append(f"(>= {body.smt()} {_number(rational(low) - term.constant)})")
+            atoms.append(f"(>= {body.smt()} {_number(rational(float(low) - term.constant))})")
         if high is not None:
-            atoms.append(f"(<= {body.smt()} {_number(rational(high) - term.constant)})")
+            atoms.append(f"(<= {body.smt()} {_number(rational(float(high) - term.constant))})")
         if not atoms:
-            self.constraints.append((f"(not {premise})", None))
+            self.logic.append(f"(not {premise})")
             return
         conclusion = atoms[0] if len(atoms) == 1 else f"(and {' '.join(atoms)})"
-        self.constraints.append((f"(=> {premise} {conclusion})", None))
+        self.logic.append(f"(=> {premise} {conclusion})")
 
     def variable(
         self, name: str, low: Operand | None = None, high: Operand | None = None
     ) -> Linear:
         self.names.append(name)
-        term = Linear({name: Fraction(1)})
+        term = Linear({name: 1.0})
         if low is not None:
             self.at_least(term, low)
         if high is not None:
@@ -149,12 +166,11 @@ class LinearProgram:
         return size
 
     def _add(self, relation: str, left: Operand, right: Operand, label: str | None) -> None:
-        left, right = Linear.of(left), Linear.of(right)
-        if right.terms:
-            left, right = left - right, Linear()
-        body = Linear(left.terms)
-        bound = right.constant - left.constant
-        self.constraints.append((f"({relation} {body.smt()} {_number(bound)})", label))
+        difference = Linear.of(left) - Linear.of(right)
+        bound = rational(-difference.constant)
+        low = bound if relation in (">=", "=") else None
+        high = bound if relation in ("<=", "=") else None
+        self.rows.append(_Row(difference.terms, low, high, label))
 
     def at_most(self, left: Operand, right: Operand, label: str | None = None) -> None:
         self._add("<=", left, right, label)
@@ -172,67 +188,28 @@ class LinearProgram:
         lines = ["(set-option :produce-unsat-cores true)"] if named else []
         lines += [f"(declare-const {name} Real)" for name in self.names]
         lines += [f"(declare-const {name} Bool)" for name in self.booleans]
-        for k, (atom, label) in enumerate(self.constraints):
-            if named and label:  # names must be unique: the label, then the row
-                lines.append(f"(assert (! {atom} :named {label}@{k}))")
+        for k, row in enumerate(self.rows):
+            atom = row.smt()
+            if named and row.label:  # names must be unique: the label, then the row
+                lines.append(f"(assert (! {atom} :named {row.label}@{k}))")
             else:
                 lines.append(f"(assert {atom})")
+        lines += [f"(assert {atom})" for atom in self.logic]
         return "\n".join(lines)
 
-    def solve(self) -> dict[str, Fraction] | None:
+    def solve(self) -> dict[str, float] | None:
         """The optimum (every variable's value, 1 or 0 for a Boolean), or None when there
-        is none or z3 ran out of work. Without an objective, any solution.
-
-        z3's optimiser (and its default arithmetic solver) sometimes takes thousands of
-        pivots on one of these programs where z3's older simplex (``smt.arith.solver=2``)
-        takes a few dozen. When the optimiser runs out of its share of the work
-        (1 / OPTIMISER_SHARE), the optimum is found again by bisection on the objective
-        with that simplex (``_bisect``)."""
-        text = self._text(named=False)
+        is none or the solver ran out of work. Without an objective, any solution."""
+        if not self.booleans:
+            return _highs_optimum(self)
         if self.objective is not None:
-            text += f"\n(minimize {self.objective.smt()})"
-        try:
-            work = self.work // OPTIMISER_SHARE if self.objective is not None else self.work
-            return _check(text, work, optimise=self.objective is not None)
-        except _OutOfWork:
-            return self._bisect() if self.objective is not None else None
-
-    def _bisect(self) -> dict[str, Fraction] | None:
-        """The optimum within OPTIMUM_GAP by bisection (the objective is non-negative, a
-        sum of magnitudes): each check asks for a solution at most halfway between the best
-        found and the best bound shown, ``work`` per check, at most BISECTIONS checks. A
-        check that runs out of work ends it with the best solution found."""
-        assert self.objective is not None
-        constraints = self._text(named=False)
-        try:
-            found = _check(constraints, self.work, old_simplex=True)
-        except _OutOfWork:
-            return None
-        if found is None:
-            return None
-        objective = self.objective.smt()
-        best, value = found, value_of(self.objective, found)
-        if value < 0:
-            raise ValueError(f"the objective must be non-negative, it is {float(value):g} here")
-        low = Fraction(0)
-        for _ in range(BISECTIONS):
-            if value - low <= OPTIMUM_GAP * max(Fraction(1), value):
-                break
-            middle = (low + value) / 2
-            bounded = f"{constraints}\n(assert (<= {objective} {_number(middle)}))"
-            try:
-                better = _check(bounded, self.work, old_simplex=True)
-            except _OutOfWork:
-                break
-            if better is None:
-                low = middle
-            else:
-                best, value = better, value_of(self.objective, better)
-        return best
+            raise ValueError("an objective over Boolean choices is not supported")
+        return _z3_solution(self._text(named=False), self.work)
 
     def conflict(self) -> list[str] | None:
         """Labels of labelled constraints that cannot hold together with the unlabelled
-        ones (an unsatisfiable core); None when they can, or z3 cannot tell."""
+        ones (an unsatisfiable core, exact: z3 over the rationals); None when they can, or
+        z3 cannot tell."""
         context = z3.Context()
         solver = z3.Solver(ctx=context)
         solver.set("rlimit", self.work)
@@ -242,70 +219,128 @@ class LinearProgram:
         return sorted({str(name).split("@")[0] for name in solver.unsat_core()})
 
 
-OPTIMISER_SHARE = 8  # the optimiser's share of the work is 1 / 8; then bisection
-OPTIMUM_GAP = Fraction(1, 100)  # a solution this close to the optimum (a share) is taken
-BISECTIONS = 24  # checks at most in one optimisation (then the best found)
+class _Row:
+    """One constraint: ``low <= sum of terms <= high`` (a missing bound is no bound)."""
+
+    __slots__ = ("high", "label", "low", "terms")
+
+    def __init__(
+        self,
+        terms: dict[str, float],
+        low: Fraction | None,
+        high: Fraction | None,
+        label: str | None,
+    ) -> None:
+        self.terms, self.low, self.high, self.label = terms, low, high, label
+
+    def smt(self) -> str:
+        body = Linear(self.terms).smt()
+        if self.low is not None and self.high is not None and self.low == self.high:
+            return f"(= {body} {_number(self.low)})"
+        atoms = [f"(>= {body} {_number(self.low)})"] if self.low is not None else []
+        atoms += [f"(<= {body} {_number(self.high)})"] if self.high is not None else []
+        return atoms[0] if len(atoms) == 1 else f"(and {' '.join(atoms)})"
 
 
-class _OutOfWork(Exception):
-    """z3 neither found a solution nor showed there is none within its work limit."""
+ITERATIONS = 200_000  # simplex iterations of one HiGHS solve at most (a count, not seconds)
+_OPTIONS: dict[str, bool | int | str] = {
+    "output_flag": False,
+    "threads": 1,
+    "solver": "simplex",
+    "random_seed": 0,
+    "simplex_iteration_limit": ITERATIONS,
+}
 
 
-def _check(
-    text: str, work: int, optimise: bool = False, old_simplex: bool = False
-) -> dict[str, Fraction] | None:
-    """A solution of the SMT-LIB text (the optimum, with ``optimise``), or None when there
-    is none; _OutOfWork when z3 cannot tell within ``work``."""
+def _highs_optimum(program: LinearProgram) -> dict[str, float] | None:
+    """The optimum of a program without Booleans by HiGHS's simplex (any solution without
+    an objective); None when it has none or the iteration limit was reached.
+
+    The solver is HiGHS's core class: ``highspy.Highs`` enables its Python callbacks in
+    its constructor, which prints HiGHS's banner to standard output before any option can
+    be set (ERGO-Code/HiGHS#2749), and the command line's output is JSON."""
+    index = {name: k for k, name in enumerate(program.names)}
+    columns, values, starts = [], [], [0]
+    lows, highs = [], []
+    for row in program.rows:
+        for name, coefficient in row.terms.items():
+            if coefficient != 0:
+                columns.append(index[name])
+                values.append(float(coefficient))
+        starts.append(len(columns))
+        lows.append(-highspy.kHighsInf if row.low is None else float(row.low))
+        highs.append(highspy.kHighsInf if row.high is None else float(row.high))
+    lp = highspy.HighsLp()
+    lp.num_col_, lp.num_row_ = len(program.names), len(program.rows)
+    lp.col_lower_ = np.full(lp.num_col_, -highspy.kHighsInf)
+    lp.col_upper_ = np.full(lp.num_col_, highspy.kHighsInf)
+    cost = np.zeros(lp.num_col_)
+    if program.objective is not None:
+        for name, coefficient in program.objective.terms.items():
+            cost[index[name]] += float(coefficient)
+    lp.col_cost_ = cost
+    lp.row_lower_, lp.row_upper_ = np.array(lows), np.array(highs)
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
+    lp.a_matrix_.start_ = np.array(starts, dtype=np.int32)
+    lp.a_matrix_.index_ = np.array(columns, dtype=np.int32)
+    lp.a_matrix_.value_ = np.array(values)
+    solver = _Highs()
+    for option, value in _OPTIONS.items():
+        solver.setOptionValue(option, value)
+    solver.passModel(lp)
+    solver.run()
+    if solver.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+        return None
+    found = solver.getSolution().col_value
+    return {name: float(found[k]) for k, name in enumerate(program.names)}
+
+
+def _z3_solution(text: str, work: int) -> dict[str, float] | None:
+    """A solution of the SMT-LIB text (Booleans as 1 or 0), or None when there is none or
+    z3 cannot tell within ``work``."""
     context = z3.Context()  # a fresh context: no history
-    solver = z3.Optimize(ctx=context) if optimise else z3.Solver(ctx=context)
+    solver = z3.Solver(ctx=context)
     solver.set("rlimit", work)
-    if old_simplex:
-        solver.set("smt.arith.solver", 2)
     solver.from_string(text)
-    outcome = solver.check()
-    if outcome == z3.unknown:
-        raise _OutOfWork
-    if outcome != z3.sat:
+    if solver.check() != z3.sat:
         return None
     model = solver.model()
     found = {}
     for declaration in model.decls():
         value = model[declaration]
         found[declaration.name()] = (
-            Fraction(int(z3.is_true(value))) if z3.is_bool(value) else value.as_fraction()
+            float(z3.is_true(value)) if z3.is_bool(value) else float(value.as_fraction())
         )
     return found
 
 
-def value_of(term: Linear, solution: dict[str, Fraction]) -> Fraction:
-    """The value of ``term`` at a solution (0 for a variable z3 left out)."""
-    return term.constant + sum(
-        (c * solution.get(n, Fraction(0)) for n, c in term.terms.items()), Fraction(0)
-    )
+def value_of(term: Linear, solution: dict[str, float]) -> float:
+    """The value of ``term`` at a solution (0 for a variable the solver left out)."""
+    return term.constant + sum(c * solution.get(n, 0.0) for n, c in term.terms.items())
 
 
-def combine(*pairs: tuple[Fraction, Linear]) -> Linear:
+def combine(*pairs: tuple[float, Linear]) -> Linear:
     """The sum of coefficient times expression, in one pass (cheaper than operators)."""
-    found: dict[str, Fraction] = {}
-    constant = Fraction(0)
+    found: dict[str, float] = {}
+    constant = 0.0
     for factor, term in pairs:
         for name, coefficient in term.terms.items():
-            found[name] = found.get(name, Fraction(0)) + factor * coefficient
+            found[name] = found.get(name, 0.0) + factor * coefficient
         constant += factor * term.constant
     return Linear(found, constant)
 
 
-def values(solution: dict[str, Fraction], names: Iterable[str]) -> list[float]:
-    """The values of ``names`` in a solution (0 for a variable z3 left out)."""
-    return [float(solution.get(name, Fraction(0))) for name in names]
+def values(solution: dict[str, float], names: Iterable[str]) -> list[float]:
+    """The values of ``names`` in a solution (0 for a variable the solver left out)."""
+    return [solution.get(name, 0.0) for name in names]
 
 
 def total(terms: Sequence[Linear]) -> Linear:
     """The sum of the terms (one pass, no copies)."""
-    found: dict[str, Fraction] = {}
-    constant = Fraction(0)
+    found: dict[str, float] = {}
+    constant = 0.0
     for term in terms:
         for name, coefficient in term.terms.items():
-            found[name] = found.get(name, Fraction(0)) + coefficient
+            found[name] = found.get(name, 0.0) + coefficient
         constant += term.constant
     return Linear(found, constant)

@@ -1,4 +1,4 @@
-"""Step 3: event times and composite cubic Bezier time-to-distance curves, with z3.
+"""Step 3: event times and composite cubic Bezier time-to-distance curves (z3 and HiGHS).
 
 Each symbolic car's distance travelled d(t) is a composite cubic Bezier curve whose time
 control points sit at thirds of each piece, so d is a cubic in t on every piece. Knots:
@@ -7,7 +7,8 @@ lane), a stand-still pair where it stops at its sign, and the duration. Between 
 the curve has free knots at most ``PIECE`` seconds apart, so one segment can brake, stand
 and go again wherever the order needs it.
 
-Two kinds of linear program (z3 over linear real arithmetic, exact rationals):
+Two kinds of linear program (service.core.linear: optima by HiGHS's simplex, Boolean
+choices and unsatisfiable cores by z3 over the rationals):
 
 1. the plan: the knot times of every car at once, keeping every order relation with its
    margin, the headways, and the necessary kinematic conditions of service.core.kinematics
@@ -21,9 +22,9 @@ Two kinds of linear program (z3 over linear real arithmetic, exact rationals):
    then least acceleration and jerk).
 
 When the plan is infeasible even with the full bounds, the relations of z3's unsatisfiable
-core go back to Step 2: no speed profile can realise them together. Every z3 call is limited
-by a count of z3's own work (``rlimit``), never by a clock: the same problem gives the same
-curves on an idle and on a saturated machine.
+core go back to Step 2: no speed profile can realise them together. Every solve is limited
+by a count of work (z3's ``rlimit``, HiGHS's simplex iterations), never by a clock: the same
+problem gives the same curves on an idle and on a saturated machine.
 """
 
 from __future__ import annotations
@@ -33,7 +34,6 @@ import itertools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import Any
 
 import numpy as np
@@ -43,7 +43,6 @@ from service.core.linear import (
     Linear,
     LinearProgram,
     combine,
-    rational,
     total,
     value_of,
     values,
@@ -51,10 +50,10 @@ from service.core.linear import (
 
 PIECE = 2.0  # seconds: the longest piece of a curve (free knots between events)
 SHARES = (0.7, 0.85)  # shares of the bounds a plan may use (the curves keep the rest)
-WORK = 4_000_000  # z3 rlimit of one linear program (a count of z3's work, not seconds)
+WORK = 4_000_000  # z3 rlimit of one program with choices or a core (a count, not seconds)
 CLEARANCE = 0.01  # metres a free knot keeps from the knots around it (events stay sharp)
 STOP_LEAD = 0.1  # seconds before a stand when a stopping car is still faster than v_stop
-INSIDE_WEIGHT = Fraction(1, 10)  # plan cost of a second inside the junction beyond three times
+INSIDE_WEIGHT = 0.1  # plan cost of a second inside the junction beyond three times
 # the least time to cross it and two seconds (pace changes cost seconds per metre)
 TICK = 2e-4  # seconds at least between two knots (plans are rounded to 0.1 ms)
 
@@ -224,7 +223,7 @@ class _Plan:
             for knot, name in zip(follower.knots, names, strict=True):
                 place = knot.distance - follow.follower_line
                 target = min(follow.parting, place + follow.gap) + follow.leader_length
-                term = Linear({name: Fraction(1)})
+                term = Linear({name: 1.0})
                 if leader is None:  # an old leader: its samples give the time
                     reached = _first_time(follow.fixed, target + follow.leader_line)
                     if reached is not None:
@@ -233,12 +232,12 @@ class _Plan:
                 at = next((j for j, k in enumerate(leader.knots)
                            if k.distance - follow.leader_line >= target - SAME), None)  # fmt: skip
                 if at is not None:
-                    ahead = Linear({self.knots[leader.car][at]: Fraction(1)})
+                    ahead = Linear({self.knots[leader.car][at]: 1.0})
                     self.program.at_least(term - ahead, follow.headway)
 
     def _kinematics(self, number: int, car: CarPlan, share: float) -> Linear:
         p, program = self.problem, self.program
-        terms = [Linear(), *(Linear({name: Fraction(1)}) for name in self.knots[car.car])]
+        terms = [Linear(), *(Linear({name: 1.0}) for name in self.knots[car.car])]
         distances = [0.0] + [k.distance for k in car.knots]
         for j, gap in enumerate(least_gaps(distances, car.start_speed, p.bounds.scaled(share))):
             program.at_least(terms[j + 1] - terms[j], max(gap, TICK))
@@ -249,7 +248,7 @@ class _Plan:
             run = car.knots[last].distance - car.knots[first].distance
             program.at_most(terms[last + 1] - terms[first + 1], run / p.v_run)
         paces = [
-            (terms[j] - terms[j - 1]) * rational(1.0 / (distances[j] - distances[j - 1]))
+            (terms[j] - terms[j - 1]) * (1.0 / (distances[j] - distances[j - 1]))
             for j in range(1, len(terms))
             if distances[j] - distances[j - 1] > SAME
         ]
@@ -262,7 +261,7 @@ class _Plan:
             program.at_least(lingering - (terms[leave + 1] - terms[entry + 1]), -comfortable)
             cost.append(lingering * INSIDE_WEIGHT)
         if car.start_speed is not None and car.start_speed > 0.5 and paces:
-            cost.append(program.magnitude(paces[0] - rational(1.0 / car.start_speed)) * 4)
+            cost.append(program.magnitude(paces[0] - 1.0 / car.start_speed) * 4)
         cost += [program.magnitude(b - a) for a, b in itertools.pairwise(paces)]
         return total(cost)
 
@@ -274,7 +273,7 @@ class _Plan:
         up, down = share * self.problem.a_max, -share * self.problem.a_min
         for car in self.problem.cars:
             names, before = self.knots[car.car], [0.0, *previous[car.car]]
-            terms = [Linear(), *(Linear({name: Fraction(1)}) for name in names)]
+            terms = [Linear(), *(Linear({name: 1.0}) for name in names)]
             distances = [0.0] + [k.distance for k in car.knots]
             start = Linear.of(car.start_speed) if car.start_speed is not None else None
             speeds: list[tuple[Linear, Linear, Linear]] = []  # (speed, half before, after)
@@ -286,9 +285,8 @@ class _Plan:
                     speeds.append((Linear(), Linear(), Linear()))
                     continue
                 guess = max(before[j] - before[j - 1], TICK)
-                average = combine((Fraction(0), span), (-rational(gap / guess**2), span))
-                average = average + rational(2 * gap / guess)
-                speeds.append((average, span * Fraction(1, 2), span * Fraction(1, 2)))
+                average = span * (-gap / guess**2) + 2 * gap / guess
+                speeds.append((average, span * 0.5, span * 0.5))
             for (first, _, after), (second, ahead, _) in itertools.pairwise(speeds):
                 reach = after + ahead
                 self.program.at_most(second - first - reach * up, 0)
@@ -300,7 +298,7 @@ def plan_times(
 ) -> dict[str, list[float]] | None:
     """The knot times of every car with ``share`` of the bounds, smoothest first; with
     ``previous`` (a plan of the same problem), speeds kept continuous around it. None when
-    there are none (or z3's work limit was reached). Rounded to 0.1 ms: the curves' pieces
+    there are none (or the work limit was reached). Rounded to 0.1 ms: the curves' pieces
     then have short rational lengths."""
     plan = _Plan(problem, share)
     if previous is not None:
@@ -352,7 +350,7 @@ def plan_on_speed_grid(problem: TimingProblem, share: float, core: bool = False)
             return [] if core else None
         chosen = [program.choice(f"s{number}_{j}", len(o)) if len(o) > 1 else [""]
                   for j, o in enumerate(options)]  # fmt: skip
-        terms = [Linear(), *(Linear({name: Fraction(1)}) for name in plan.knots[car.car])]
+        terms = [Linear(), *(Linear({name: 1.0}) for name in plan.knots[car.car])]
         distances = [0.0] + [k.distance for k in car.knots]
         for j in range(1, len(terms)):
             floor = problem.v_run if car.run and car.run[0] + 1 < j <= car.run[1] + 1 else 0.0
@@ -397,7 +395,7 @@ class _Boundary:
     """A piece end of a curve: its time, and its distance when it is a knot (else free
     within ``low``..``high``), its speed when fixed."""
 
-    t: Fraction
+    t: float
     distance: float | None
     low: float
     high: float
@@ -410,7 +408,7 @@ def _boundaries(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -
     Before a stand, the car keeps above v_stop from its previous knot until STOP_LEAD
     before the stand, so that its stop begins when it is planned (the checker's stop is
     the first moment at v_stop or below), not while it creeps up to the line."""
-    times = [Fraction(0), *(rational(t) for t in knot_times), rational(problem.duration)]
+    times = [0.0, *knot_times, problem.duration]
     distances = [0.0] + [k.distance for k in car.knots]
     stopped = [False] + [k.stop for k in car.knots]
     found = [_Boundary(times[0], 0.0, 0.0, 0.0, car.start_speed)]
@@ -421,16 +419,16 @@ def _boundaries(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -
         stand = not last and high - low <= SAME
         clearance = 0.0 if stand else min(CLEARANCE, (high - low) / 4)
         stops_here = not last and stopped[j] and not stopped[j - 1]
-        lead = rational(STOP_LEAD) if stops_here and times[j] - times[j - 1] > STOP_LEAD else 0
+        lead = STOP_LEAD if stops_here and times[j] - times[j - 1] > STOP_LEAD else 0.0
         floor = problem.v_stop if lead else 0.0
         if floor and found[-1].speed is None:
             previous = found[-1]
             found[-1] = _Boundary(previous.t, previous.distance, previous.low, previous.high,
                                   previous.speed, floor)  # fmt: skip
         span = times[j] - lead - times[j - 1]
-        pieces = 1 if stand else max(1, math.ceil(span / rational(PIECE)))
+        pieces = 1 if stand else max(1, math.ceil(span / PIECE - 1e-9))
         for k in range(1, pieces + (1 if lead else 0)):
-            t = times[j - 1] + span * Fraction(k, pieces)
+            t = times[j - 1] + span * k / pieces
             found.append(_Boundary(t, None, low + clearance, high - clearance, None, floor))
         if last:
             found.append(_Boundary(times[j], None, low + clearance, high, None))
@@ -440,7 +438,7 @@ def _boundaries(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -
 
 
 def _on_piece(
-    points: Sequence[_Boundary], d: Sequence[Linear], v: Sequence[Linear], t: Fraction
+    points: Sequence[_Boundary], d: Sequence[Linear], v: Sequence[Linear], t: float
 ) -> tuple[int, Linear, Linear]:
     """(piece, distance, speed) of the curve at time t, linear in the piece's unknowns:
     with controls d0 + v0 h/3 and d1 - v1 h/3, d(t) = d0 (u^3 + 3u^2 s) + v0 u^2 s h
@@ -486,7 +484,7 @@ class _GapRow:
     ``term >= bound`` (ahead of an old follower)."""
 
     term: Linear
-    bound: Fraction
+    bound: float
     behind: bool
 
     def add_to(self, program: LinearProgram) -> None:
@@ -495,9 +493,11 @@ class _GapRow:
         else:
             program.at_least(self.term, self.bound)
 
-    def holds(self, solution: dict[str, Fraction]) -> bool:
+    def holds(self, solution: dict[str, float]) -> bool:
+        """Whether the solution keeps the row, within the LP solver's tolerance."""
         value = value_of(self.term, solution)
-        return value <= self.bound if self.behind else value >= self.bound
+        bound = self.bound
+        return value <= bound + ROW_TOLERANCE if self.behind else value >= bound - ROW_TOLERANCE
 
 
 def _following(
@@ -525,8 +525,8 @@ def _following(
         other = _places(follow, follow.leader if behind else follow.follower, fitted)
         gap = follow.gap + FOLLOW_SLACK
         for n in range(1, steps + 1):
-            t = rational(round(n * problem.timestep, 9))
-            place, speed = other(float(t))
+            t = round(n * problem.timestep, 9)
+            place, speed = other(t)
             k = min(max(bisect.bisect_right(times, t) - 1, 0), len(points) - 2)
             if behind:
                 rear = place - follow.leader_length
@@ -536,25 +536,25 @@ def _following(
                 if bound >= highs[k + 1] + follow.headway * problem.v_max:
                     continue  # the car cannot be that far yet
                 _, distance, pace = _on_piece(points, d, v, t)
-                rows.append(_GapRow(distance + pace * rational(follow.headway),
-                                    rational(bound), True))  # fmt: skip
+                rows.append(_GapRow(distance + pace * follow.headway, bound, True))
             else:
                 needed = min(follow.parting, place + gap + follow.headway * max(speed, 0.0))
                 least = needed + follow.leader_length + follow.leader_line
                 if least <= lows[k]:
                     continue
                 _, distance, _ = _on_piece(points, d, v, t)
-                rows.append(_GapRow(distance, rational(least), False))
+                rows.append(_GapRow(distance, least, False))
     return rows
 
 
+ROW_TOLERANCE = 1e-6  # metres a solution may miss a gap row by (the LP solver's tolerance)
 GAP_ROUNDS = 12  # rounds of adding the violated gap rows before adding all of them
 
 
-def _solve_with_gaps(program: LinearProgram, rows: Sequence[_GapRow]) -> dict[str, Fraction] | None:
+def _solve_with_gaps(program: LinearProgram, rows: Sequence[_GapRow]) -> dict[str, float] | None:
     """The optimum of ``program`` that keeps every gap row. Rows are added where the
     optimum without them breaks them, round by round (most never bind, and each one makes
-    z3's optimisation slower); after GAP_ROUNDS rounds, all of them. A relaxation without
+    the optimisation slower); after GAP_ROUNDS rounds, all of them. A relaxation without
     a solution has none with every row either."""
     chosen: set[int] = set()
     for _ in range(GAP_ROUNDS):
@@ -581,7 +581,7 @@ def fit_curve(
 ) -> Curve | None:
     """The smoothest curve of one car through its knots at the planned times, behind the
     cars ahead of it (``fitted``: their curves) and ahead of the old cars behind it; None
-    when the bounds allow none (or z3's work limit was reached)."""
+    when the bounds allow none (or the work limit was reached)."""
     points = _boundaries(problem, car, knot_times)
     program = LinearProgram(WORK)
     d: list[Linear] = []
@@ -598,7 +598,7 @@ def fit_curve(
     rows = _following(problem, car, points, d, v, fitted or {})
     running = _running_span(car, knot_times)
     peak = program.variable("peak")
-    one = Fraction(1)
+    one = 1.0
     cost: list[Linear] = [peak * 10]
     for k in range(len(points) - 1):
         h = points[k + 1].t - points[k].t
@@ -636,14 +636,14 @@ def fit_curve(
     return Curve(tuple(times), tuple(distances), tuple(controls))
 
 
-def _evaluate(term: Linear, solution: dict[str, Fraction]) -> float:
-    return float(value_of(term, solution))
+def _evaluate(term: Linear, solution: dict[str, float]) -> float:
+    return value_of(term, solution)
 
 
-def _running_span(car: CarPlan, knot_times: list[float]) -> tuple[Fraction, Fraction] | None:
+def _running_span(car: CarPlan, knot_times: list[float]) -> tuple[float, float] | None:
     if car.run is None:
         return None
-    return rational(knot_times[car.run[0]]), rational(knot_times[car.run[1]])
+    return knot_times[car.run[0]], knot_times[car.run[1]]
 
 
 class _Fitter:

@@ -19,12 +19,14 @@ import math
 from dataclasses import dataclass
 from fractions import Fraction
 
+import pytest
+import z3
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from service.core.invariants import motion_fault
 from service.core.kinematics import DWELL
-from service.core.linear import OPTIMUM_GAP, LinearProgram, total, value_of
+from service.core.linear import Linear, LinearProgram, total, value_of
 from service.core.testcase import Params
 from service.core.timing import (
     CarPlan,
@@ -219,22 +221,52 @@ def test_step3_keeps_every_invariant_on_solvable_problems(
             assert abs(gap) <= problem.m - problem.margin + 1e-3, (kind, a, b, gap)
 
 
-def test_bisection_finds_the_optimisers_optimum() -> None:
-    """When z3's optimiser runs out of its share of the work, the optimum is found by
-    bisection with the older simplex: the same optimum within OPTIMUM_GAP, every
-    constraint kept (a small transport-like program with magnitudes in the objective)."""
+def _transport_like() -> tuple[LinearProgram, Linear, list[Linear]]:
+    """A small program with magnitudes in its objective, like Step 3's."""
     program = LinearProgram(4_000_000)
     xs = [program.variable(f"x{k}", 0, 10) for k in range(6)]
     program.at_least(total(xs), 17)
     for a, b in itertools.pairwise(xs):
         program.at_most(a - b, 2)
-    cost = total([program.magnitude(x - Fraction(k, 3)) for k, x in enumerate(xs)])
+    cost = total([program.magnitude(x - k / 3) for k, x in enumerate(xs)])
     program.minimize(cost)
-    optimum = program.solve()  # the optimiser: enough work for this one
-    assert optimum is not None
-    found = program._bisect()
+    return program, cost, xs
+
+
+def test_solve_finds_z3s_exact_optimum() -> None:
+    """HiGHS's optimum of a linear program is z3's exact optimum (over the rationals) to
+    within HiGHS's tolerance, and keeps every constraint."""
+    program, cost, xs = _transport_like()
+    found = program.solve()
     assert found is not None
-    exact, near = value_of(cost, optimum), value_of(cost, found)
-    assert exact <= near <= exact * (1 + OPTIMUM_GAP) + Fraction(1, 10**9)
-    assert value_of(total(xs), found) >= 17
-    assert all(0 <= found[f"x{k}"] <= 10 for k in range(6))
+    assert program.objective is not None
+    exact = z3.Optimize(ctx=z3.Context())
+    exact.from_string(program._text(named=False) + f"\n(minimize {program.objective.smt()})")
+    assert exact.check() == z3.sat
+    model = exact.model()
+    best = sum(
+        (model[d].as_fraction() for d in model.decls() if d.name().startswith("abs")),
+        Fraction(0),
+    )
+    assert value_of(cost, found) == pytest.approx(float(best), abs=1e-7)
+    assert value_of(total(xs), found) >= 17 - 1e-9
+    assert all(-1e-9 <= found[f"x{k}"] <= 10 + 1e-9 for k in range(6))
+
+
+def test_solve_reports_no_solution_and_takes_booleans_to_z3() -> None:
+    program, _, xs = _transport_like()
+    program.at_most(total(xs), 16)  # against at least 17
+    assert program.solve() is None
+    assert program.conflict() == []  # no labelled row: the unlabelled ones clash alone
+    choosing = LinearProgram(4_000_000)
+    x = choosing.variable("x", 0, 10)
+    small, large = choosing.choice("size", 2)
+    choosing.when([small], None, x, 1)
+    choosing.when([large], 9, x, None)
+    choosing.when([small], None, Linear(), None)  # small is ruled out
+    found = choosing.solve()
+    assert found is not None
+    assert found["size_1"] == 1.0 and found["x"] >= 9
+    choosing.minimize(x)
+    with pytest.raises(ValueError, match="Boolean"):
+        choosing.solve()
