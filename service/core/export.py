@@ -41,16 +41,21 @@ from service.core.testcase import (
 NAME = "testcase"
 
 
-def fcd_text(testcase: TestCase, intersection: Intersection) -> str:
-    """The non-egos' trajectories as SUMO FCD: front bumper, angle, speed, per time step."""
+def fcd_text(testcase: TestCase, nonegos: Sequence[Departure]) -> str:
+    """The non-egos' trajectories as SUMO FCD: front bumper, angle, speed, per time step,
+    while the car is on the map (a car that drives on past the end of its road has left
+    it, as SUMO would remove it there)."""
     lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<fcd-export>"]
     steps = round(testcase.duration / testcase.timestep)
+    roads = {car.id: car.road for car in nonegos}
     for k in range(steps + 1):
         lines.append(f'    <timestep time="{k * testcase.timestep:.2f}">')
         for nonego in testcase.nonegos:
             if k >= len(nonego.trajectory):
                 continue
             s = nonego.trajectory[k]
+            if s.distance - nonego.trajectory[0].distance > roads[nonego.id]:
+                continue
             x, y = centre_to_front(s.x, s.y, s.heading, nonego.length)
             lines.append(
                 f'        <vehicle id={quoteattr(nonego.id)} x="{x:.3f}" y="{y:.3f}" '
@@ -189,7 +194,7 @@ def export_bundle(
     written += [folder / name for name in write_run_files(testcase, ego, others, folder, network)]
     files = {
         f"{NAME}.rou.xml": xml_file("routes", vehicle_lines([ego])),
-        f"{NAME}.fcd.xml": fcd_text(testcase, junction),
+        f"{NAME}.fcd.xml": fcd_text(testcase, others),
         f"{NAME}.sumocfg": sumocfg_text(testcase, network),
         f"{NAME}.json": dump_testcase(testcase),
         "README.md": readme_text(testcase, [ego, *others], list(networks)),

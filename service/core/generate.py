@@ -37,6 +37,7 @@ from service.core.following import CERTIFICATES, QueueBounds, QueueMember, queue
 from service.core.invariants import ROUNDING, motion_fault
 from service.core.kinematics import Bounds
 from service.core.linear import GRID
+from service.core.merging import exit_followings
 from service.core.network import Intersection, Route
 from service.core.ordering import (
     CarKind,
@@ -245,13 +246,16 @@ def extend_testcase(
 
 def _limits(old: TestCase, margin: float | None = None, share: float = 1.0) -> Limits:
     """What Step 2 bounds the timing with: ``share`` of the test-case's speed and
-    acceleration bounds, and the safety margin of every relation."""
+    acceleration bounds, the safety margin of every relation, and the least average speed
+    through the junction (v_run: a car the generator plans does not stall inside). Without
+    a margin (the proof that nothing exists), any crossing speed."""
     params = old.params
     return Limits(
         old.duration,
         Bounds(params.v_max, params.a_max, params.a_min).scaled(share),
         params.v_run,
         _margin(old) if margin is None else margin,
+        None if margin == 0.0 else params.v_run,
     )
 
 
@@ -537,7 +541,6 @@ class _Queue:
     follows: tuple[Follow, ...]
     members: dict[str, QueueMember]
     bounds: QueueBounds
-    order: dict[str, int]  # symbolic cars, leaders first
 
 
 def _queue(
@@ -578,9 +581,7 @@ def _queue(
         if t.event.distance <= ROUNDING
     )
     bounds = dataclasses.replace(bounds, latest=bounds.latest + at_start)
-    depth = {q.id: sum(1 for f in found if f.follower == q.id) for q in queue_cars}
-    order = {name: depth.get("ego" if name == "illegal" else name, 0) for name in by_name}
-    return _Queue(found, members, bounds, order)
+    return _Queue(found, members, bounds)
 
 
 def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: bool) -> CarPlan:
@@ -615,8 +616,8 @@ def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: boo
     if stop_sign and not stops and arrival is not None and entry is not None:
         runs = (arrival, entry)
     inside = (entry, leaves) if entry is not None and leaves is not None else None
-    reach = track.samples[-1].distance
-    return CarPlan(car.car, tuple(knots), reach, car.start_speed, runs, inside)
+    # No end of the road: beyond its poses a car drives on off the map (PoseTrack.pose_at).
+    return CarPlan(car.car, tuple(knots), math.inf, car.start_speed, runs, inside)
 
 
 def _on_grid(distance: float) -> float:
@@ -646,8 +647,13 @@ def _timing_problem(
             for group in event_groups(car)
             if group[0].event.distance <= ROUNDING
         ]
-    plans.sort(key=lambda plan: queue.order[plan.car])  # leaders before their followers
-    follows = _followings(old, queue)
+    rows = {n.id: tuple((s.t, s.distance, s.speed) for s in n.trajectory) for n in old.nonegos}
+    lines = {name: (member.line, member.length) for name, member in queue.members.items()}
+    params = old.params
+    follows = _followings(old, queue, rows) + exit_followings(
+        junction, cars, ordering, lines, rows, params.gap, params.headway + _margin(old)
+    )
+    plans = _leaders_first(plans, follows)
     knotted = {k.symbol for p in plans for k in p.knots}
     bounds = queue.bounds
     return TimingProblem(
@@ -670,11 +676,30 @@ def _timing_problem(
         a_max=old.params.a_max,
         v_stop=old.params.v_stop,
         v_run=old.params.v_run,
+        crossing=old.params.v_run,
         v_max=old.params.v_max,
     )
 
 
-def _followings(old: TestCase, queue: _Queue) -> tuple[Following, ...]:
+def _leaders_first(plans: Sequence[CarPlan], follows: Sequence[Following]) -> list[CarPlan]:
+    """The plans in an order that puts every symbolic leader before its followers (Step 3
+    fits a follower's curve behind its leader's), else in the order given."""
+    names = [plan.car for plan in plans]
+    ahead = {name: {f.leader for f in follows if f.follower == name and f.leader in names}
+             for name in names}  # fmt: skip
+    placed: list[str] = []
+    while len(placed) < len(names):
+        ready = [n for n in names if n not in placed and ahead[n] <= set(placed)]
+        if not ready:  # leaders in a circle: no curves can keep them all; any order
+            ready = [n for n in names if n not in placed]
+        placed.append(ready[0])
+    by_name = {plan.car: plan for plan in plans}
+    return [by_name[name] for name in placed]
+
+
+def _followings(
+    old: TestCase, queue: _Queue, rows: dict[str, tuple[tuple[float, float, float], ...]]
+) -> tuple[Following, ...]:
     """Step 3's pairs: every follow with a symbolic car (the ego's stands for both
     certificates), except the complexity certificate behind a new car (it may hit it)."""
     found = []
@@ -686,11 +711,6 @@ def _followings(old: TestCase, queue: _Queue) -> tuple[Following, ...]:
                     continue
                 if follower == "illegal" and a.car.kind is CarKind.NEW:
                     continue
-                old_car = a if a.places is not None else b if b.places is not None else None
-                rows: tuple[tuple[float, float, float], ...] = ()
-                if old_car is not None:
-                    nonego = next(n for n in old.nonegos if n.id == old_car.car.car)
-                    rows = tuple((s.t, s.distance, s.speed) for s in nonego.trajectory)
                 found.append(
                     Following(
                         leader,
@@ -701,7 +721,7 @@ def _followings(old: TestCase, queue: _Queue) -> tuple[Following, ...]:
                         follow.parting,
                         old.params.gap,
                         old.params.headway + _margin(old),
-                        rows,
+                        rows.get(leader) or rows.get(follower) or (),
                     )
                 )
     return tuple(found)

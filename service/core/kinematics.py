@@ -137,3 +137,52 @@ def duration_range(
         return shortest, math.inf
     ramps = (v0 * v0 - floor * floor) / (2 * down) + (v1 * v1 - floor * floor) / (2 * up)
     return shortest, (v0 - floor) / down + (v1 - floor) / up + (distance - ramps) / floor
+
+
+LINGER_LEVELS = (1.0, 2.0, 4.0)  # a segment lingers at c x D / sqrt(2 a D) seconds or more
+LINGER_GAIN = 0.02  # seconds a lingering bound must add to the least gaps to be worth stating
+
+
+@dataclass(frozen=True)
+class Linger:
+    """If segment ``segment`` (from point segment - 1 to point segment) takes at least
+    ``seconds``, point ``later`` comes at least ``least`` after point ``segment`` (or, when
+    ``later`` is earlier, point segment - 1 comes at least ``least`` after it)."""
+
+    segment: int
+    seconds: float
+    other: int
+    least: float
+
+
+def lingering(distances: Sequence[float], bounds: Bounds) -> list[Linger]:
+    """What a slow segment says about the points around it. A car that takes at least T to
+    cover a segment of length D was at some point slower than its average D / T, so at the
+    segment's end it is at most sqrt((D / T)^2 + 2 a_max D) fast, and at its start at most
+    sqrt((D / T)^2 - 2 a_min D): a car that waited on the way cannot then be at full speed,
+    nor have come at full speed. That bounds the time to the later points and from the
+    earlier ones (``distances[0]`` is the start). Only bounds that add at least LINGER_GAIN
+    to the least gaps are given."""
+    gaps = least_gaps(distances, None, bounds)
+    reached = [0.0, *itertools.accumulate(gaps)]  # least time from the start to each point
+    found = []
+    for j in range(1, len(distances)):
+        length = distances[j] - distances[j - 1]
+        if length <= SAME:
+            continue
+        crawl = math.sqrt(2 * bounds.a_max * length)
+        for level in LINGER_LEVELS:
+            seconds = level * length / crawl
+            pace = length / seconds
+            out = math.sqrt(pace * pace + 2 * bounds.a_max * length)
+            into = math.sqrt(pace * pace - 2 * bounds.a_min * length)
+            for k in range(j + 1, len(distances)):
+                least = fastest(distances[k] - distances[j], out, bounds.a_max, bounds.v_max)
+                if least >= reached[k] - reached[j] + LINGER_GAIN:
+                    found.append(Linger(j, seconds, k, least))
+            for k in range(j - 1):
+                span = distances[j - 1] - distances[k]
+                least = fastest(span, into, -bounds.a_min, bounds.v_max)
+                if least >= reached[j - 1] - reached[k] + LINGER_GAIN:
+                    found.append(Linger(j, seconds, k, least))
+    return found

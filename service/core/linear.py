@@ -15,8 +15,8 @@ against the motion invariants and the checker afterwards, never the solver's wor
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Iterable, Sequence
-from fractions import Fraction
 
 import highspy
 import numpy as np
@@ -26,21 +26,13 @@ from highspy._core import _Highs
 GRID = 10**6  # floats enter as multiples of a millionth
 
 
-def rational(x: float | Fraction | int) -> Fraction:
-    """``x`` as a rational with a small denominator."""
-    if isinstance(x, Fraction | int):
-        return Fraction(x)
-    return Fraction(round(x * GRID), GRID)
-
-
-@functools.lru_cache(maxsize=4096)
-def _number(value: Fraction) -> str:
-    text = (
-        str(abs(value.numerator))
-        if value.denominator == 1
-        else f"(/ {abs(value.numerator)} {value.denominator})"
-    )
-    return f"(- {text})" if value < 0 else text
+@functools.lru_cache(maxsize=65536)
+def _number(value: float) -> str:
+    """``value`` as SMT-LIB text: a rational with denominator GRID (a small denominator)."""
+    scaled = round(value * GRID)
+    whole, rest = divmod(abs(scaled), GRID)
+    text = str(whole) if rest == 0 else f"(/ {abs(scaled)} {GRID})"
+    return f"(- {text})" if scaled < 0 else text
 
 
 class Linear:
@@ -54,10 +46,10 @@ class Linear:
         self.constant = constant
 
     @staticmethod
-    def of(value: Linear | float | Fraction | int) -> Linear:
+    def of(value: Linear | float) -> Linear:
         return value if isinstance(value, Linear) else Linear(constant=float(value))
 
-    def __add__(self, other: Linear | float | Fraction | int) -> Linear:
+    def __add__(self, other: Linear | float) -> Linear:
         other = Linear.of(other)
         terms = dict(self.terms)
         for name, coefficient in other.terms.items():
@@ -69,30 +61,30 @@ class Linear:
     def __neg__(self) -> Linear:
         return Linear({n: -c for n, c in self.terms.items()}, -self.constant)
 
-    def __sub__(self, other: Linear | float | Fraction | int) -> Linear:
+    def __sub__(self, other: Linear | float) -> Linear:
         other = Linear.of(other)
         terms = dict(self.terms)
         for name, coefficient in other.terms.items():
             terms[name] = terms.get(name, 0.0) - coefficient
         return Linear(terms, self.constant - other.constant)
 
-    def __rsub__(self, other: Linear | float | Fraction | int) -> Linear:
+    def __rsub__(self, other: Linear | float) -> Linear:
         return Linear.of(other) - self
 
-    def __mul__(self, factor: float | Fraction | int) -> Linear:
+    def __mul__(self, factor: float) -> Linear:
         scale = float(factor)
         return Linear({n: c * scale for n, c in self.terms.items()}, self.constant * scale)
 
     __rmul__ = __mul__
 
     def smt(self) -> str:
-        parts = [f"(* {_number(rational(c))} {n})" for n, c in self.terms.items() if c != 0]
+        parts = [f"(* {_number(c)} {n})" for n, c in self.terms.items() if c != 0]
         if self.constant != 0 or not parts:
-            parts.append(_number(rational(self.constant)))
+            parts.append(_number(self.constant))
         return parts[0] if len(parts) == 1 else f"(+ {' '.join(parts)})"
 
 
-Operand = Linear | float | Fraction | int
+Operand = Linear | float
 
 
 class LinearProgram:
@@ -128,9 +120,9 @@ class LinearProgram:
     def when(
         self,
         condition: Sequence[str],
-        low: float | Fraction | None,
+        low: float | None,
         term: Linear,
-        high: float | Fraction | None,
+        high: float | None,
     ) -> None:
         """``low <= term <= high`` whenever every Boolean of ``condition`` holds (a missing
         bound is no bound); with neither bound, the condition itself is ruled out."""
@@ -138,9 +130,9 @@ class LinearProgram:
         body = Linear(term.terms)
         atoms = []
         if low is not None:
-            atoms.append(f"(>= {body.smt()} {_number(rational(float(low) - term.constant))})")
+            atoms.append(f"(>= {body.smt()} {_number(low - term.constant)})")
         if high is not None:
-            atoms.append(f"(<= {body.smt()} {_number(rational(float(high) - term.constant))})")
+            atoms.append(f"(<= {body.smt()} {_number(high - term.constant)})")
         if not atoms:
             self.logic.append(f"(not {premise})")
             return
@@ -152,9 +144,9 @@ class LinearProgram:
     ) -> Linear:
         self.names.append(name)
         term = Linear({name: 1.0})
-        if low is not None:
+        if low is not None and low != -math.inf:
             self.at_least(term, low)
-        if high is not None:
+        if high is not None and high != math.inf:
             self.at_most(term, high)
         return term
 
@@ -167,7 +159,7 @@ class LinearProgram:
 
     def _add(self, relation: str, left: Operand, right: Operand, label: str | None) -> None:
         difference = Linear.of(left) - Linear.of(right)
-        bound = rational(-difference.constant)
+        bound = -difference.constant
         low = bound if relation in (">=", "=") else None
         high = bound if relation in ("<=", "=") else None
         self.rows.append(_Row(difference.terms, low, high, label))
@@ -206,6 +198,22 @@ class LinearProgram:
             raise ValueError("an objective over Boolean choices is not supported")
         return _z3_solution(self._text(named=False), self.work)
 
+    def solve_or_conflict(self) -> tuple[dict[str, float] | None, list[str] | None]:
+        """Any solution of a program with Boolean choices (z3, exact; the real variables'
+        values only), or else the labels
+        of an unsatisfiable core (as ``conflict``) from the same check; (None, None) when
+        z3 cannot tell within its work."""
+        context = z3.Context()
+        solver = z3.Solver(ctx=context)
+        solver.set("rlimit", self.work)
+        solver.from_string(self._text(named=True))
+        outcome = solver.check()
+        if outcome == z3.sat:
+            return _model_values(solver.model(), set(self.names)), None
+        if outcome == z3.unsat:
+            return None, sorted({str(name).split("@")[0] for name in solver.unsat_core()})
+        return None, None
+
     def conflict(self) -> list[str] | None:
         """Labels of labelled constraints that cannot hold together with the unlabelled
         ones (an unsatisfiable core, exact: z3 over the rationals); None when they can, or
@@ -227,8 +235,8 @@ class _Row:
     def __init__(
         self,
         terms: dict[str, float],
-        low: Fraction | None,
-        high: Fraction | None,
+        low: float | None,
+        high: float | None,
         label: str | None,
     ) -> None:
         self.terms, self.low, self.high, self.label = terms, low, high, label
@@ -266,10 +274,10 @@ def _highs_optimum(program: LinearProgram) -> dict[str, float] | None:
         for name, coefficient in row.terms.items():
             if coefficient != 0:
                 columns.append(index[name])
-                values.append(float(coefficient))
+                values.append(coefficient)
         starts.append(len(columns))
-        lows.append(-highspy.kHighsInf if row.low is None else float(row.low))
-        highs.append(highspy.kHighsInf if row.high is None else float(row.high))
+        lows.append(-highspy.kHighsInf if row.low is None else row.low)
+        highs.append(highspy.kHighsInf if row.high is None else row.high)
     lp = highspy.HighsLp()
     lp.num_col_, lp.num_row_ = len(program.names), len(program.rows)
     lp.col_lower_ = np.full(lp.num_col_, -highspy.kHighsInf)
@@ -277,7 +285,7 @@ def _highs_optimum(program: LinearProgram) -> dict[str, float] | None:
     cost = np.zeros(lp.num_col_)
     if program.objective is not None:
         for name, coefficient in program.objective.terms.items():
-            cost[index[name]] += float(coefficient)
+            cost[index[name]] += coefficient
     lp.col_cost_ = cost
     lp.row_lower_, lp.row_upper_ = np.array(lows), np.array(highs)
     lp.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
@@ -304,9 +312,15 @@ def _z3_solution(text: str, work: int) -> dict[str, float] | None:
     solver.from_string(text)
     if solver.check() != z3.sat:
         return None
-    model = solver.model()
+    return _model_values(solver.model())
+
+
+def _model_values(model: z3.ModelRef, names: set[str] | None = None) -> dict[str, float]:
+    """The model's values of ``names`` (all by default), Booleans as 1 or 0."""
     found = {}
     for declaration in model.decls():
+        if names is not None and declaration.name() not in names:
+            continue
         value = model[declaration]
         found[declaration.name()] = (
             float(z3.is_true(value)) if z3.is_bool(value) else float(value.as_fraction())

@@ -27,7 +27,7 @@ import clingo.ast
 from clingodl import ClingoDLTheory
 
 from service.core.events import EventKind, LaneEvent
-from service.core.kinematics import Bounds, least_gaps, stand_before
+from service.core.kinematics import Bounds, least_gaps, lingering, stand_before
 from service.core.network import Intersection
 from service.core.rules import (
     REAL_LTE,
@@ -57,6 +57,10 @@ SYMBOLIC_TIME = Predicate("symbolicTime", 1)
 MIN_GAP = Predicate("minGap", 3)
 MIN_GAP_STOPPED = Predicate("minGapStopped", 4)
 MAX_GAP_RUNNING = Predicate("maxGapRunning", 4)
+MAX_GAP_INSIDE = Predicate("maxGapInside", 3)
+LINGER_LEVEL = Predicate("lingerLevel", 3)
+LINGER_AFTER = Predicate("lingerAfter", 5)
+LINGER_BEFORE = Predicate("lingerBefore", 5)
 HEADWAY = Predicate("headway", 3)
 EARLIEST = Predicate("earliest", 2)
 LATEST = Predicate("latest", 2)
@@ -107,6 +111,7 @@ class Limits:
     bounds: Bounds
     v_run: float
     margin: float  # seconds every relation with a symbolic time keeps beyond m
+    crossing: float | None = None  # least average speed from entering to leaving its lane
 
 
 def stop_symbol(car: str) -> clingo.Symbol:
@@ -215,7 +220,14 @@ def _time_facts(
     points: list[tuple[clingo.Symbol | None, float]] = list(_points(timed))
     facts = [MIN_GAP(a, b, g) for a, b, g in _gap_facts(points, car.start_speed, limits.bounds)]
     facts += [SYMBOLIC_TIME(s) for s, _ in points if s is not None]
+    facts += _linger_facts([(START, 0.0), *points], limits.bounds)
     arrived, entered = _first(timed, EventKind.ARRIVED), _first(timed, EventKind.ENTERED)
+    leaves = next((t for t in timed if t.event.kind is EventKind.LEFT_LANE
+                   and t.event.lane == car.lane), None)  # fmt: skip
+    if limits.crossing and entered is not None and leaves is not None:
+        inside = leaves.event.distance - entered.event.distance
+        longest = math.ceil(inside / limits.crossing * 1000)
+        facts.append(MAX_GAP_INSIDE(entered.symbol, leaves.symbol, longest))
     stand = stand_distance(car)
     if not stop_sign or arrived is None or entered is None or stand is None:
         return facts
@@ -229,6 +241,31 @@ def _time_facts(
     longest = math.ceil(run / limits.v_run * 1000)
     facts.append(MAX_GAP_RUNNING(car.car, arrived.symbol, entered.symbol, longest))
     return facts
+
+
+def _linger_facts(
+    points: Sequence[tuple[clingo.Symbol | None, float]], bounds: Bounds
+) -> list[Fact]:
+    """A car that takes long over one segment cannot be fast at its ends (kinematics.
+    lingering): lingerLevel(P, Q, L) for segment P..Q and a duration of L ms; with it,
+    lingerAfter(P, Q, L, R, G) (R at least G ms after Q) and lingerBefore(P, Q, L, O, G)
+    (P at least G ms after O). Durations are rounded up and gaps down: necessary still."""
+    symbols = [symbol for symbol, _ in points]
+    facts: list[Fact] = []
+    levels = set()
+    for linger in lingering([distance for _, distance in points], bounds):
+        first, last = symbols[linger.segment - 1], symbols[linger.segment]
+        other = symbols[linger.other]
+        level = math.ceil(linger.seconds * 1000)
+        least = math.floor(linger.least * 1000)
+        if first is None or last is None or other is None:
+            continue
+        levels.add((first, last, level))
+        if linger.other > linger.segment:
+            facts.append(LINGER_AFTER(first, last, level, other, least))
+        else:
+            facts.append(LINGER_BEFORE(first, last, level, other, least))
+    return facts + [LINGER_LEVEL(*key) for key in sorted(levels)]
 
 
 def _nominal(
@@ -388,7 +425,7 @@ class OrderingSearch:
                         f"Step 2 spent its limit of {SOLVE_LIMIT} conflicts without an answer"
                     )
                 return None
-            return model.symbols(atoms=True), self._times(model)
+            return model.symbols(shown=True), self._times(model)
 
     def satisfiable(self) -> bool:
         return self._solve() is not None
@@ -429,17 +466,18 @@ class OrderingSearch:
         stops = set()
         violated = []
         symbolic = self.symbolic
-        for atom in atoms:
-            if atom.match("lessThan", 2) or atom.match("equal", 2):
-                a, b = atom.arguments
+        for atom in atoms:  # only the shown atoms (extension.lp's #show)
+            name, arguments = atom.name, atom.arguments
+            if name in ("lessThan", "equal"):
+                a, b = arguments
                 if _car_of(a) in symbolic or _car_of(b) in symbolic:
-                    if atom.name == "equal" and str(a) > str(b):
+                    if name == "equal" and str(a) > str(b):
                         continue  # each simultaneity once
-                    relations.append((atom.name, a, b))
-            elif atom.match("stoppedAtForkAtTime", 3) and atom.arguments[0].string in symbolic:
-                stops.add(atom.arguments[0].string)
-            elif atom.match("violatesRightOfForRule", 3) and atom.arguments[0].string == "illegal":
-                violated.append((atom.arguments[1].string, str(atom.arguments[2])))
+                    relations.append((name, a, b))
+            elif name == "stoppedAtForkAtTime" and arguments[0].string in symbolic:
+                stops.add(arguments[0].string)
+            elif name == "violatesRightOfForRule" and arguments[0].string == "illegal":
+                violated.append((arguments[1].string, str(arguments[2])))
         relations.sort(key=lambda r: (r[0], str(r[1]), str(r[2])))
         chosen = tuple(sorted(times.items()))
         return Ordering(index, tuple(relations), frozenset(stops), tuple(sorted(violated)), chosen)

@@ -68,6 +68,8 @@ class DrivePlan:
     connecting_lanes: tuple[str, ...]  # internal lanes the car must drive through
     skip: float = 0.0  # metres driven before the start (the start lies on internal lanes)
     start_on: tuple[str, float] | None = None  # that internal lane and the front's position
+    road: float = math.inf  # metres from the start to the end of its last lane (SUMO
+    # removes the car when its front gets there)
 
 
 @dataclass(frozen=True)
@@ -85,14 +87,20 @@ class PoseTrack:
         return [s.distance for s in self.samples]
 
     def pose_at(self, distance: float) -> tuple[float, float, float]:
-        """(x, y, heading) at ``distance`` travelled, interpolated between samples."""
+        """(x, y, heading) at ``distance`` travelled, interpolated between samples. Beyond
+        the last sample (the end of the road, or of the drive) straight on along the last
+        heading: a car that reaches a dead end drives on off the map (SUMO removes it
+        there), instead of having to stop at the end of the road."""
         distances = self._distances
         if distance <= distances[0]:
             first = self.samples[0]
             return first.x, first.y, first.heading
         if distance >= distances[-1]:
             last = self.samples[-1]
-            return last.x, last.y, last.heading
+            beyond, heading = distance - last.distance, math.radians(last.heading)
+            x = last.x + math.sin(heading) * beyond
+            y = last.y + math.cos(heading) * beyond
+            return x, y, last.heading
         k = bisect.bisect_right(distances, distance) - 1
         a, b = self.samples[k], self.samples[k + 1]
         share = (distance - a.distance) / (b.distance - a.distance)
@@ -192,6 +200,7 @@ def plan_drive(
         timestep=timestep,
         steps=math.ceil(duration / timestep - 1e-9) + math.ceil(skip / (speed * timestep)),
         leave_distance=leave + skip,
+        road=ahead,
         connecting_lanes=tuple(chain),
         skip=skip,
         start_on=start_on,

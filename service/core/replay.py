@@ -15,6 +15,7 @@ budget. A user controller that raises or hangs gives a failed evaluation with th
 from __future__ import annotations
 
 import json
+import math
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -63,6 +64,8 @@ class Departure:
     width: float
     start_on: tuple[str, float] | None = None  # a start inside an upstream junction: moved
     # there (internal lane, position) right after it departs just before that junction
+    road: float = math.inf  # metres from its start to the end of its route (SUMO removes
+    # the car when its front gets there; its trajectory may go on off the map)
 
 
 @dataclass(frozen=True)
@@ -91,8 +94,10 @@ def departures(testcase: TestCase, intersection: Intersection) -> tuple[Departur
         route = intersection.route(nonego.route.id)
         front = centre_to_front(first.x, first.y, first.heading, nonego.length)
         start = start_distance_of(intersection, route, front)
+        # a route long enough for the whole trajectory, where the road goes on
+        speed = max(first.speed, 1.0, nonego.trajectory[-1].distance / testcase.duration)
         plan = plan_drive(
-            intersection, route, start, max(first.speed, 1.0),
+            intersection, route, start, speed,
             testcase.duration, testcase.timestep, nonego.length, nonego.width,
         )  # fmt: skip
         others.append(
@@ -105,6 +110,7 @@ def departures(testcase: TestCase, intersection: Intersection) -> tuple[Departur
                 nonego.length,
                 nonego.width,
                 plan.start_on,
+                plan.road,
             )
         )
     return ego_departure, others

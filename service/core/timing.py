@@ -32,7 +32,7 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -55,6 +55,8 @@ CLEARANCE = 0.01  # metres a free knot keeps from the knots around it (events st
 STOP_LEAD = 0.1  # seconds before a stand when a stopping car is still faster than v_stop
 INSIDE_WEIGHT = 0.1  # plan cost of a second inside the junction beyond three times
 # the least time to cross it and two seconds (pace changes cost seconds per metre)
+CRUISE = 0.5  # share of v_max a car makes for after its last event (the curve's end)
+TAIL_WEIGHT = 1.0  # cost per m/s and second the speed misses that after the last event
 TICK = 2e-4  # seconds at least between two knots (plans are rounded to 0.1 ms)
 
 
@@ -73,7 +75,7 @@ class CarPlan:
 
     car: str
     knots: tuple[Knot, ...]  # by distance; excludes the start (t = 0, d = 0)
-    reach: float  # how far its poses go: the end distance must not pass it
+    reach: float  # the end distance must not pass it (inf: the car drives on off the map)
     start_speed: float | None  # fixed for the certificates, free for new non-egos
     run: tuple[int, int] | None  # knot indices between which it runs a stop sign
     inside: tuple[int, int] | None = None  # knot indices of entering and leaving its lane
@@ -81,11 +83,13 @@ class CarPlan:
 
 @dataclass(frozen=True)
 class Following:
-    """``follower`` keeps behind ``leader`` on their fork (service.core.queues): while the
-    leader's rear is before ``parting``, the follower's front stays ``gap + headway x its
-    speed`` behind it. Places are distances minus each car's ``line``. An old car of the
-    pair (``fixed``: its samples as (t, distance, speed)) is given; a symbolic leader is
-    fitted before its followers."""
+    """``follower`` keeps behind ``leader`` on their fork (service.core.queues) or on their
+    exit lane (``joined``, service.core.merging): while the leader's rear is before
+    ``parting``, the follower's front stays ``gap + headway x its speed`` behind it. Places
+    are distances minus each car's ``line``. A ``joined`` pair keeps the gap only once the
+    leader's rear (or, behind a symbolic leader, the old follower's front) has reached
+    place 0, the start of the shared lane. An old car of the pair (``fixed``: its samples
+    as (t, distance, speed)) is given; a symbolic leader is fitted before its followers."""
 
     leader: str
     follower: str
@@ -96,6 +100,7 @@ class Following:
     gap: float
     headway: float
     fixed: tuple[tuple[float, float, float], ...] = ()  # the old car's samples, if any
+    joined: bool = False  # the cars come from two forks into one lane at place 0
 
 
 @dataclass(frozen=True)
@@ -116,6 +121,7 @@ class TimingProblem:
     latest: tuple[tuple[str, float], ...] = ()  # (s, t): s at most t (queues)
     follows: tuple[Following, ...] = ()
     timestep: float = 0.1  # the test-case's: where the following is kept
+    crossing: float | None = None  # least average speed from entering to leaving its lane
 
     @property
     def bounds(self) -> Bounds:
@@ -222,6 +228,8 @@ class _Plan:
             leader = cars.get(follow.leader)
             for knot, name in zip(follower.knots, names, strict=True):
                 place = knot.distance - follow.follower_line
+                if follow.joined and place < 0:
+                    continue  # not yet in the shared lane
                 target = min(follow.parting, place + follow.gap) + follow.leader_length
                 term = Linear({name: 1.0})
                 if leader is None:  # an old leader: its samples give the time
@@ -247,6 +255,10 @@ class _Plan:
             first, last = car.run
             run = car.knots[last].distance - car.knots[first].distance
             program.at_most(terms[last + 1] - terms[first + 1], run / p.v_run)
+        if car.inside is not None and p.crossing:
+            entry, leave = car.inside
+            inside = car.knots[leave].distance - car.knots[entry].distance
+            program.at_most(terms[leave + 1] - terms[entry + 1], inside / p.crossing)
         paces = [
             (terms[j] - terms[j - 1]) * (1.0 / (distances[j] - distances[j - 1]))
             for j in range(1, len(terms))
@@ -334,20 +346,22 @@ def _speed_options(car: CarPlan, problem: TimingProblem, bounds: Bounds) -> list
     return options
 
 
-def plan_on_speed_grid(problem: TimingProblem, share: float, core: bool = False) -> Any:
+def plan_on_speed_grid(
+    problem: TimingProblem, share: float
+) -> tuple[dict[str, list[float]] | None, list[int] | None]:
     """Knot times chosen together with knot speeds from a grid. For two end speeds, the
     durations one segment can take form an interval (kinematics.duration_range), so with a
     speed chosen at every knot each segment can be driven by construction: a mixed-integer
     program over the plan's relations (any solution; the curves are smoothed afterwards).
-    None when there is none (or z3 ran out of work). With ``core``, instead: the indices of
-    relations that no grid plan can keep together, or None."""
+    (plan, None) when there is one; else (None, the indices of relations that no grid plan
+    can keep together), or (None, None) when z3 cannot tell."""
     plan = _Plan(problem, share)
     program = plan.program
     bounds = problem.bounds.scaled(share)
     for number, car in enumerate(problem.cars):
         options = _speed_options(car, problem, bounds)
         if not all(options):
-            return [] if core else None
+            return None, []
         chosen = [program.choice(f"s{number}_{j}", len(o)) if len(o) > 1 else [""]
                   for j, o in enumerate(options)]  # fmt: skip
         terms = [Linear(), *(Linear({name: 1.0}) for name in plan.knots[car.car])]
@@ -363,7 +377,7 @@ def plan_on_speed_grid(problem: TimingProblem, share: float, core: bool = False)
                 condition = [name for name in (a, b) if name]
                 if window is None:
                     if not condition:
-                        return [] if core else None
+                        return None, []
                     program.when(condition, None, span, None)
                 elif condition:
                     longest = window[1] if window[1] < math.inf else None
@@ -372,15 +386,12 @@ def plan_on_speed_grid(problem: TimingProblem, share: float, core: bool = False)
                     program.at_least(span, window[0])
                     if window[1] < math.inf:
                         program.at_most(span, window[1])
-    if core:
-        labels = program.conflict()
-        return None if labels is None else sorted({int(label[3:]) for label in labels})
-    solution = program.solve()
+    solution, labels = program.solve_or_conflict()
     if solution is None:
-        return None
-    return {
-        car: [round(t, 4) for t in values(solution, names)] for car, names in plan.knots.items()
-    }
+        return None, None if labels is None else sorted({int(label[3:]) for label in labels})
+    times = {car: [round(t, 4) for t in values(solution, names)]
+             for car, names in plan.knots.items()}  # fmt: skip
+    return times, None
 
 
 def order_core(problem: TimingProblem) -> list[int] | None:
@@ -465,17 +476,17 @@ FOLLOW_SLACK = 0.05  # metres a planned follower keeps beyond the gap (samples a
 
 
 def _places(
-    follow: Following, name: str, fitted: dict[str, Curve]
-) -> Callable[[float], tuple[float, float]]:
-    """(place, speed) over time of the other car of ``follow`` (fitted or old)."""
+    follow: Following, name: str, fitted: dict[str, Curve], times: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(places, speeds) at ``times`` of the other car of ``follow`` (fitted or old)."""
     line = follow.leader_line if name == follow.leader else follow.follower_line
     if follow.fixed:
-        ts = [row[0] for row in follow.fixed]
-        ds = [row[1] for row in follow.fixed]
-        vs = [row[2] for row in follow.fixed]
-        return lambda t: (float(np.interp(t, ts, ds)) - line, float(np.interp(t, ts, vs)))
-    curve = fitted[name]
-    return lambda t: (curve.at(t)[0] - line, curve.at(t)[1])
+        rows = np.array(follow.fixed)
+        return np.interp(times, rows[:, 0], rows[:, 1]) - line, np.interp(
+            times, rows[:, 0], rows[:, 2]
+        )
+    at = np.array([fitted[name].at(float(t)) for t in times])
+    return at[:, 0] - line, at[:, 1]
 
 
 @dataclass(frozen=True)
@@ -512,6 +523,7 @@ def _following(
     every time step (the checker's samples), with FOLLOW_SLACK and the plan's headway:
     one row per step at which the condition can bind."""
     steps = round(problem.duration / problem.timestep)
+    step_times = np.round(np.arange(1, steps + 1) * problem.timestep, 9)
     highs = [p.high for p in points]
     lows = [p.low for p in points]
     times = [p.t for p in points]
@@ -522,15 +534,16 @@ def _following(
         behind = car.car == follow.follower
         if not behind and not follow.fixed:
             continue  # a symbolic follower keeps behind this car when it is fitted
-        other = _places(follow, follow.leader if behind else follow.follower, fitted)
+        places, speeds = _places(
+            follow, follow.leader if behind else follow.follower, fitted, step_times
+        )
         gap = follow.gap + FOLLOW_SLACK
-        for n in range(1, steps + 1):
-            t = round(n * problem.timestep, 9)
-            place, speed = other(t)
+        for t, place, speed in zip(step_times.tolist(), places.tolist(), speeds.tolist(),
+                                   strict=True):  # fmt: skip
             k = min(max(bisect.bisect_right(times, t) - 1, 0), len(points) - 2)
             if behind:
                 rear = place - follow.leader_length
-                if rear >= follow.parting:
+                if rear >= follow.parting or (follow.joined and rear < 0):
                     continue
                 bound = rear - gap + follow.follower_line
                 if bound >= highs[k + 1] + follow.headway * problem.v_max:
@@ -538,6 +551,8 @@ def _following(
                 _, distance, pace = _on_piece(points, d, v, t)
                 rows.append(_GapRow(distance + pace * follow.headway, bound, True))
             else:
+                if follow.joined and place < 0:
+                    continue  # the old follower has not reached the shared lane
                 needed = min(follow.parting, place + gap + follow.headway * max(speed, 0.0))
                 least = needed + follow.leader_length + follow.leader_line
                 if least <= lows[k]:
@@ -620,6 +635,14 @@ def fit_curve(
                 program.at_least(speed, problem.v_run)
         if points[k].least_speed and points[k + 1].least_speed:
             program.at_least(middle, min(points[k].least_speed, points[k + 1].least_speed))
+    # After its last event the car gathers speed towards CRUISE of v_max, rather than keep
+    # whatever speed it left the junction with (a crawl out of the junction blocks the exit
+    # lane for every later car that leaves into it): the time its speed misses it costs.
+    last_knot = knot_times[-1] if knot_times else 0.0
+    for k in range(1, len(points)):
+        if points[k].t > last_knot:
+            miss = program.magnitude(v[k] - CRUISE * problem.v_max)
+            cost.append(miss * (TAIL_WEIGHT * (points[k].t - points[k - 1].t)))
     program.minimize(total(cost))
     solution = _solve_with_gaps(program, rows)
     if solution is None:
@@ -704,19 +727,18 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     curves = fitter.fit_all(smooth)
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
-    edge = plan_on_speed_grid(problem, largest)
+    edge, unreachable = plan_on_speed_grid(problem, largest)
     if edge is None:  # no grid plan: an order at the very edge of the bounds, or beyond
         core = order_core(problem) if smooth is None else None
         if core is not None:
             return TimingFailure("no event times can realise this order", tuple(core), True)
-        unreachable = plan_on_speed_grid(problem, largest, core=True)
         reason = f"no speed profile within {round(largest * 100)} % of the bounds"
         return TimingFailure(reason, tuple(unreachable or ()))
     curves = fitter.fit_all(smooth and plan_times(problem, comfortable, smooth))
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
     for share in SHARES:
-        grid = edge if share == largest else plan_on_speed_grid(problem, share)
+        grid = edge if share == largest else plan_on_speed_grid(problem, share)[0]
         for planned in (grid and plan_times(problem, share, grid), grid):
             curves = fitter.fit_all(planned)
             if curves:

@@ -19,7 +19,7 @@ from service.core.controllers import BUILT_IN
 from service.core.export import export_bundle
 from service.core.generate import extend_testcase
 from service.core.network import Intersection, bundled_networks
-from service.core.poses import centre_to_front
+from service.core.poses import centre_to_front, generate_poses
 from service.core.replay import Evaluation, evaluate
 from service.core.sumo_binaries import sumo_binary
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase, read_testcase
@@ -27,6 +27,7 @@ from service.core.trajectory import read_trajectory
 from service.core.verdict import Verdict
 from service.examples import EXAMPLES, run_example
 from tests.conftest import TOWN05, TOWN07
+from tests.helpers import retime, with_nonegos
 
 
 @pytest.fixture(scope="module")
@@ -210,6 +211,30 @@ def test_run_py_runs_with_traci_and_the_sumo_binary(bundle_run: Path, four_way: 
     assert [(s.t, round(s.x, 6), round(s.y, 6)) for s in a] == [
         (s.t, round(s.x, 6), round(s.y, 6)) for s in b
     ]
+
+
+def test_a_car_past_the_end_of_its_road_leaves_the_bundle(tmp_path: Path) -> None:
+    """A non-ego that drives on past the end of its road (off the map) is in the FCD only
+    while it is on its road, and SUMO runs the bundle and the evaluation with it."""
+    base = new_testcase("4way-stop", "E2C_0:C2W_0", duration=30.0)
+    junction = load_testcase_intersection(base)
+    route = junction.route("S2C_0:C2N_0")
+    (track,) = generate_poses(junction, [(route, 30.0)], 12.0, 30.0, 0.1)
+    fast = retime(track, lambda t: (12.0 * t, 12.0), 30.0, 0.1)  # 360 m: past the road
+    assert fast[-1].distance > track.samples[-1].distance + 100.0
+    case = with_nonegos(base, [("fast", route.id, fast)])
+    export_bundle(case, tmp_path, junction)
+    written = [
+        float(v.get("speed") or 0)
+        for v in ET.parse(tmp_path / "testcase.fcd.xml").getroot().iter("vehicle")
+    ]
+    assert 0 < len(written) < len(fast)
+    assert len(written) * 0.1 * 12.0 <= track.samples[-1].distance + 12.0 * 0.1
+    subprocess.run(
+        [sumo_binary("sumo"), "-c", "testcase.sumocfg"],
+        cwd=tmp_path, check=True, capture_output=True, timeout=120,
+    )  # fmt: skip
+    assert evaluate(case, "sumo", junction).verdict.goal_reached
 
 
 def test_run_py_names_the_valid_controllers(bundle_run: Path) -> None:

@@ -22,7 +22,13 @@ from service.core.errors import (
 from service.core.generate import Extension, extend_testcase
 from service.core.invariants import motion_fault
 from service.core.poses import PoseSample
-from service.core.testcase import TestCase, dump_testcase, new_testcase, parse_testcase
+from service.core.testcase import (
+    TestCase,
+    dump_testcase,
+    load_testcase_intersection,
+    new_testcase,
+    parse_testcase,
+)
 
 
 def samples(rows: list) -> list[PoseSample]:  # type: ignore[type-arg]
@@ -135,6 +141,21 @@ def test_junctions_no_constant_was_tuned_on_get_verified_extensions(
     extension = extend_testcase(start, [route], seed=0, budget=120)
     assert_strictly_more_complex(start, extension.testcase)
     assert_motion_invariants(extension.testcase)
+    assert_new_cars_cross_without_stalling(extension.testcase)
+
+
+def assert_new_cars_cross_without_stalling(testcase: TestCase) -> None:
+    """A new car leaves its connecting lane at most (its length inside) / v_run after it
+    entered the junction: it does not stall inside."""
+    intersection = load_testcase_intersection(testcase)
+    for car in testcase.nonegos:
+        if car.added_in != max_level(testcase):
+            continue
+        lane = intersection.route(car.route.id).connecting_lane
+        entered = next(e for e in car.events if e.kind == "entered")
+        left = next(e for e in car.events if e.kind == "left_lane" and e.lane == lane)
+        longest = (left.distance - entered.distance) / testcase.params.v_run
+        assert left.t - entered.t <= longest + 2 * testcase.timestep, car.id
 
 
 def assert_motion_invariants(testcase: TestCase) -> None:

@@ -70,6 +70,23 @@ def satisfiable(facts: str, m_ms: int = 1000, margin_ms: int = 200) -> bool:
          False, "queue headway: a follower's event 1 s after its leader's cannot come first"),
         ("symbolicTime(a;b). headway(b,a,1000). lessThan(b,a). horizon(9000).",
          True, "queue headway: the follower after its leader"),
+        ("symbolicTime(e;l). maxGapInside(e,l,3000). horizon(9000). &diff{ e - 0 } <= 1000. "
+         "&diff{ 0 - l } <= -5000.",
+         False, "a car that entered by 1 s leaves its lane within 3 s: not at 5 s"),
+        ("symbolicTime(e;l). maxGapInside(e,l,3000). horizon(9000). &diff{ e - 0 } <= 1000. "
+         "&diff{ 0 - l } <= -3500.",
+         True, "it may leave at 3.5 s"),
+        ("symbolicTime(p;q;r). lingerLevel(p,q,2000). lingerAfter(p,q,2000,r,3000). "
+         "horizon(20000). &diff{ p - 0 } <= 1000. &diff{ 0 - q } <= -4000. "
+         "&diff{ r - q } <= 2000.",
+         False, "a segment that took 3 s (2 s or more) puts r at least 3 s after q"),
+        ("symbolicTime(p;q;r). lingerLevel(p,q,2000). lingerAfter(p,q,2000,r,3000). "
+         "horizon(20000). &diff{ p - 0 } <= 1000. &diff{ r - q } <= 2000.",
+         True, "a segment under 2 s does not linger: r may follow q sooner"),
+        ("symbolicTime(o;p;q). lingerLevel(p,q,2000). lingerBefore(p,q,2000,o,3000). "
+         "horizon(20000). &diff{ 0 - q } <= -9000. &diff{ p - q } <= -2000. "
+         "&diff{ p - o } <= 2000.",
+         False, "nor can it have come to p at full speed: p at least 3 s after o"),
     ],
 )  # fmt: skip
 def test_difference_constraints_decide_the_times(facts: str, expected: bool, why: str) -> None:

@@ -99,6 +99,15 @@ def test_pose_at_interpolates_between_samples(left_turn: PoseTrack) -> None:
     assert heading == pytest.approx(0.0)
 
 
+def test_pose_at_goes_on_straight_past_the_last_sample(left_turn: PoseTrack) -> None:
+    """Past the end of its road a car drives on off the map along its last heading."""
+    last = left_turn.samples[-1]
+    x, y, heading = left_turn.pose_at(last.distance + 10.0)
+    rad = math.radians(last.heading)
+    assert (x, y) == pytest.approx((last.x + 10.0 * math.sin(rad), last.y + 10.0 * math.cos(rad)))
+    assert heading == pytest.approx(last.heading)
+
+
 def test_short_fork_continues_upstream_on_a_real_map(town07_y: Intersection) -> None:
     # Fork -35_0 is 0.7 m long: the approach comes from the lanes before it.
     route = town07_y.route("-35_0:40_0")

@@ -172,13 +172,11 @@ def _samples(rows: Sequence[Any]) -> list[PoseSample]:
     return [PoseSample(**s.model_dump()) for s in rows]
 
 
-def test_two_new_cars_queue_on_one_fork() -> None:
-    """Two new cars on one free fork of the all-way stop, in one extension: the second
-    starts behind the first (automatic spacing), keeps the gap at every sample, never
-    overlaps it, and arrives only once the first has entered; the certificates hold."""
-    old = new_testcase(NET, "E2C_1:C2S_1", duration=20.0)
-    extension = extend_testcase(old, ["S2C_1:C2N_1", "S2C_1:C2N_1"], seed=0, budget=240)
-    new = extension.testcase
+def _check_queue(old: TestCase, new: TestCase, fork: str) -> None:
+    """Independently of the generator: the complexity certificate passes the old case and
+    fails the new one, the solvability certificate passes, and on ``fork`` every car keeps
+    behind every car ahead of it: no overlap at any moment, the gap at every sample, and
+    it arrives only once the car ahead has entered."""
     assert new.certificates is not None
     complexity, solvability = (
         _samples(new.certificates.complexity),
@@ -187,18 +185,43 @@ def test_two_new_cars_queue_on_one_fork() -> None:
     assert check_testcase(old, complexity, "c", junction()).passed
     assert not check_testcase(new, complexity, "c", junction()).passed
     assert check_testcase(new, solvability, "s", junction()).passed
-
     judge = Judge(new, junction())
-    first, second = judge.nonegos[-2:]
-    pairs = follows([first.in_queue, second.in_queue], junction())
-    assert [(f.leader, f.follower) for f in pairs] == [(first.id, second.id)]
+    queue = [car for car in judge.nonegos if car.fork == fork]
     cars = {n.id: n for n in new.nonegos}
-    lead, behind = _samples(cars[first.id].trajectory), _samples(cars[second.id].trajectory)
-    motions = [Motion(rows, cars[c.id].length, cars[c.id].width)
-               for rows, c in ((lead, first), (behind, second))]  # fmt: skip
-    assert first_collision(*motions) is None
-    places = Places.of(lead, first.in_queue), Places.of(behind, second.in_queue)
-    assert gap_fault(pairs[0], *places, new.params.gap, new.params.headway) is None
-    entered = next(e.time for e in first.events if e.kind is EventKind.ENTERED)
-    arrived = next(e.time for e in second.events if e.kind is EventKind.ARRIVED)
-    assert arrived >= entered
+    pairs = follows([car.in_queue for car in queue], junction())
+    assert len(pairs) == len(queue) * (len(queue) - 1) // 2
+    by_id = {car.id: car for car in queue}
+    for pair in pairs:
+        first, second = by_id[pair.leader], by_id[pair.follower]
+        lead, behind = _samples(cars[first.id].trajectory), _samples(cars[second.id].trajectory)
+        motions = [Motion(rows, cars[c.id].length, cars[c.id].width)
+                   for rows, c in ((lead, first), (behind, second))]  # fmt: skip
+        assert first_collision(*motions) is None, pair
+        places = Places.of(lead, first.in_queue), Places.of(behind, second.in_queue)
+        assert gap_fault(pair, *places, new.params.gap, new.params.headway) is None
+        entered = next(e.time for e in first.events if e.kind is EventKind.ENTERED)
+        arrived = next(e.time for e in second.events if e.kind is EventKind.ARRIVED)
+        assert arrived >= entered, pair
+
+
+@pytest.mark.parametrize(
+    ("ego", "route", "count", "duration"),
+    [("E2C_1:C2S_1", "S2C_1:C2N_1", 2, 20.0), ("E2C_0:C2N_0", "S2C_0:C2N_0", 3, 30.0)],
+)
+def test_new_cars_queue_on_one_fork(ego: str, route: str, count: int, duration: float) -> None:
+    """Two or three new cars on one free fork of the all-way stop, in one extension, each
+    starting behind the one before (automatic spacing). The three leave into the ego's
+    exit lane too."""
+    old = new_testcase(NET, ego, duration=duration)
+    new = extend_testcase(old, [route] * count, seed=0, budget=240).testcase
+    assert len(new.nonegos) == count
+    _check_queue(old, new, route.split(":")[0])
+
+
+def test_a_new_car_joins_a_queue_of_old_cars() -> None:
+    """A third car behind two old cars in line (a chain's next level on a fork in use)."""
+    start = new_testcase(NET, EGO, duration=45.0)
+    old = extend_testcase(start, ["S2C_0:C2N_0"] * 2, seed=0, budget=240).testcase
+    new = extend_testcase(old, ["S2C_0:C2N_0"], seed=0, budget=240).testcase
+    assert [n.added_in for n in new.nonegos] == [1, 1, 2]
+    _check_queue(old, new, "S2C_0")
