@@ -30,9 +30,11 @@ problem gives the same curves on an idle and on a saturated machine.
 from __future__ import annotations
 
 import bisect
+import dataclasses
+import functools
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -223,6 +225,7 @@ class _Plan:
         for follow in p.follows:
             follower = cars.get(follow.follower)
             if follower is None:
+                self._ahead_of(follow, cars[follow.leader])
                 continue
             names = self.knots[follower.car]
             leader = cars.get(follow.leader)
@@ -242,6 +245,21 @@ class _Plan:
                 if at is not None:
                     ahead = Linear({self.knots[leader.car][at]: 1.0})
                     self.program.at_least(term - ahead, follow.headway)
+
+    def _ahead_of(self, follow: Following, leader: CarPlan) -> None:
+        """A symbolic car ahead of an old one reaches each of its knots ``headway`` before
+        the old car's front gets to where it would then be too close (the gap and the
+        leader's length behind the knot), while the knot is before the parting."""
+        for knot, name in zip(leader.knots, self.knots[leader.car], strict=True):
+            place = knot.distance - follow.leader_line
+            if place - follow.leader_length >= follow.parting:
+                continue
+            if follow.joined and place < follow.leader_length:
+                continue  # its rear is not yet in the shared lane
+            behind = place - follow.leader_length - follow.gap + follow.follower_line
+            reached = _first_time(follow.fixed, behind)
+            if reached is not None:
+                self.program.at_most(Linear({name: 1.0}), reached - follow.headway)
 
     def _kinematics(self, number: int, car: CarPlan, share: float) -> Linear:
         p, program = self.problem, self.program
@@ -588,33 +606,18 @@ def _solve_with_gaps(program: LinearProgram, rows: Sequence[_GapRow]) -> dict[st
     return program.solve()
 
 
-def fit_curve(
+def _pieces(
+    program: LinearProgram,
     problem: TimingProblem,
-    car: CarPlan,
-    knot_times: list[float],
-    fitted: dict[str, Curve] | None = None,
-) -> Curve | None:
-    """The smoothest curve of one car through its knots at the planned times, behind the
-    cars ahead of it (``fitted``: their curves) and ahead of the old cars behind it; None
-    when the bounds allow none (or the work limit was reached)."""
-    points = _boundaries(problem, car, knot_times)
-    program = LinearProgram(WORK)
-    d: list[Linear] = []
-    v: list[Linear] = []
-    for k, point in enumerate(points):
-        if point.distance is not None:
-            d.append(Linear.of(point.distance))
-        else:
-            d.append(program.variable(f"d{k}", point.low, point.high))
-        if point.speed is not None:
-            v.append(Linear.of(point.speed))
-        else:
-            v.append(program.variable(f"v{k}", point.least_speed, problem.v_max))
-    rows = _following(problem, car, points, d, v, fitted or {})
-    running = _running_span(car, knot_times)
-    peak = program.variable("peak")
+    points: Sequence[_Boundary],
+    d: Sequence[Linear],
+    v: Sequence[Linear],
+) -> list[tuple[Linear, Linear, Linear]]:
+    """The rows every curve keeps on each piece: controls in order (it never backs up),
+    the speed in the middle within v_max, the acceleration at both ends within the bounds.
+    Per piece: (middle speed, acceleration at the start, at the end)."""
+    found = []
     one = 1.0
-    cost: list[Linear] = [peak * 10]
     for k in range(len(points) - 1):
         h = points[k + 1].t - points[k].t
         d0, d1, v0, v1 = d[k], d[k + 1], v[k], v[k + 1]
@@ -627,11 +630,66 @@ def fit_curve(
         for acceleration in (start, end):
             program.at_least(acceleration, problem.a_min)
             program.at_most(acceleration, problem.a_max)
+        found.append((middle, start, end))
+    return found
+
+
+def _unknowns(
+    program: LinearProgram, problem: TimingProblem, points: Sequence[_Boundary]
+) -> tuple[list[Linear], list[Linear]]:
+    """Every piece end's distance and speed: fixed where the point says, else variables."""
+    d: list[Linear] = []
+    v: list[Linear] = []
+    for k, point in enumerate(points):
+        if point.distance is not None:
+            d.append(Linear.of(point.distance))
+        else:
+            d.append(program.variable(f"d{k}", point.low, point.high))
+        if point.speed is not None:
+            v.append(Linear.of(point.speed))
+        else:
+            v.append(program.variable(f"v{k}", point.least_speed, problem.v_max))
+    return d, v
+
+
+def _curve(points: Sequence[_Boundary], d: Sequence[Linear], v: Sequence[Linear],
+           solution: dict[str, float]) -> Curve:  # fmt: skip
+    distances = [_evaluate(term, solution) for term in d]
+    speeds = [_evaluate(term, solution) for term in v]
+    times = [float(p.t) for p in points]
+    controls = []
+    for k in range(len(points) - 1):
+        third = (times[k + 1] - times[k]) / 3
+        controls.append(
+            (distances[k] + speeds[k] * third, distances[k + 1] - speeds[k + 1] * third)
+        )
+    return Curve(tuple(times), tuple(distances), tuple(controls))
+
+
+def fit_curve(
+    problem: TimingProblem,
+    car: CarPlan,
+    knot_times: list[float],
+    fitted: dict[str, Curve] | None = None,
+) -> Curve | None:
+    """The smoothest curve of one car through its knots at the planned times, behind the
+    cars ahead of it (``fitted``: their curves) and ahead of the old cars behind it; None
+    when the bounds allow none (or the work limit was reached)."""
+    points = _boundaries(problem, car, knot_times)
+    program = LinearProgram(WORK)
+    d, v = _unknowns(program, problem, points)
+    rows = _following(problem, car, points, d, v, fitted or {})
+    running = _running_span(car, knot_times)
+    peak = program.variable("peak")
+    cost: list[Linear] = [peak * 10]
+    for k, (middle, start, end) in enumerate(_pieces(program, problem, points, d, v)):
+        h = points[k + 1].t - points[k].t
+        for acceleration in (start, end):
             program.at_most(acceleration - peak, 0)
             program.at_least(acceleration + peak, 0)
             cost.append(program.magnitude(acceleration) * (h / 2))
         if running is not None and running[0] <= points[k].t and points[k + 1].t <= running[1]:
-            for speed in (v0, v1, middle):
+            for speed in (v[k], v[k + 1], middle):
                 program.at_least(speed, problem.v_run)
         if points[k].least_speed and points[k + 1].least_speed:
             program.at_least(middle, min(points[k].least_speed, points[k + 1].least_speed))
@@ -645,18 +703,50 @@ def fit_curve(
             cost.append(miss * (TAIL_WEIGHT * (points[k].t - points[k - 1].t)))
     program.minimize(total(cost))
     solution = _solve_with_gaps(program, rows)
-    if solution is None:
+    return None if solution is None else _curve(points, d, v, solution)
+
+
+def frontier(
+    problem: TimingProblem, car: CarPlan, fitted: dict[str, Curve], cap: float = math.inf
+) -> Curve | None:
+    """The car's furthest progress behind the cars it follows (``fitted``: the symbolic
+    ones' curves) from its start, whatever its knots, never beyond ``cap``: a curve without
+    knots, pieces FRONTIER_PIECE long, that keeps every gap and bound and maximises the
+    distances of its piece ends. None when there is none."""
+    steps = max(1, math.ceil(problem.duration / FRONTIER_PIECE))
+    high = min(car.reach, cap)
+    points = [_Boundary(0.0, 0.0, 0.0, 0.0, car.start_speed)]
+    points += [_Boundary(problem.duration * k / steps, None, 0.0, high, None)
+               for k in range(1, steps + 1)]  # fmt: skip
+    program = LinearProgram(WORK)
+    d, v = _unknowns(program, problem, points)
+    _pieces(program, problem, points, d, v)
+    program.minimize(total(d[1:]) * -1.0)
+    solution = _solve_with_gaps(program, _following(problem, car, points, d, v, fitted))
+    return None if solution is None else _curve(points, d, v, solution)
+
+
+FRONTIER_PIECE = 1.0  # seconds: the pieces of a frontier (a stand on it ends on a piece end)
+
+
+def _earliest_knots(
+    problem: TimingProblem, car: CarPlan, fitted: dict[str, Curve]
+) -> list[tuple[str, float]] | None:
+    """When the car's frontier first passes each of its knots; for a knot where it stands,
+    when a frontier that may not pass it first stands there (it must brake on the way)."""
+    free = frontier(problem, car, fitted)
+    if free is None:
         return None
-    distances = [_evaluate(term, solution) for term in d]
-    speeds = [_evaluate(term, solution) for term in v]
-    times = [float(p.t) for p in points]
-    controls = []
-    for k in range(len(points) - 1):
-        third = (times[k + 1] - times[k]) / 3
-        controls.append(
-            (distances[k] + speeds[k] * third, distances[k + 1] - speeds[k + 1] * third)
-        )
-    return Curve(tuple(times), tuple(distances), tuple(controls))
+    found = []
+    for knot in car.knots:
+        if knot.symbol is None:
+            continue
+        reach = free
+        if knot.stop:
+            capped = frontier(problem, car, fitted, cap=knot.distance)
+            reach = capped if capped is not None else free
+        found.append((knot.symbol, _passes(reach, knot.distance - CLEARANCE, problem.timestep)))
+    return found
 
 
 def _evaluate(term: Linear, solution: dict[str, float]) -> float:
@@ -679,6 +769,8 @@ class _Fitter:
         self.order = [car.car for car in problem.cars]
         self.cars = {car.car: car for car in problem.cars}
         self.fitted: dict[tuple[Any, ...], Curve | None] = {}
+        self.failed: str | None = None  # the car whose curve did not fit last time
+        self.ahead: dict[str, Curve] = {}  # the curves fitted before it
         self.leaders = {
             car.car: sorted(
                 {f.leader for f in problem.follows if f.follower == car.car and not f.fixed}
@@ -704,12 +796,63 @@ class _Fitter:
                                              curves)  # fmt: skip
             curve = self.fitted[key]
             if curve is None:
+                self.failed, self.ahead = name, dict(curves)
                 if not self.leaders[name]:
                     self.order.remove(name)
                     self.order.insert(0, name)
                 return {}
             curves[name] = curve
         return {car.car: curves[car.car] for car in self.problem.cars}
+
+
+FRONTIER_ROUNDS = 3  # followers whose knots are planned again behind their frontier
+
+Planner = Callable[[TimingProblem], "dict[str, list[float]] | None"]
+
+
+def _fit_behind(problem: TimingProblem, fitter: _Fitter, planner: Planner) -> dict[str, Curve]:
+    """Every curve of ``planner``'s plan; when a follower's curve does not fit, its knots
+    are planned again behind the cars ahead of it, and every curve fitted again.
+
+    A plan sees a leader only at the follower's knots: a follower stuck behind a leader that
+    stands cannot then reach its next knot in time. Its knots are then planned no earlier
+    than its frontier (the furthest it can get behind the cars ahead) passes them; at most
+    FRONTIER_ROUNDS followers. A heuristic for the plans only: the frontier is one curve's,
+    not a bound on every motion, so it stays out of Step 2 and of the proofs."""
+    curves = fitter.fit_all(planner(problem))
+    informed, done = problem, set()
+    for _ in range(FRONTIER_ROUNDS):
+        name = fitter.failed
+        if curves or name is None or name in done:
+            break
+        if not any(f.follower == name for f in problem.follows):
+            break
+        done.add(name)
+        earliest = _earliest_knots(problem, fitter.cars[name], fitter.ahead)
+        if earliest is None:
+            break
+        informed = dataclasses.replace(
+            informed, earliest=informed.earliest + tuple((s, t) for s, t in earliest if t > 0)
+        )
+        curves = fitter.fit_all(planner(informed))
+    return curves
+
+
+def _grid_plan(
+    problem: TimingProblem, share: float, smoothed: bool
+) -> dict[str, list[float]] | None:
+    """A speed-grid plan, smoothed with continuous speeds around it or as it is."""
+    grid = plan_on_speed_grid(problem, share)[0]
+    return plan_times(problem, share, grid) if grid and smoothed else grid
+
+
+def _passes(curve: Curve, distance: float, timestep: float) -> float:
+    """The first time step at which ``curve`` has covered ``distance`` (its end if never)."""
+    steps = round(curve.times[-1] / timestep)
+    return next(
+        (k * timestep for k in range(steps + 1) if curve.at(k * timestep)[0] >= distance - SAME),
+        curve.times[-1],
+    )
 
 
 def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
@@ -724,7 +867,7 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     comfortable, largest = SHARES[0], SHARES[-1]
     fitter = _Fitter(problem)
     smooth = plan_times(problem, comfortable)
-    curves = fitter.fit_all(smooth)
+    curves = _fit_behind(problem, fitter, lambda q: plan_times(q, comfortable))
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
     edge, unreachable = plan_on_speed_grid(problem, largest)
@@ -743,4 +886,11 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
             curves = fitter.fit_all(planned)
             if curves:
                 return TimingSolution(curves, f"speed grid, {round(share * 100)} % of the bounds")
+    for share, smoothed in itertools.product(SHARES, (True, False)):
+        planner = functools.partial(_grid_plan, share=share, smoothed=smoothed)
+        curves = _fit_behind(problem, fitter, planner)
+        if curves:
+            return TimingSolution(
+                curves, f"speed grid behind the cars ahead, {round(share * 100)} % of the bounds"
+            )
     return TimingFailure("no curves within the bounds for the planned event times")
