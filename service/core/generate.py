@@ -590,7 +590,7 @@ def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: boo
     enters when it stops at its sign."""
     knots: list[Knot] = []
     arrival = entry = leaves = None
-    used = {str(s) for _, a, b in ordering.relations for s in (a, b)}
+    used = {s for _, a, b in ordering.named for s in (a, b)}
     stops = car.car in ordering.stops
     for group in event_groups(car):
         symbol, kinds = str(group[0].symbol), {t.event.kind for t in group}
@@ -659,7 +659,7 @@ def _timing_problem(
     return TimingProblem(
         cars=tuple(plans),
         fixed=tuple(fixed),
-        relations=tuple((kind, str(a), str(b)) for kind, a, b in ordering.relations),
+        relations=ordering.named,
         gaps=tuple(
             (str(a), str(b), gap)
             for a, b, gap in bounds.headways

@@ -209,7 +209,7 @@ class LinearProgram:
         solver.from_string(self._text(named=True))
         outcome = solver.check()
         if outcome == z3.sat:
-            return _model_values(solver.model(), set(self.names)), None
+            return _real_values(solver.model(), self.names, context), None
         if outcome == z3.unsat:
             return None, sorted({str(name).split("@")[0] for name in solver.unsat_core()})
         return None, None
@@ -325,6 +325,16 @@ def _model_values(model: z3.ModelRef, names: set[str] | None = None) -> dict[str
         found[declaration.name()] = (
             float(z3.is_true(value)) if z3.is_bool(value) else float(value.as_fraction())
         )
+    return found
+
+
+def _real_values(model: z3.ModelRef, names: Sequence[str], context: z3.Context) -> dict[str, float]:
+    """The model's values of the real variables ``names`` (0 where z3 left one out); one
+    lookup each, not a walk over every Boolean of the model."""
+    found = {}
+    for name in names:
+        value = model.eval(z3.Real(name, context), model_completion=True)
+        found[name] = float(value.as_fraction())
     return found
 
 

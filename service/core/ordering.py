@@ -128,9 +128,10 @@ class Ordering:
     stops: frozenset[str]
     violated: tuple[tuple[str, str], ...] = field(default=())  # (new car, rule) by "illegal"
     times: tuple[tuple[str, float], ...] = field(default=())  # (symbol, seconds)
+    named: tuple[tuple[str, str, str], ...] = field(default=())  # the relations as text
 
     def describe(self) -> list[str]:
-        return [f"{kind}({a},{b})" for kind, a, b in self.relations]
+        return [f"{kind}({a},{b})" for kind, a, b in self.named]
 
 
 ONE_PLACE = 0.01  # metres: a symbolic car's events this close share one time symbol
@@ -388,6 +389,7 @@ class OrderingSearch:
         self.symbolic = {c for c, car in self.cars.items() if car.kind is not CarKind.OLD}
         self.drawn = 0
         self.learned = 0
+        self._names: dict[clingo.Symbol, tuple[str, str]] = {}
 
     # The theory of the event times. bench/bench_ordering.py overrides these five to run the
     # same search with clingo-lpx; nothing else differs between the two.
@@ -443,7 +445,7 @@ class OrderingSearch:
 
     def block(self, ordering: Ordering) -> None:
         """Rule out this answer set (its relations and stops) from the search that follows."""
-        literals = [f"{kind}({a},{b})" for kind, a, b in ordering.relations]
+        literals = [f"{kind}({a},{b})" for kind, a, b in ordering.named]
         for car in sorted(self.symbolic):
             stop = f'stoppedAtForkAtTime("{car}",_,{stop_symbol(car)})'
             literals.append(stop if car in ordering.stops else f"not {stop}")
@@ -459,6 +461,13 @@ class OrderingSearch:
         self.control.add(name, [], ":- " + ", ".join(literals) + ".")
         self.control.ground([(name, [])])
 
+    def _named(self, symbol: clingo.Symbol) -> tuple[str, str]:
+        """A time symbol's text and car, remembered (each is a call into clingo)."""
+        found = self._names.get(symbol)
+        if found is None:
+            found = self._names[symbol] = (str(symbol), str(symbol.arguments[0].string))
+        return found
+
     def _ordering(
         self, index: int, atoms: Sequence[clingo.Symbol], times: dict[str, float]
     ) -> Ordering:
@@ -470,17 +479,24 @@ class OrderingSearch:
             name, arguments = atom.name, atom.arguments
             if name in ("lessThan", "equal"):
                 a, b = arguments
-                if _car_of(a) in symbolic or _car_of(b) in symbolic:
-                    if name == "equal" and str(a) > str(b):
+                (text_a, car_a), (text_b, car_b) = self._named(a), self._named(b)
+                if car_a in symbolic or car_b in symbolic:
+                    if name == "equal" and text_a > text_b:
                         continue  # each simultaneity once
-                    relations.append((name, a, b))
+                    relations.append(((name, text_a, text_b), (name, a, b)))
             elif name == "stoppedAtForkAtTime" and arguments[0].string in symbolic:
                 stops.add(arguments[0].string)
             elif name == "violatesRightOfForRule" and arguments[0].string == "illegal":
                 violated.append((arguments[1].string, str(arguments[2])))
-        relations.sort(key=lambda r: (r[0], str(r[1]), str(r[2])))
-        chosen = tuple(sorted(times.items()))
-        return Ordering(index, tuple(relations), frozenset(stops), tuple(sorted(violated)), chosen)
+        relations.sort(key=lambda pair: pair[0])
+        return Ordering(
+            index,
+            tuple(symbols for _, symbols in relations),
+            frozenset(stops),
+            tuple(sorted(violated)),
+            tuple(sorted(times.items())),
+            tuple(named for named, _ in relations),
+        )
 
     def explain_unsatisfiable(self) -> str:
         """Which requirement could not be met: the first group whose release makes it SAT."""
@@ -492,6 +508,3 @@ class OrderingSearch:
                 return GROUP_EXPLANATIONS[group]
         return "no order of events meets the requirements even one at a time"
 
-
-def _car_of(symbol: clingo.Symbol) -> str:
-    return str(symbol.arguments[0].string)

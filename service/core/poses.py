@@ -114,7 +114,8 @@ class PoseTrack:
 def interpolate_heading(a: float, b: float, share: float) -> float:
     """Heading between ``a`` and ``b`` (degrees) the short way round."""
     delta = (b - a + 180.0) % 360.0 - 180.0
-    return (a + share * delta) % 360.0
+    heading = (a + share * delta) % 360.0
+    return 0.0 if heading >= 360.0 else heading  # -1e-15 % 360.0 is 360.0 in floats
 
 
 @functools.lru_cache(maxsize=8)

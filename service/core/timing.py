@@ -806,26 +806,25 @@ class _Fitter:
 
 
 FRONTIER_ROUNDS = 3  # followers whose knots are planned again behind their frontier
+BEHIND = "a follower planned behind the cars ahead"  # said of curves from such a plan
 
 Planner = Callable[[TimingProblem], "dict[str, list[float]] | None"]
 
 
 def _fit_behind(problem: TimingProblem, fitter: _Fitter, planner: Planner) -> dict[str, Curve]:
-    """Every curve of ``planner``'s plan; when a follower's curve does not fit, its knots
-    are planned again behind the cars ahead of it, and every curve fitted again.
+    """After ``fitter`` failed on a follower's curve: every curve of plans by ``planner``
+    that see the cars ahead of the follower better.
 
     A plan sees a leader only at the follower's knots: a follower stuck behind a leader that
-    stands cannot then reach its next knot in time. Its knots are then planned no earlier
-    than its frontier (the furthest it can get behind the cars ahead) passes them; at most
-    FRONTIER_ROUNDS followers. A heuristic for the plans only: the frontier is one curve's,
-    not a bound on every motion, so it stays out of Step 2 and of the proofs."""
-    curves = fitter.fit_all(planner(problem))
+    stands cannot then reach its next knot in time. Its knots are planned again no earlier
+    than its frontier (the furthest it can get behind the cars ahead) passes them, and every
+    curve is fitted again; at most FRONTIER_ROUNDS followers. A heuristic for the plans
+    only: the frontier is one curve's, not a bound on every motion, so it stays out of
+    Step 2 and of the proofs."""
     informed, done = problem, set()
     for _ in range(FRONTIER_ROUNDS):
         name = fitter.failed
-        if curves or name is None or name in done:
-            break
-        if not any(f.follower == name for f in problem.follows):
+        if name is None or name in done or not any(f.follower == name for f in problem.follows):
             break
         done.add(name)
         earliest = _earliest_knots(problem, fitter.cars[name], fitter.ahead)
@@ -835,7 +834,9 @@ def _fit_behind(problem: TimingProblem, fitter: _Fitter, planner: Planner) -> di
             informed, earliest=informed.earliest + tuple((s, t) for s, t in earliest if t > 0)
         )
         curves = fitter.fit_all(planner(informed))
-    return curves
+        if curves:
+            return curves
+    return {}
 
 
 def _grid_plan(
@@ -867,9 +868,14 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     comfortable, largest = SHARES[0], SHARES[-1]
     fitter = _Fitter(problem)
     smooth = plan_times(problem, comfortable)
-    curves = _fit_behind(problem, fitter, lambda q: plan_times(q, comfortable))
+    curves = fitter.fit_all(smooth)
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
+    curves = _fit_behind(problem, fitter, functools.partial(plan_times, share=comfortable))
+    if curves:
+        return TimingSolution(
+            curves, f"linear, {round(comfortable * 100)} % of the bounds, {BEHIND}"
+        )
     edge, unreachable = plan_on_speed_grid(problem, largest)
     if edge is None:  # no grid plan: an order at the very edge of the bounds, or beyond
         core = order_core(problem) if smooth is None else None
@@ -882,15 +888,14 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
     for share in SHARES:
         grid = edge if share == largest else plan_on_speed_grid(problem, share)[0]
-        for planned in (grid and plan_times(problem, share, grid), grid):
+        for smoothed in (True, False):
+            planned = plan_times(problem, share, grid) if grid and smoothed else grid
+            method = f"speed grid, {round(share * 100)} % of the bounds"
             curves = fitter.fit_all(planned)
             if curves:
-                return TimingSolution(curves, f"speed grid, {round(share * 100)} % of the bounds")
-    for share, smoothed in itertools.product(SHARES, (True, False)):
-        planner = functools.partial(_grid_plan, share=share, smoothed=smoothed)
-        curves = _fit_behind(problem, fitter, planner)
-        if curves:
-            return TimingSolution(
-                curves, f"speed grid behind the cars ahead, {round(share * 100)} % of the bounds"
-            )
+                return TimingSolution(curves, method)
+            planner = functools.partial(_grid_plan, share=share, smoothed=smoothed)
+            curves = _fit_behind(problem, fitter, planner)
+            if curves:
+                return TimingSolution(curves, f"{method}, {BEHIND}")
     return TimingFailure("no curves within the bounds for the planned event times")

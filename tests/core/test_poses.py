@@ -41,6 +41,7 @@ def test_interpolate_heading_goes_the_short_way() -> None:
     assert interpolate_heading(350.0, 10.0, 0.5) == pytest.approx(0.0)
     assert interpolate_heading(10.0, 350.0, 0.25) == pytest.approx(5.0)
     assert interpolate_heading(90.0, 180.0, 0.5) == pytest.approx(135.0)
+    assert interpolate_heading(0.0, 359.0, 1e-15) == 0.0  # never 360 (float rounding)
 
 
 def _route_path(intersection: Intersection, route_id: str) -> LineString:

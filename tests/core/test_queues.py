@@ -4,7 +4,9 @@ collisions, the gap) and in the generator (a new car ahead of the ego)."""
 from __future__ import annotations
 
 import functools
+import gzip
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -17,7 +19,8 @@ from service.core.generate import extend_testcase
 from service.core.network import Intersection, load_intersection
 from service.core.poses import PoseSample, PoseTrack, generate_poses
 from service.core.queues import Follow, Places, QueueCar, follows, gap_fault
-from service.core.testcase import TestCase, new_testcase
+from service.core.testcase import TestCase, new_testcase, parse_testcase
+from service.core.timing import BEHIND
 from service.core.verdict import REAR_END
 from tests.helpers import drive_with_stops, retime, with_nonegos
 
@@ -172,23 +175,26 @@ def _samples(rows: Sequence[Any]) -> list[PoseSample]:
     return [PoseSample(**s.model_dump()) for s in rows]
 
 
-def _check_queue(old: TestCase, new: TestCase, fork: str) -> None:
+def _check_queue(
+    old: TestCase, new: TestCase, fork: str, where: Intersection | None = None
+) -> None:
     """Independently of the generator: the complexity certificate passes the old case and
     fails the new one, the solvability certificate passes, and on ``fork`` every car keeps
     behind every car ahead of it: no overlap at any moment, the gap at every sample, and
     it arrives only once the car ahead has entered."""
+    where = where or junction()
     assert new.certificates is not None
     complexity, solvability = (
         _samples(new.certificates.complexity),
         _samples(new.certificates.solvability),
     )
-    assert check_testcase(old, complexity, "c", junction()).passed
-    assert not check_testcase(new, complexity, "c", junction()).passed
-    assert check_testcase(new, solvability, "s", junction()).passed
-    judge = Judge(new, junction())
+    assert check_testcase(old, complexity, "c", where).passed
+    assert not check_testcase(new, complexity, "c", where).passed
+    assert check_testcase(new, solvability, "s", where).passed
+    judge = Judge(new, where)
     queue = [car for car in judge.nonegos if car.fork == fork]
     cars = {n.id: n for n in new.nonegos}
-    pairs = follows([car.in_queue for car in queue], junction())
+    pairs = follows([car.in_queue for car in queue], where)
     assert len(pairs) == len(queue) * (len(queue) - 1) // 2
     by_id = {car.id: car for car in queue}
     for pair in pairs:
@@ -225,3 +231,20 @@ def test_a_new_car_joins_a_queue_of_old_cars() -> None:
     new = extend_testcase(old, ["S2C_0:C2N_0"], seed=0, budget=240).testcase
     assert [n.added_in for n in new.nonegos] == [1, 1, 2]
     _check_queue(old, new, "S2C_0")
+
+
+QUEUE_DATA = Path(__file__).resolve().parents[1] / "data" / "queues"
+
+
+def test_a_follower_behind_a_car_that_stands_is_planned_behind_it() -> None:
+    """Level 4 of a chain on the T-junction (tests/data/queues): car3 crawls to the stop
+    sign of the stem and stands there. A new car behind it on the stem cannot reach its
+    knots as a plan that sees car3 only at those knots has it; planned again behind car3's
+    frontier, it is found (before that re-plan, none of 60 answer sets gave curves)."""
+    with gzip.open(QUEUE_DATA / "t-stop-level4.json.gz") as file:
+        old = parse_testcase(file.read().decode())
+    t_stop = load_intersection("t-stop")
+    new = extend_testcase(old, ["S2C_0:C2W_0"], seed=0, budget=240, intersection=t_stop).testcase
+    assert new.provenance is not None
+    assert new.provenance["timing"].endswith(BEHIND)
+    _check_queue(old, new, "S2C_0", t_stop)
