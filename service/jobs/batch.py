@@ -56,7 +56,8 @@ class ExtendItem(_Based):
 
 class ChainItem(_Based):
     """Successive extensions: `steps` gives each level's routes; or `levels` lets the
-    service choose, at each level, a route that conflicts with the ego's."""
+    service choose, at each level, a route that conflicts with the ego's or starts ahead
+    of it: from a free fork, else joining the queue on a fork in use."""
 
     kind: Literal["chain"]
     steps: list[list[str]] | None = Field(None, min_length=1, max_length=10)

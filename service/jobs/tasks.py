@@ -204,8 +204,9 @@ def extend_any(
     document: str, network_file: Path, cache_dir: Path, seed: int, budget: float
 ) -> dict[str, Any]:
     """An extension by one car on a route the service chooses (service.core.chain.grow):
-    the routes that conflict with the ego's, from forks no car uses yet, tried in an order
-    drawn from ``seed``, each in full; the budget only stops the call."""
+    the routes that conflict with the ego's or start ahead of it, from forks no car uses
+    first, then from forks in use (the new car joins the queue), in an order drawn from
+    ``seed``; the budget only stops the call."""
     from service.core.chain import grow
 
     old = parse_testcase(document)

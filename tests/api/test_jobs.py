@@ -16,6 +16,7 @@ import httpx2 as httpx
 import pytest
 import yaml
 
+from service.core.testcase import dump_testcase, new_testcase
 from tests.jobs.batches import regression_batch
 from tests.servers import Server
 
@@ -163,3 +164,21 @@ def test_submit_exit_codes(server: Server, tmp_path: Path) -> None:
     assert failed.returncode == 3 and "no stored test-case" in failed.stderr
     away = scengen("submit", "nope.json", "--server", "http://127.0.0.1:9", cwd=tmp_path)
     assert away.returncode == 3 and "cannot reach" in away.stderr
+
+
+def test_a_chain_by_levels_joins_a_queue_once_the_forks_are_taken(
+    server: Server, api: httpx.Client
+) -> None:
+    """On the T-junction only two forks besides the ego's are free: the service picks
+    them first, and a third level exists only on a fork in use (before queues, a chain of
+    levels stopped at two with "none left")."""
+    root = json.loads(dump_testcase(new_testcase("t-stop", "E2C_0:C2S_0", duration=45.0)))
+    batch = {"items": [{"kind": "chain", "testcase": root, "levels": 3, "budget": 120}]}
+    job = server.wait_for_job(api.post("/jobs", json=batch).json()["id"])
+    assert job["state"] == "succeeded", job["items"][0]["error"]
+    made = job["items"][0]["testcases"]
+    assert len(made) == 3
+    last = api.get(f"/testcases/{made[-1]}/document").json()
+    by_level = {car["added_in"]: car["route"]["fork"] for car in last["nonegos"]}
+    assert {by_level[1], by_level[2]} == {"W2C_0", "S2C_0"}  # the free forks first
+    assert by_level[3] in {"W2C_0", "S2C_0", "E2C_0"}
