@@ -203,22 +203,26 @@ def _timed(cars: Sequence[Car]) -> list[TimedEvent]:
     return timed
 
 
+VERDICT_ATOMS = (("law", 2), ("violatesRightOfForRuleAt", 4), ("violatesRuleAt", 3))
+
+
 def _violations(junction: Intersection, cars: Sequence[Car], m: float) -> list[Violation]:
     timed = _timed(cars)
     facts = geometry_facts(junction) + perceptible_order(timed, m)
     for car in cars:
         facts.append(REQUESTED_LANE(car.id, car.lane))
         facts += event_facts(car.id, car.fork, [t for t in timed if t.car == car.id])
-    atoms = solve_rules(junction.control, facts)
+    atoms = solve_rules(junction.control, facts, VERDICT_ATOMS)
     by_symbol = {t.symbol: t for t in timed}
-    laws = {str(a.arguments[0]): a.arguments[1].string for a in atoms if a.match("law", 2)}
+    laws = {str(a.arguments[0]): a.arguments[1].string for a in atoms if a.name == "law"}
     found: dict[tuple[str, str | None], Violation] = {}
     for atom in atoms:
-        if atom.match("violatesRightOfForRuleAt", 4) and atom.arguments[0].string == EGO:
-            other: str | None = atom.arguments[1].string
-            rule, times = atom.arguments[2], atom.arguments[3]
-        elif atom.match("violatesRuleAt", 3) and atom.arguments[0].string == EGO:
-            other, rule, times = None, atom.arguments[1], atom.arguments[2]
+        name, arguments = atom.name, atom.arguments
+        if name == "violatesRightOfForRuleAt" and arguments[0].string == EGO:
+            other: str | None = arguments[1].string
+            rule, times = arguments[2], arguments[3]
+        elif name == "violatesRuleAt" and arguments[0].string == EGO:
+            other, rule, times = None, arguments[1], arguments[2]
         else:
             continue
         events = tuple(_ref(by_symbol[s]) for s in times.arguments)

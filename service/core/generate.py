@@ -77,7 +77,7 @@ from service.core.timing import (
     TimingSolution,
     solve_timing,
 )
-from service.core.verdict import REAR_END
+from service.core.verdict import REAR_END, Verdict
 
 STEP1_SPEED = 8.0  # m/s: Step 1 drives at this speed; it sets only how dense the poses are
 QUEUE_SPACING = 5.0  # metres a new car starts behind the room it needs on a fork in use
@@ -230,7 +230,15 @@ def extend_testcase(
                 continue
             clock = time.monotonic()
             outcome, candidate = _judge(
-                old, ordering, result, tracks_of, junction, (new_routes, ids), seed, number + 1
+                old,
+                ordering,
+                result,
+                tracks_of,
+                junction,
+                (new_routes, ids),
+                seed,
+                number + 1,
+                old_judge,
             )
             seconds["verification"] += time.monotonic() - clock
             if candidate is not None:
@@ -317,6 +325,7 @@ def _judge(
     added: tuple[Sequence[Route], Sequence[str]],
     seed: int,
     tried: int,
+    old_judge: Judge,
 ) -> tuple[str, TestCase | None]:
     """The candidate of one answer set, when its samples keep the motion invariants and the
     checker verifies it; else what is wrong with it."""
@@ -336,11 +345,11 @@ def _judge(
         )
     except InvalidTestCase as error:  # our own fault, never the caller's input
         return f"internal: the candidate is not a valid test-case ({error})", None
-    problem = verify_extension(old, candidate, junction, ids)
+    problem, verdict = _verify(old, candidate, junction, ids, old_judge)
     if problem is not None:
         return f"verification: {problem}", None
-    assert candidate.provenance is not None
-    candidate.provenance["complexity_certificate"] = complexity_kind(candidate, junction)
+    assert candidate.provenance is not None and verdict is not None
+    candidate.provenance["complexity_certificate"] = _kind_of(verdict)
     return "verified", candidate
 
 
@@ -806,35 +815,54 @@ def _rounded(sample: PoseSample) -> PoseSample:
 
 
 def verify_extension(
-    old: TestCase, new: TestCase, junction: Intersection, ids: Sequence[str]
+    old: TestCase,
+    new: TestCase,
+    junction: Intersection,
+    ids: Sequence[str],
+    old_judge: Judge | None = None,
 ) -> str | None:
-    """None when the candidate is verified, else what is wrong."""
+    """None when the candidate is verified, else what is wrong (``old_judge``: the
+    checker of ``old``, when the caller has it)."""
+    return _verify(old, new, junction, ids, old_judge)[0]
+
+
+def _verify(
+    old: TestCase,
+    new: TestCase,
+    junction: Intersection,
+    ids: Sequence[str],
+    old_judge: Judge | None,
+) -> tuple[str | None, Verdict | None]:
+    """What is wrong with the candidate (None: verified), and the verdict of its
+    complexity certificate in it once that was judged."""
     assert new.certificates is not None
-    old_judge = Judge(old, junction)
+    old_judge = old_judge or Judge(old, junction)
     new_judge = Judge(new, junction, known=old_judge)
     solvability = new_judge.ego_car(
         [PoseSample(**s.model_dump()) for s in new.certificates.solvability]
     )
     verdict = new_judge.verdict(solvability, "solvability")
     if not verdict.passed:
-        return "solvability certificate fails the new test-case: " + "; ".join(verdict.reasons)
+        reasons = "; ".join(verdict.reasons)
+        return f"solvability certificate fails the new test-case: {reasons}", None
     complexity = old_judge.ego_car(
         [PoseSample(**s.model_dump()) for s in new.certificates.complexity]
     )
     verdict = old_judge.verdict(complexity, "complexity")
     if not verdict.passed:
-        return "complexity certificate fails the old test-case: " + "; ".join(verdict.reasons)
+        reasons = "; ".join(verdict.reasons)
+        return f"complexity certificate fails the old test-case: {reasons}", None
     verdict = new_judge.verdict(complexity, "complexity")
     if verdict.passed:
-        return "complexity certificate passes the new test-case"
+        return "complexity certificate passes the new test-case", verdict
     if not verdict.goal_reached:
-        return "complexity certificate fails the new test-case otherwise: " + "; ".join(
-            verdict.reasons
-        )
+        reasons = "; ".join(verdict.reasons)
+        return f"complexity certificate fails the new test-case otherwise: {reasons}", verdict
     if any(c.other not in ids or c.kind != REAR_END for c in verdict.collisions):
-        return "complexity certificate collides with a car other than a new car ahead of it"
+        problem = "complexity certificate collides with a car other than a new car ahead of it"
+        return problem, verdict
     if any(v.other not in ids for v in verdict.violations):
-        return "complexity certificate breaks a rule besides a new car's right-of-way"
+        return "complexity certificate breaks a rule besides a new car's right-of-way", verdict
     motions = {
         n.id: Motion([PoseSample(**s.model_dump()) for s in n.trajectory], n.length, n.width)
         for n in new.nonegos
@@ -845,8 +873,8 @@ def verify_extension(
                 continue
             hit = first_collision(motions[car_id], motion)
             if hit is not None:
-                return f"{car_id} collides with {other} at {hit.time:.2f} s"
-    return _gaps_kept(new, new_judge, solvability, junction, ids)
+                return f"{car_id} collides with {other} at {hit.time:.2f} s", verdict
+    return _gaps_kept(new, new_judge, solvability, junction, ids), verdict
 
 
 def _gaps_kept(
@@ -881,6 +909,11 @@ def complexity_kind(new: TestCase, junction: Intersection) -> dict[str, Any]:
         new, [PoseSample(**s.model_dump()) for s in new.certificates.complexity],
         "complexity", junction,
     )  # fmt: skip
+    return _kind_of(verdict)
+
+
+def _kind_of(verdict: Verdict) -> dict[str, Any]:
+    """The kind of complexity certificate its verdict in the new test-case shows."""
     hit = sorted({c.other for c in verdict.collisions})
     return {
         "kind": "rear-end" if hit else "right-of-way",

@@ -507,4 +507,3 @@ class OrderingSearch:
             if satisfiable:
                 return GROUP_EXPLANATIONS[group]
         return "no order of events meets the requirements even one at a time"
-

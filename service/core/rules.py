@@ -159,14 +159,20 @@ def perceptible_order(timed: Sequence[TimedEvent], m: float) -> list[Fact]:
     return facts
 
 
-def solve_rules(control: ControlType, facts: Iterable[Fact]) -> list[clingo.Symbol]:
-    """The single answer set of the rule set of ``control`` over ``facts``.
+def solve_rules(
+    control: ControlType, facts: Iterable[Fact], shown: Sequence[tuple[str, int]] = ()
+) -> list[clingo.Symbol]:
+    """The single answer set of the rule set of ``control`` over ``facts``: every atom, or
+    only those of the ``shown`` predicates (name, arity; reading every atom of a large
+    answer set into Python costs more than solving it).
 
     With every order given as facts, the program is stratified: grounding decides it and no
     search runs, so this cannot hang. Raises if the facts contradict the order axioms.
     """
     control_object = clingo.Control(["--models=1", "--warn=none"])
     control_object.load(str(rule_set_file(control)))
+    if shown:
+        control_object.add("base", [], " ".join(f"#show {n}/{a}." for n, a in shown))
     with control_object.backend() as backend:
         for fact in facts:
             atom = backend.add_atom(fact)
