@@ -9,6 +9,8 @@
    1, 2, ... until its CPU budget is spent) and of bench/random_search.py's sampler
    (judged by the same checker), at level 1 and at level 2, with the ratio per task.
 4. Variety: distinct extensions over 5 seeds per single-car case.
+6. Queues: two and three new cars in line on one fork in one extension (issue 16's target:
+   three at one stop sign in under 5 s), seeds 0 and 1.
 5. Step 3 against the paper's single nonlinear formulation (bench/paper_timing.py) on the
    Step 3 problems that the generator solved: the ratio of medians.
 
@@ -55,6 +57,13 @@ CASES = [  # (network, ego, new routes)
     ("4way-stop", "E2C_1:C2S_1", ("S2C_1:C2N_1", "W2C_1:C2E_1", "N2C_0:C2S_0")),
 ]
 SEEDS = (0, 1)
+QUEUES = [  # (network, ego, the fork's route, cars, duration)
+    ("4way-stop", "E2C_1:C2S_1", "S2C_1:C2N_1", 2, 20.0),
+    ("4way-stop", "E2C_0:C2N_0", "S2C_0:C2N_0", 3, 30.0),
+    ("4way-stop", "E2C_1:C2S_1", "S2C_1:C2N_1", 3, 30.0),
+    ("t-stop", "E2C_0:C2S_0", "S2C_0:C2W_0", 3, 30.0),
+    ("y-uncontrolled", "N2C_0:C2SE_0", "SW2C_0:C2N_0", 3, 30.0),
+]
 
 
 def percentile(values: list[float], share: float) -> float:
@@ -171,6 +180,24 @@ def variety() -> None:
     print()
 
 
+def queues() -> None:
+    print("## Queues: new cars in line on one fork, in one extension\n")
+    print("| case | seed | result | total s | answer sets |")
+    print("|---|---|---|---|---|")
+    for network, ego, route, count, duration in QUEUES:
+        for seed in SEEDS:
+            start = new_testcase(network, ego, duration=duration)
+            clock = time.perf_counter()
+            try:
+                extension = extend_testcase(start, [route] * count, seed=seed, budget=60.0)
+                outcome, tried = "ok", str(len(extension.attempts))
+            except ScengenError as error:
+                outcome, tried = type(error).__name__, ""
+            print(f"| {network} {ego}, {count} x {route}, {duration:g} s | {seed} | {outcome} | "
+                  f"{time.perf_counter() - clock:.2f} | {tried} |", flush=True)  # fmt: skip
+    print()
+
+
 def against_paper(problems: list[TimingProblem]) -> None:
     print("## Step 3 against the paper's nonlinear formulation\n")
     ours, paper, solved = [], [], 0
@@ -201,6 +228,7 @@ def main() -> None:
           f"{platform.python_version()}, {platform.machine()}\n")  # fmt: skip
     problems: list[TimingProblem] = []
     cases(problems)
+    queues()
     example_chain()
     against_random(args.random_cpu)
     variety()

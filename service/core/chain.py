@@ -17,8 +17,15 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from service.core.check import Judge
 from service.core.errors import InvalidInput, NoMoreComplexTestCase, NoneFound
-from service.core.generate import MAX_ORDERS, Extension, Progress, extend_testcase
+from service.core.generate import (
+    MAX_ORDERS,
+    Extension,
+    Progress,
+    checked_judge,
+    extend_testcase,
+)
 from service.core.network import Intersection
 from service.core.testcase import TestCase, load_testcase_intersection
 
@@ -64,13 +71,14 @@ def grow(
     order) that has an extension. NoMoreComplexTestCase when none can have one; NoneFound
     when some were not found (with ``budget_exhausted`` when the budget stopped it)."""
     junction = intersection or load_testcase_intersection(old)
+    judge = checked_judge(old, junction)  # once for every route tried
     candidates = candidate_routes(old, junction)
     random.Random(seed).shuffle(candidates)
     end = time.monotonic() + budget
     outcomes: list[str] = []
     proven = True
     for group in _by_free_fork(old, junction, candidates):
-        found, proven_here = _first_extension(old, group, seed, budget, end, junction,
+        found, proven_here = _first_extension(old, group, seed, budget, end, (junction, judge),
                                               progress, outcomes)  # fmt: skip
         proven = proven and proven_here
         if found is not None:
@@ -87,7 +95,7 @@ def _first_extension(
     seed: int,
     budget: float,
     end: float,
-    junction: Intersection,
+    checker: tuple[Intersection, Judge],
     progress: Progress | None,
     outcomes: list[str],
 ) -> tuple[Growth | None, bool]:
@@ -95,6 +103,7 @@ def _first_extension(
     sets, then those cut short get MAX_ORDERS. Also whether every other one is proven to
     have none."""
     proven = True
+    junction, judge = checker
     for orders in (ROUTE_ORDERS, MAX_ORDERS):
         retry = []
         for route in candidates:
@@ -103,7 +112,7 @@ def _first_extension(
                 raise _exhausted(budget, outcomes, seed)
             try:
                 extension = extend_testcase(
-                    old, [route], seed, left, None, progress, junction, max_orders=orders
+                    old, [route], seed, left, None, progress, junction, orders, judge
                 )
             except (NoMoreComplexTestCase, InvalidInput) as error:  # no room on its fork
                 outcomes.append(f"{route}: {error}")

@@ -142,19 +142,21 @@ def extend_testcase(
     progress: Progress | None = None,
     intersection: Intersection | None = None,
     max_orders: int = MAX_ORDERS,
+    judge: Judge | None = None,
 ) -> Extension:
     """A strictly more complex, solvable test-case with new non-egos on ``routes``, each
     starting ``start_distance`` before its stop line (one number for all, one per route,
     or None: automatic, behind the cars already on its fork or ahead of the ego).
 
     At most ``max_orders`` answer sets of Step 2 are tried; ``budget`` (seconds) only
-    stops a call that takes longer (NoneFound with ``budget_exhausted``)."""
+    stops a call that takes longer (NoneFound with ``budget_exhausted``). ``judge``: the
+    checker of ``old`` from ``checked_judge`` (a chain tries many routes on one test-case
+    and makes it once)."""
     deadline = _Deadline(budget, routes, seed)
     say = progress or (lambda _: None)
     seconds: dict[str, float] = {}
     junction = intersection or load_testcase_intersection(old)
-    old_judge = Judge(old, junction)
-    _check_old(old, old_judge)
+    old_judge = judge or checked_judge(old, junction)
     new_routes = _validate(old, junction, routes)
     ego_route = junction.route(old.ego.route.id)
     ids = _new_ids(old, len(new_routes))
@@ -373,6 +375,14 @@ def _validate(old: TestCase, junction: Intersection, routes: Sequence[str]) -> l
             routes=list(routes),
         )
     return chosen
+
+
+def checked_judge(old: TestCase, junction: Intersection) -> Judge:
+    """The checker of ``old``, once its own solvability certificate passed it
+    (InvalidTestCase if not)."""
+    judge = Judge(old, junction)
+    _check_old(old, judge)
+    return judge
 
 
 def _check_old(old: TestCase, judge: Judge) -> None:
