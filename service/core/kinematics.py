@@ -146,8 +146,8 @@ LINGER_GAIN = 0.02  # seconds a lingering bound must add to the least gaps to be
 @dataclass(frozen=True)
 class Linger:
     """If segment ``segment`` (from point segment - 1 to point segment) takes at least
-    ``seconds``, point ``later`` comes at least ``least`` after point ``segment`` (or, when
-    ``later`` is earlier, point segment - 1 comes at least ``least`` after it)."""
+    ``seconds``, point ``other`` comes at least ``least`` after point ``segment`` (or, when
+    ``other`` is earlier, point segment - 1 comes at least ``least`` after it)."""
 
     segment: int
     seconds: float
