@@ -10,6 +10,7 @@ child process that is killed at its budget.
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 
 import z3
@@ -58,7 +59,9 @@ def _segments(
     if car.start_speed is not None:
         found.append(3 * controls[0][0] == _real(car.start_speed, ctx) * (times[1] - times[0]))
     last = car.knots[-1].distance if car.knots else 0.0
-    found += [end >= _real(last, ctx), end <= _real(car.reach, ctx)]
+    found.append(end >= _real(last, ctx))
+    if math.isfinite(car.reach):  # the generator's cars drive on past the end of the road
+        found.append(end <= _real(car.reach, ctx))
     return found
 
 
