@@ -36,14 +36,17 @@ import clingo
 import clingo.ast
 from clingolpx import ClingoLPXTheory
 
+from service.core.following import QueueBounds
 from service.core.generate import (
     SEARCH_SHARES,
     STEP1_SPEED,
     _limits,
     _new_ids,
     _ordering_cars,
-    _starts,
+    _queue,
     _validate,
+    automatic_starts,
+    checked_judge,
     extend_testcase,
 )
 from service.core.network import Intersection
@@ -99,15 +102,17 @@ class Problem:
     m: float
     limits: Limits
     old_cars: int
+    queue: QueueBounds
 
 
 def step2_problem(name: str, old: TestCase, routes: Sequence[str], share: float) -> Problem:
     """The cars of Step 2 for ``routes`` added to ``old``, as extend_testcase builds them."""
     junction = load_testcase_intersection(old)
+    judge = checked_judge(old, junction)
     new_routes = _validate(old, junction, routes)
     ego_route = junction.route(old.ego.route.id)
     ids = _new_ids(old, len(new_routes))
-    starts = _starts(old, new_routes, None)
+    starts = automatic_starts(old, judge, new_routes, None)
     tracks = generate_poses(
         junction,
         [(ego_route, old.ego.start.distance), *zip(new_routes, starts, strict=True)],
@@ -118,9 +123,11 @@ def step2_problem(name: str, old: TestCase, routes: Sequence[str], share: float)
         old.ego.width,
     )
     new_tracks = dict(zip(ids, tracks[1:], strict=True))
-    cars = _ordering_cars(old, junction, tracks[0], new_tracks, new_routes, ids)
+    cars = _ordering_cars(old, judge, junction, tracks[0], new_tracks, new_routes, ids)
+    tracks_of = {**new_tracks, "ego": tracks[0], "illegal": tracks[0]}
+    queue = _queue(old, judge, junction, cars, tracks_of, ids)
     limits = _limits(old, share=share)
-    return Problem(name, junction, cars, old.params.m, limits, len(old.nonegos))
+    return Problem(name, junction, cars, old.params.m, limits, len(old.nonegos), queue.bounds)
 
 
 def build_problems(share: float) -> list[Problem]:
@@ -169,12 +176,13 @@ class LpxOrderingSearch(OrderingSearch):
         m: float,
         seed: int,
         limits: Limits,
+        queue: QueueBounds | None = None,
         strict: bool = False,
         options: Sequence[tuple[str, str]] = (),
     ) -> None:
         self.strict, self.lpx_options = strict, options
         self.exact: list[dict[str, Exact]] = []  # the assignment of each answer set drawn
-        super().__init__(intersection, cars, m, seed, limits)
+        super().__init__(intersection, cars, m, seed, limits, queue)
 
     def _theory(self) -> Any:
         theory = ClingoLPXTheory()  # type: ignore[no-untyped-call]
@@ -207,7 +215,7 @@ class LpxOrderingSearch(OrderingSearch):
 def make_search(
     variant: str, problem: Problem, seed: int, lpx: Sequence[tuple[str, str]] = ()
 ) -> OrderingSearch:
-    args = (problem.intersection, problem.cars, problem.m, seed, problem.limits)
+    args = (problem.intersection, problem.cars, problem.m, seed, problem.limits, problem.queue)
     if variant == "dl":
         return OrderingSearch(*args)
     return LpxOrderingSearch(*args, strict=variant == "lpx-strict", options=lpx)
@@ -261,6 +269,22 @@ def broken_constraints(
             ok = at_least(gap(args[1], args[2]), args[3].number)
         elif fact.match("maxGapRunning", 4) and args[0].string not in ordering.stops:
             ok = at_most(gap(args[1], args[2]), args[3].number)
+        elif fact.match("maxGapInside", 3):
+            ok = at_most(gap(args[0], args[1]), args[2].number)
+        elif fact.match("earliest", 2):
+            ok = at_least(gap(start, args[0]), args[1].number)
+        elif fact.match("latest", 2):
+            ok = at_most(gap(start, args[0]), args[1].number)
+        elif fact.match("lingerLevel", 3) and not at_most(gap(*args[:2]), args[2].number - 1):
+            # the segment lingers (whichever way the answer set chose): what that implies
+            ok = all(
+                at_least(gap(f.arguments[1], f.arguments[3]), f.arguments[4].number)
+                if f.name == "lingerAfter"
+                else at_least(gap(f.arguments[3], f.arguments[0]), f.arguments[4].number)
+                for f in search.facts
+                if (f.match("lingerAfter", 5) or f.match("lingerBefore", 5))
+                and f.arguments[:3] == args
+            )
         if not ok:
             found.append(f"{fact}")
     for kind, a, b in ordering.relations:
@@ -372,7 +396,12 @@ def accepts(search: OrderingSearch, ordering: Ordering) -> bool:
         if car in search.symbolic:
             assumptions.append((atom.symbol, car in ordering.stops))
     search.theory.prepare(search.control)
-    result = search.control.solve(assumptions=assumptions, on_model=search.theory.on_model)
+
+    def first_only(model: clingo.Model) -> bool:  # stop there: the free choices of
+        search.theory.on_model(model)  # lingers(P, Q, L) give many models per answer set
+        return False
+
+    result = search.control.solve(assumptions=assumptions, on_model=first_only)
     return bool(result.satisfiable)
 
 
