@@ -3,6 +3,8 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+QC_VENV := .venv-qc
+QC_STAMP := $(QC_VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled
 
 .PHONY: help install system-tools test lint format nets run demo openapi bench bench-api bench-jobs \
@@ -28,7 +30,15 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[test]'
 	touch $(STAMP)
 
-install: $(STAMP)
+install: $(STAMP) $(QC_STAMP)
+
+# The ASAM Quality Checker bundles (OpenSCENARIO XML and OpenDRIVE, with their XSD schema
+# checks) in a venv of their own: asam-qc-opendrive pins numpy < 2, which the service does
+# not. The export tests run them as commands, the way a user does (README).
+$(QC_STAMP):
+	$(PYTHON) -m venv $(QC_VENV)
+	$(QC_VENV)/bin/pip install --quiet asam-qc-openscenarioxml asam-qc-opendrive asam-qc-framework
+	touch $(QC_STAMP)
 
 # The OpenAPI UI test drives Debian's Chromium, the README's curl examples use jq; both are
 # installed here when missing (as root; otherwise the message says what to install).
@@ -39,7 +49,7 @@ system-tools:
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing \
 		>/dev/null; } || echo "make: missing:$$missing (install Debian's packages)"
 
-test: $(STAMP) system-tools
+test: $(STAMP) $(QC_STAMP) system-tools
 	$(BIN)/pytest
 
 lint: $(STAMP)
@@ -97,4 +107,4 @@ coverage: $(STAMP)
 	$(BIN)/python -m bench.coverage
 
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) $(QC_VENV) .pytest_cache .mypy_cache .ruff_cache

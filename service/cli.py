@@ -31,6 +31,7 @@ from service.core.export import export_bundle
 from service.core.generate import StartDistances, extend_testcase
 from service.core.network import ControlType, Intersection, bundled_networks, load_intersection
 from service.core.network.describe import describe_intersection
+from service.core.openscenario import FLAVOURS, export_openscenario
 from service.core.poses import PoseSample, generate_poses
 from service.core.replay import evaluate as evaluate_controller
 from service.core.testcase import (
@@ -237,15 +238,29 @@ def _parser() -> argparse.ArgumentParser:
 
     export = commands.add_parser(
         "export",
-        help="write a test-case as a SUMO bundle (run.py, and a .sumocfg for plain sumo)",
-        description="Writes into DIR the network, the test-case JSON, a README, run.py (the "
-        "replay of `scengen evaluate`: python run.py --controller NAME writes the ego's FCD) "
-        "with its plan, vehicle types and routes, and a .sumocfg for the plain sumo binary "
-        "(the non-egos' trajectories as FCD for SUMO's fcd-replay device).",
+        help="write a test-case as a SUMO bundle or as OpenSCENARIO + OpenDRIVE",
+        description="--format sumo (default): writes into DIR the network, the test-case "
+        "JSON, a README, run.py (the replay of `scengen evaluate`: python run.py --controller "
+        "NAME writes the ego's FCD) with its plan, vehicle types and routes, and a .sumocfg "
+        "for the plain sumo binary (the non-egos' trajectories as FCD for SUMO's fcd-replay "
+        "device). --format openscenario: testcase.xodr (ASAM OpenDRIVE), testcase.xosc (ASAM "
+        "OpenSCENARIO XML: the non-egos on their trajectories, the ego left to the system "
+        "under test), one .xosc per certificate and verdict-rules.md; --flavour carla for "
+        "CARLA's ScenarioRunner.",
     )
     export.add_argument("testcase", type=Path, metavar="TESTCASE", help="a test-case JSON file")
     export.add_argument(
         "-o", "--output", type=Path, required=True, metavar="DIR", help="folder to write"
+    )
+    export.add_argument(
+        "--format", choices=("sumo", "openscenario"), default="sumo", help="default: sumo"
+    )
+    export.add_argument(
+        "--flavour",
+        choices=FLAVOURS,
+        default="asam",
+        help="OpenSCENARIO only: asam (1.2, one vertex per time step; default) or carla "
+        "(1.0, 20 Hz, the CARLA town by name)",
     )
     _network_file_argument(export)
     export.set_defaults(run=_run_export)
@@ -818,6 +833,17 @@ class StepProgress:
 
 def _run_export(args: argparse.Namespace) -> int:
     testcase = read_testcase(args.testcase)
+    if args.format == "openscenario":
+        for path in export_openscenario(
+            testcase, args.output, _intersection(testcase, args), args.flavour
+        ):
+            print(path)
+        print(
+            f"play it: esmini --window 60 60 800 400 --osc {args.output}/testcase.xosc; "
+            f"the verdict rules: {args.output}/verdict-rules.md",
+            file=sys.stderr,
+        )
+        return EXIT_OK
     for path in export_bundle(testcase, args.output, _intersection(testcase, args)):
         print(path)
     print(

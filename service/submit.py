@@ -190,7 +190,7 @@ def _summary(job: dict[str, Any]) -> str:
 
 def download(client: Client, job: dict[str, Any], junit: Path | None, folder: Path | None) -> None:
     """The JUnit report, and with ``folder`` every result: job.json, junit.xml, the
-    test-case documents and a zip of all SUMO bundles."""
+    test-case documents, a zip of all SUMO bundles and one of all OpenSCENARIO exports."""
     report = client.call("GET", f"/jobs/{job['id']}/junit")[2]
     if junit is not None:
         junit.write_bytes(report)
@@ -208,6 +208,8 @@ def download(client: Client, job: dict[str, Any], junit: Path | None, folder: Pa
     if made:
         client.timeout = max(client.timeout, 300.0)
         (folder / "bundles.zip").write_bytes(client.call("GET", f"/jobs/{job['id']}/bundles")[2])
+        scenarios = client.call("GET", f"/jobs/{job['id']}/openscenario")[2]
+        (folder / "openscenario.zip").write_bytes(scenarios)
 
 
 def outcome(job: dict[str, Any]) -> int:

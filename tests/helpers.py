@@ -6,9 +6,19 @@ import dataclasses
 import functools
 import json
 from collections.abc import Callable
+from pathlib import Path
 
+from service.core.chain import candidate_routes
+from service.core.generate import extend_testcase
 from service.core.poses import PoseSample, PoseTrack
-from service.core.testcase import TestCase, dump_testcase, parse_testcase
+from service.core.testcase import (
+    TestCase,
+    dump_testcase,
+    load_testcase_intersection,
+    new_testcase,
+    parse_testcase,
+)
+from service.examples import EXAMPLES, run_example
 
 
 def retime(
@@ -130,3 +140,29 @@ def car_ahead_of_ego() -> TestCase:
 
     old = new_testcase("4way-stop", "E2C_0:C2N_0", duration=45.0, name="queue")
     return extend_testcase(old, ["E2C_0:C2W_0"], seed=0, budget=120).testcase
+
+
+def _real_map_chain(network: Path, junction: str, control: str, ego: str) -> list[TestCase]:
+    """An ego-only test-case on a CARLA map at the default start, and one extension."""
+    start = new_testcase(network, ego, junction=junction, control=control, duration=25.0)
+    intersection = load_testcase_intersection(start)
+    ego_fork = start.ego.route.fork
+    new = next(r for r in candidate_routes(start, intersection)
+           if intersection.routes[r].fork != ego_fork)  # fmt: skip
+    return [start, extend_testcase(start, [new], seed=0, budget=120).testcase]
+
+
+@functools.cache
+def every_exported_case() -> list[TestCase]:
+    """Every level of every example, a queue (a new car ahead of the ego at an all-way
+    stop), and two real-map chains: Town05's four-arm junction 396 as an all-way stop, and
+    Town07's Y 358, whose short fork lanes put the default start inside the junction
+    before it. Made once per test run (the export tests share them)."""
+    from tests.conftest import TOWN05, TOWN07
+
+    cases = [level for example in EXAMPLES.values() for level in run_example(example)]
+    queue = new_testcase("4way-stop", "E2C_0:C2N_0", duration=45.0, name="queue")
+    cases.append(extend_testcase(queue, ["E2C_0:C2W_0"], seed=0, budget=120).testcase)
+    cases += _real_map_chain(TOWN05, "396", "allway_stop", "-44_1:-9_1")
+    cases += _real_map_chain(TOWN07, "358", "right_before_left", "-40_0:35_0")
+    return cases

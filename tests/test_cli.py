@@ -456,6 +456,24 @@ def test_export_writes_a_bundle(tmp_path: Path) -> None:
     assert "python run.py --controller sumo" in result.stderr
 
 
+def test_export_writes_openscenario(tmp_path: Path) -> None:
+    testcase = tmp_path / "left.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0
+    result = run("export", str(testcase), "--format", "openscenario", "-o", str(tmp_path / "o"))
+    assert result.returncode == 0, result.stderr
+    # an ego-only test-case has no certificates: no certificate scenarios
+    written = {Path(line).name for line in result.stdout.splitlines()}
+    assert written == {"testcase.xodr", "testcase.xosc", "verdict-rules.md"}
+    assert "esmini" in result.stderr
+    carla = run("export", str(testcase), "--format", "openscenario", "--flavour", "carla",
+                "-o", str(tmp_path / "c"))  # fmt: skip
+    assert carla.returncode == 0, carla.stderr
+    assert 'revMinor="0"' in (tmp_path / "c" / "testcase.xosc").read_text()
+    bad = run("export", str(testcase), "--format", "openscenario", "--flavour", "vtd",
+              "-o", str(tmp_path / "v"))  # fmt: skip
+    assert bad.returncode == 2 and "'asam', 'carla'" in bad.stderr
+
+
 def test_plot_draws_a_testcase_and_an_evaluation(tmp_path: Path) -> None:
     testcase = tmp_path / "left.json"
     assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0

@@ -169,6 +169,22 @@ def bundle(document: str, network_file: Path, cache_dir: Path) -> bytes:
     return memory.getvalue()
 
 
+def openscenario(document: str, network_file: Path, cache_dir: Path, flavour: str) -> bytes:
+    """The OpenSCENARIO export of a test-case as a zip archive: the .xodr, the .xosc files
+    and the verdict rules."""
+    from service.core.openscenario import export_openscenario
+
+    testcase = parse_testcase(document)
+    intersection = load_testcase_intersection(testcase, cache_dir, network_file)
+    memory = io.BytesIO()
+    with tempfile.TemporaryDirectory(prefix="scengen-openscenario-") as folder:
+        written = export_openscenario(testcase, Path(folder), intersection, flavour)
+        with zipfile.ZipFile(memory, "w", zipfile.ZIP_DEFLATED) as archive:
+            for path in sorted(written):
+                archive.write(path, path.name)
+    return memory.getvalue()
+
+
 def plot_testcase(
     document: str,
     network_file: Path,
@@ -221,12 +237,20 @@ def extend_any(
     }
 
 
-def bundles(sources: list[tuple[str, str, Path]], cache_dir: Path) -> bytes:
-    """The SUMO bundles of several test-cases in one zip, a folder per test-case id."""
+def bundles(
+    sources: list[tuple[str, str, Path]], cache_dir: Path, flavour: str | None = None
+) -> bytes:
+    """The SUMO bundles of several test-cases in one zip, a folder per test-case id; with
+    ``flavour``, their OpenSCENARIO exports in that flavour instead."""
     memory = io.BytesIO()
     with zipfile.ZipFile(memory, "w", zipfile.ZIP_DEFLATED) as archive:
         for ident, document, network_file in sources:
-            with zipfile.ZipFile(io.BytesIO(bundle(document, network_file, cache_dir))) as one:
+            content = (
+                bundle(document, network_file, cache_dir)
+                if flavour is None
+                else openscenario(document, network_file, cache_dir, flavour)
+            )
+            with zipfile.ZipFile(io.BytesIO(content)) as one:
                 for name in one.namelist():
                     archive.writestr(f"{ident}/{name}", one.read(name))
     return memory.getvalue()

@@ -140,6 +140,29 @@ def test_extending_is_deterministic(api: httpx.Client, chain: list[dict[str, Any
     assert reply.status_code == 201 and reply.json()["id"] == chain[1]["id"]
 
 
+def test_the_openscenario_export_of_an_uploaded_map(
+    api: httpx.Client, chain: list[dict[str, Any]], tmp_path: Path
+) -> None:
+    leaf = chain[-1]
+    reply = api.get(leaf["links"]["openscenario"])
+    assert reply.status_code == 200 and reply.headers["content-type"] == "application/zip"
+    archive = zipfile.ZipFile(io.BytesIO(reply.content))
+    assert set(archive.namelist()) == {"testcase.xodr", "testcase.xosc", "verdict-rules.md",
+        "testcase.solvability.xosc", "testcase.complexity.xosc"}  # fmt: skip
+    scenario = ET.fromstring(archive.read("testcase.xosc"))
+    assert scenario.find("RoadNetwork/LogicFile").get("filepath") == "testcase.xodr"  # type: ignore[union-attr]
+    first = leaf["testcase"]["nonegos"][0]["trajectory"][0]
+    vertex = next(scenario.iter("Vertex")).find("Position/WorldPosition")
+    assert vertex is not None
+    assert abs(float(vertex.get("x", 0)) - first["x"]) < 1e-3
+    assert abs(float(vertex.get("y", 0)) - first["y"]) < 1e-3
+    carla = api.get(leaf["links"]["openscenario"], params={"flavour": "carla"})
+    network = ET.fromstring(zipfile.ZipFile(io.BytesIO(carla.content)).read("testcase.xosc"))
+    assert network.find("RoadNetwork/LogicFile").get("filepath") == "Town05"  # type: ignore[union-attr]
+    bad = api.get(leaf["links"]["openscenario"], params={"flavour": "vtd"})
+    assert bad.status_code == 422 and "'asam' or 'carla'" in bad.text
+
+
 def test_the_bundle_runs_in_sumo(
     api: httpx.Client, chain: list[dict[str, Any]], tmp_path: Path
 ) -> None:

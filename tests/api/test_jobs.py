@@ -51,6 +51,9 @@ def test_junit_and_bundles(api: httpx.Client, finished: dict[str, Any]) -> None:
     made = [t for item in finished["items"] for t in item["testcases"]]
     assert {name.split("/")[0] for name in archive.namelist()} == set(made)
     assert f"{made[0]}/testcase.sumocfg" in archive.namelist()
+    scenarios = zipfile.ZipFile(io.BytesIO(api.get(finished["links"]["openscenario"]).content))
+    assert {name.split("/")[0] for name in scenarios.namelist()} == set(made)
+    assert {f"{made[0]}/testcase.xosc", f"{made[0]}/testcase.xodr"} <= set(scenarios.namelist())
 
 
 def test_the_same_idempotency_key_gives_the_same_job(api: httpx.Client) -> None:
@@ -145,6 +148,7 @@ def test_submit_waits_and_downloads(server: Server, tmp_path: Path) -> None:
     made = [t for item in job["items"] for t in item["testcases"]]
     assert sorted(p.stem for p in (tmp_path / "results" / "testcases").iterdir()) == sorted(made)
     assert (tmp_path / "results" / "bundles.zip").stat().st_size > 10_000
+    assert (tmp_path / "results" / "openscenario.zip").stat().st_size > 10_000
     assert ET.parse(tmp_path / "report.xml").getroot().tag == "testsuites"
 
 

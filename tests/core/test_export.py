@@ -12,7 +12,6 @@ from pathlib import Path
 
 import pytest
 
-from service.core.chain import candidate_routes
 from service.core.check import check_testcase
 from service.core.check import testcase_label as label_of
 from service.core.controllers import BUILT_IN
@@ -25,9 +24,7 @@ from service.core.sumo_binaries import sumo_binary
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase, read_testcase
 from service.core.trajectory import read_trajectory
 from service.core.verdict import Verdict
-from service.examples import EXAMPLES, run_example
-from tests.conftest import TOWN05, TOWN07
-from tests.helpers import retime, with_nonegos
+from tests.helpers import every_exported_case, retime, with_nonegos
 
 
 @pytest.fixture(scope="module")
@@ -90,28 +87,9 @@ def test_the_bundle_run_gets_the_in_service_verdict(bundle_run: Path, four_way: 
     assert from_bundle.goal_reached == in_service.goal_reached
 
 
-def _real_map_chain(network: Path, junction: str, control: str, ego: str) -> list[TestCase]:
-    """An ego-only test-case on a CARLA map at the default start, and one extension."""
-    start = new_testcase(network, ego, junction=junction, control=control, duration=25.0)
-    intersection = load_testcase_intersection(start)
-    ego_fork = start.ego.route.fork
-    new = next(r for r in candidate_routes(start, intersection)
-           if intersection.routes[r].fork != ego_fork)  # fmt: skip
-    return [start, extend_testcase(start, [new], seed=0, budget=120).testcase]
-
-
 @pytest.fixture(scope="module")
 def every_case() -> list[TestCase]:
-    """Every level of every example, a queue (a new car ahead of the ego at an all-way
-    stop), and two real-map chains: Town05's four-arm junction 396 as an all-way stop, and
-    Town07's Y 358, whose short fork lanes put the default start inside the junction
-    before it."""
-    cases = [level for example in EXAMPLES.values() for level in run_example(example)]
-    queue = new_testcase("4way-stop", "E2C_0:C2N_0", duration=45.0, name="queue")
-    cases.append(extend_testcase(queue, ["E2C_0:C2W_0"], seed=0, budget=120).testcase)
-    cases += _real_map_chain(TOWN05, "396", "allway_stop", "-44_1:-9_1")
-    cases += _real_map_chain(TOWN07, "358", "right_before_left", "-40_0:35_0")
-    return cases
+    return every_exported_case()
 
 
 RUN_EVERY_CONTROLLER = """

@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import time
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Header, Query, Response, status
 from fastapi.responses import Response as PlainResponse
@@ -56,7 +56,12 @@ def job_public(state: AppState, job: JobRecord) -> JobPublic:
             )
             for i in job.items
         ],
-        links=Links(self=base, junit=f"{base}/junit", bundles=f"{base}/bundles"),
+        links=Links(
+            self=base,
+            junit=f"{base}/junit",
+            bundles=f"{base}/bundles",
+            openscenario=f"{base}/openscenario",
+        ),
     )
 
 
@@ -192,6 +197,15 @@ async def get_job_junit(state: State, job: str) -> Response:
     return Response(await asyncio.to_thread(report), media_type="application/xml")
 
 
+def _made_by(state: State, job: str) -> list[tuple[str, str, Any]]:
+    """Every test-case the job made: id, document, network file."""
+    found = _job_or_404(state, job)
+    records = [
+        r for i in found.items for r in map(state.store.testcase, i.testcases) if r is not None
+    ]
+    return [(r.id, r.document, state.store.network_file_for(r.testcase)) for r in records]
+
+
 @router.get(
     "/{job}/bundles",
     operation_id="get_job_bundles",
@@ -204,14 +218,7 @@ async def get_job_junit(state: State, job: str) -> Response:
 async def get_job_bundles(state: State, job: str) -> Response:
     """A zip with the SUMO bundle of every test-case the job made, one folder each."""
 
-    def sources() -> list[tuple[str, str, Any]]:
-        found = _job_or_404(state, job)
-        records = [
-            r for i in found.items for r in map(state.store.testcase, i.testcases) if r is not None
-        ]
-        return [(r.id, r.document, state.store.network_file_for(r.testcase)) for r in records]
-
-    listed = await asyncio.to_thread(sources)
+    listed = await asyncio.to_thread(_made_by, state, job)
     content = await state.run(
         "bundles", tasks.bundles, (listed, state.cache_dir),
         state.settings.work_budget, time.monotonic(),
@@ -220,4 +227,35 @@ async def get_job_bundles(state: State, job: str) -> Response:
         content,
         media_type="application/zip",
         headers={"Content-Disposition": f'attachment; filename="job-{job}.zip"'},
+    )
+
+
+@router.get(
+    "/{job}/openscenario",
+    operation_id="get_job_openscenario",
+    response_class=PlainResponse,
+    responses={
+        200: {"content": {"application/zip": {}}, "description": "the OpenSCENARIO exports"},
+        **documented(*WORK_PROBLEMS),
+    },
+)
+async def get_job_openscenario(
+    state: State,
+    job: str,
+    flavour: Annotated[
+        Literal["asam", "carla"], Query(description="asam (default) or carla")
+    ] = "asam",
+) -> Response:
+    """A zip with the OpenSCENARIO export (`GET /testcases/{id}/openscenario`) of every
+    test-case the job made, one folder each."""
+
+    listed = await asyncio.to_thread(_made_by, state, job)
+    content = await state.run(
+        "openscenario", tasks.bundles, (listed, state.cache_dir, flavour),
+        state.settings.work_budget, time.monotonic(),
+    )  # fmt: skip
+    return Response(
+        content,
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="job-{job}-openscenario.zip"'},
     )

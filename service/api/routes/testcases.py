@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 import time
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.responses import JSONResponse
@@ -29,6 +29,8 @@ from service.core.testcase import NetworkRef, check_samples, parse_testcase
 from service.jobs import tasks
 from service.store import TestCaseRecord
 
+Flavour = Literal["asam", "carla"]
+
 router = APIRouter(prefix="/testcases", tags=["testcases"], route_class=OffLoopValidation)
 
 
@@ -39,6 +41,7 @@ def links(record: TestCaseRecord) -> Links:
         self=base,
         document=f"{base}/document",
         bundle=f"{base}/bundle",
+        openscenario=f"{base}/openscenario",
         plot=f"{base}/plot",
         lineage=f"{base}/lineage",
         evaluations=f"/evaluations?testcase={record.id}",
@@ -217,6 +220,52 @@ async def get_bundle(state: State, testcase: str) -> Response:
         content,
         media_type="application/zip",
         headers={"Content-Disposition": f'attachment; filename="{record.id}.zip"'},
+    )
+
+
+@router.get(
+    "/{testcase}/openscenario",
+    operation_id="get_openscenario",
+    response_class=Response,
+    responses={
+        200: {
+            "content": {"application/zip": {}},
+            "description": "testcase.xodr, testcase.xosc, one .xosc per certificate, "
+            "verdict-rules.md",
+        },
+        **documented(*WORK_PROBLEMS),
+    },
+)
+async def get_openscenario(
+    state: State,
+    testcase: str,
+    flavour: Annotated[
+        Flavour,
+        Query(
+            description="asam: OpenSCENARIO 1.2, a vertex per time step; carla: 1.0 for "
+            "CARLA's ScenarioRunner, 20 Hz vertices, the CARLA town by name"
+        ),
+    ] = "asam",
+) -> Response:
+    """The ASAM OpenSCENARIO XML export on an ASAM OpenDRIVE network, as a zip: the non-egos
+    on their trajectories, the ego (`type = ego_vehicle`) left to the system under test."""
+    record = state.testcase_or_404(testcase)
+    loaded = record.testcase
+    content = await cached(
+        state,
+        f"testcases/{record.id}/openscenario-{flavour}.zip",
+        lambda: state.run(
+            "openscenario",
+            tasks.openscenario,
+            (record.document, state.store.network_file_for(loaded), state.cache_dir, flavour),
+            state.settings.work_budget,
+            time.monotonic(),
+        ),
+    )
+    return Response(
+        content,
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="{record.id}-openscenario.zip"'},
     )
 
 

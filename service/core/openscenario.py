@@ -1,0 +1,348 @@
+"""Export a test-case as ASAM OpenSCENARIO XML on an ASAM OpenDRIVE road network.
+
+The folder holds:
+
+- ``testcase.xodr``: the junction's network (the one SUMO runs, with the control override
+  applied) written by ``netconvert --opendrive-output``. netconvert keeps SUMO's network
+  coordinates (the network offset already applied), so a SUMO x, y is an OpenDRIVE x, y;
+  the header's ``<offset>`` (OpenDRIVE 1.5, the negated netOffset) leads back to the
+  projected coordinates of the map, so the file is declared OpenDRIVE 1.5.
+- ``testcase.xosc``: every non-ego follows its trajectory (``FollowTrajectoryAction`` over
+  a time-stamped ``Polyline`` of ``WorldPosition`` vertices, one per time step, absolute
+  time, ``followingMode="position"``), placed at its first pose by a ``TeleportAction``;
+  the ego (``type = ego_vehicle``, the convention of CARLA's ScenarioRunner) is teleported
+  to its start with its start speed and gets its route, and no trajectory: the system
+  under test drives it. The scenario stops at the duration.
+- ``testcase.solvability.xosc`` and ``testcase.complexity.xosc`` (when the test-case has
+  certificates): the same scenario with the ego following that certificate.
+- ``verdict-rules.md``: the pass-fail criteria that scengen applies (OpenSCENARIO cannot
+  state right-of-way criteria).
+
+Conventions: a vehicle's reference point is the centre of its footprint (its bounding box
+is centred on it), where scengen's samples are; heading h = radians(90 - SUMO angle), SUMO's
+angle being degrees clockwise from north and OpenSCENARIO's heading radians counter-clockwise
+from the x axis.
+
+The CARLA flavour (``flavour="carla"``) writes OpenSCENARIO 1.0 (what ScenarioRunner reads),
+one vertex every 0.05 s (CARLA's 20 Hz), and names the CARLA town as the road network when
+the test-case's network is one (ScenarioRunner loads the town by name, not the file).
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+import re
+import subprocess
+import tempfile
+from collections.abc import Sequence
+from pathlib import Path
+
+from scenariogeneration import xosc
+from shapely.geometry import LineString
+
+from service.core.errors import InvalidInput, NetworkBuildFailed
+from service.core.network import Intersection
+from service.core.network.override import NETCONVERT_BUDGET
+from service.core.poses import _approach_line, _cached_network, interpolate_heading
+from service.core.sumo_binaries import sumo_binary
+from service.core.sumo_run import front_to_centre
+from service.core.testcase import Sample, TestCase, load_testcase_intersection
+
+NAME = "testcase"
+FLAVOURS = ("asam", "carla")
+CARLA_STEP = 0.05  # s: CARLA's fixed 20 Hz
+HEIGHT = 1.5  # m: a car's height (scengen has none)
+CREATED = datetime.datetime(2026, 1, 1)  # a fixed header date: the same test-case, the same bytes
+RULES_FILE = "verdict-rules.md"
+_COMMENT = re.compile(r"<!--.*?-->\s*", re.DOTALL)
+
+
+def heading_of(angle: float) -> float:
+    """OpenSCENARIO's heading (radians counter-clockwise from the x axis, in [0, 2 pi)) of
+    SUMO's angle (degrees clockwise from north)."""
+    return math.radians((90.0 - angle) % 360.0)
+
+
+def angle_of(heading: float) -> float:
+    """The inverse of ``heading_of``: SUMO's angle in [0, 360)."""
+    return (90.0 - math.degrees(heading)) % 360.0
+
+
+def opendrive_text(intersection: Intersection) -> str:
+    """The junction's network as OpenDRIVE, by netconvert (its generated-by comment, which
+    names a temporary path and the time, left out)."""
+    with tempfile.TemporaryDirectory() as work:
+        output = Path(work) / f"{NAME}.xodr"
+        command = [
+            sumo_binary("netconvert"),
+            "--sumo-net-file", str(intersection.network_file),
+            "--opendrive-output", str(output),
+            "--no-warnings", "true",
+        ]  # fmt: skip
+        try:
+            result = subprocess.run(
+                command, capture_output=True, text=True, timeout=NETCONVERT_BUDGET, check=False
+            )
+        except subprocess.TimeoutExpired as exc:
+            raise NetworkBuildFailed(
+                f"netconvert did not write OpenDRIVE within {NETCONVERT_BUDGET:.0f} s",
+                junction=intersection.junction,
+            ) from exc
+        if result.returncode != 0 or not output.exists():
+            detail = (result.stderr or result.stdout).strip().splitlines()[-1:] or ["no output"]
+            raise NetworkBuildFailed(
+                f"netconvert could not write OpenDRIVE: {detail[0]}",
+                junction=intersection.junction,
+            )
+        text = _COMMENT.sub("", output.read_text(), count=1)
+    # netconvert declares OpenDRIVE 1.4 but writes 1.5's <offset> (where the network has an
+    # offset): the file is valid 1.5 either way
+    text = re.sub(r'<header revMajor="1" revMinor="4"', '<header revMajor="1" revMinor="5"', text)
+    return re.sub(r' date="[^"]*"', f' date="{CREATED.isoformat()}"', text, count=1)
+
+
+def _world(x: float, y: float, angle: float) -> xosc.WorldPosition:
+    return xosc.WorldPosition(x=round(x, 4), y=round(y, 4), z=0.0, h=round(heading_of(angle), 6))
+
+
+def _vehicle(testcase: TestCase, name: str, length: float, width: float) -> xosc.Vehicle:
+    params = testcase.params
+    box = xosc.BoundingBox(width, length, HEIGHT, 0.0, 0.0, HEIGHT / 2)
+    axle = 0.3 * length  # axles either side of the footprint's centre, the reference point
+    front = xosc.Axle(0.5, 0.6, width - 0.2, axle, 0.3)
+    rear = xosc.Axle(0.0, 0.6, width - 0.2, -axle, 0.3)
+    return xosc.Vehicle(
+        name, xosc.VehicleCategory.car, box, front, rear,
+        params.v_max, params.a_max, -params.a_min,
+    )  # fmt: skip
+
+
+def _resampled(samples: Sequence[Sample], step: float | None) -> list[Sample]:
+    """``samples`` at every ``step`` seconds from the first (linear in position and speed,
+    heading the short way round); all of them when ``step`` is None."""
+    if step is None:
+        return list(samples)
+    out, k, j = [], 0, 0
+    end = samples[-1].t
+    while (t := samples[0].t + k * step) <= end + 1e-9:
+        while j + 1 < len(samples) - 1 and samples[j + 1].t <= t:
+            j += 1
+        a, b = samples[j], samples[min(j + 1, len(samples) - 1)]
+        share = 0.0 if b.t == a.t else min(1.0, max(0.0, (t - a.t) / (b.t - a.t)))
+        out.append(
+            Sample(
+                t=round(t, 6),
+                x=a.x + share * (b.x - a.x),
+                y=a.y + share * (b.y - a.y),
+                heading=interpolate_heading(a.heading, b.heading, share),
+                speed=a.speed + share * (b.speed - a.speed),
+                distance=a.distance + share * (b.distance - a.distance),
+            )
+        )
+        k += 1
+    return out
+
+
+def _follow(name: str, samples: Sequence[Sample], step: float | None, minor: int) -> xosc.Event:
+    """An event that makes its actor follow ``samples`` from simulation time 0."""
+    vertices = _resampled(samples, step)
+    polyline = xosc.Polyline(
+        [round(s.t, 6) for s in vertices], [_world(s.x, s.y, s.heading) for s in vertices]
+    )
+    trajectory = xosc.Trajectory(f"{name}_trajectory", False)
+    trajectory.add_shape(polyline)
+    action = xosc.FollowTrajectoryAction(
+        trajectory, xosc.FollowingMode.position, xosc.ReferenceContext.absolute, 1, 0
+    )
+    priority = xosc.Priority.override if minor >= 2 else xosc.Priority.overwrite
+    event = xosc.Event(f"{name}_follows", priority)
+    event.add_action(f"{name}_follow_trajectory", action)
+    event.add_trigger(_starts_now(f"{name}_at_the_start", minor))
+    return event
+
+
+def _starts_now(name: str, minor: int) -> xosc.ValueTrigger:
+    rule = xosc.Rule.greaterOrEqual if minor >= 2 else xosc.Rule.greaterThan
+    return xosc.ValueTrigger(
+        name, 0, xosc.ConditionEdge.none, xosc.SimulationTimeCondition(0, rule)
+    )
+
+
+def _ego_start(testcase: TestCase, intersection: Intersection) -> tuple[float, float, float]:
+    """The ego's start pose (centre x, y and SUMO angle): the front bumper at its start
+    distance before the line, where the checker expects it; the heading, as SUMO's, from
+    the rear bumper to the front one along the road (the chord on a curve)."""
+    ego = testcase.ego
+    route = intersection.route(ego.route.id)
+    line = _approach_line(intersection, route, ego.start.distance + ego.length + 1.0)
+    if line.length < ego.start.distance:
+        raise InvalidInput(
+            f"the ego's start distance {ego.start.distance:g} m is longer than the road "
+            f"before fork {route.fork!r} ({line.length:.1f} m)"
+        )
+    at = line.length - ego.start.distance
+    front = line.interpolate(at)
+    rear = line.interpolate(max(0.0, at - ego.length))
+    if front.distance(rear) < 0.1:  # no road behind the start: the direction there
+        rear, front_ahead = front, line.interpolate(min(line.length, at + 0.5))
+        angle = math.degrees(math.atan2(front_ahead.x - rear.x, front_ahead.y - rear.y))
+    else:
+        angle = math.degrees(math.atan2(front.x - rear.x, front.y - rear.y))
+    x, y = front_to_centre(front.x, front.y, angle % 360.0, ego.length)
+    return x, y, angle % 360.0
+
+
+def _ego_route(
+    testcase: TestCase, intersection: Intersection, start: xosc.WorldPosition
+) -> xosc.Route:
+    """The ego's route from its start through the junction to the end of its exit lane."""
+    path = intersection.network_file
+    net = _cached_network(str(path), path.stat().st_mtime)
+    exit_lane = net.getLane(intersection.route(testcase.ego.route.id).exit)
+    shape = LineString(exit_lane.getShape())
+    end, before = shape.coords[-1], shape.interpolate(max(0.0, shape.length - 1.0))
+    angle = math.degrees(math.atan2(end[0] - before.x, end[1] - before.y)) % 360.0
+    route = xosc.Route(f"ego_route_{testcase.ego.route.id.replace(':', '_to_')}", False)
+    route.add_waypoint(start, xosc.RouteStrategy.shortest)
+    route.add_waypoint(_world(end[0], end[1], angle), xosc.RouteStrategy.shortest)
+    return route
+
+
+def _network_file(testcase: TestCase, flavour: str) -> str:
+    town = re.match(r"Town\d+(?:HD)?(?:_Opt)?(?![A-Za-z0-9])", Path(testcase.network.ref).name)
+    if flavour == "carla" and town:  # Town05.net.xml, an upload Town05-1a2b...
+        return town.group(0)  # ScenarioRunner loads CARLA's map by its name
+    return f"{NAME}.xodr"
+
+
+def scenario(
+    testcase: TestCase,
+    intersection: Intersection,
+    flavour: str = "asam",
+    certificate: str | None = None,
+) -> xosc.Scenario:
+    """The test-case as an OpenSCENARIO scenario; with ``certificate`` ("solvability" or
+    "complexity"), the ego follows that certificate instead of being left to the system
+    under test."""
+    if flavour not in FLAVOURS:
+        raise InvalidInput(f"unknown OpenSCENARIO flavour {flavour!r}; choose one of {FLAVOURS}")
+    minor = 0 if flavour == "carla" else 2
+    step = CARLA_STEP if flavour == "carla" else None
+    entities = xosc.Entities()
+    init = xosc.Init()
+    ego = testcase.ego
+    ego_vehicle = _vehicle(testcase, "ego_vehicle", ego.length, ego.width)
+    if certificate is None:
+        ego_vehicle.add_property("type", "ego_vehicle")
+    else:
+        ego_vehicle.add_property("scengen_certificate", certificate)
+    entities.add_scenario_object("ego", ego_vehicle)
+    x, y, angle = _ego_start(testcase, intersection)
+    start = _world(x, y, angle)
+    init.add_init_action("ego", xosc.TeleportAction(start))
+    init.add_init_action(
+        "ego",
+        xosc.AbsoluteSpeedAction(
+            ego.start.speed,
+            xosc.TransitionDynamics(xosc.DynamicsShapes.step, xosc.DynamicsDimension.time, 0),
+        ),
+    )
+    init.add_init_action("ego", xosc.AssignRouteAction(_ego_route(testcase, intersection, start)))
+
+    followers: list[tuple[str, Sequence[Sample]]] = []
+    for car in testcase.nonegos:
+        entities.add_scenario_object(car.id, _vehicle(testcase, car.id, car.length, car.width))
+        first = car.trajectory[0]
+        init.add_init_action(car.id, xosc.TeleportAction(_world(first.x, first.y, first.heading)))
+        followers.append((car.id, car.trajectory))
+    if certificate is not None:
+        if testcase.certificates is None:
+            raise InvalidInput("the test-case has no certificates (an ego-only test-case)")
+        followers.append(("ego", getattr(testcase.certificates, certificate)))
+
+    stop = xosc.ValueTrigger(
+        "duration_reached", 0, xosc.ConditionEdge.none,
+        xosc.SimulationTimeCondition(testcase.duration, xosc.Rule.greaterThan),
+        "stop",
+    )  # fmt: skip
+    storyboard = xosc.StoryBoard(init, stop)
+    if followers:
+        act = xosc.Act("trajectories", _starts_now("at_the_start", minor))
+        for name, samples in followers:
+            maneuver = xosc.Maneuver(f"{name}_maneuver")
+            maneuver.add_event(_follow(name, samples, step, minor))
+            group = xosc.ManeuverGroup(f"{name}_group")
+            group.add_actor(name)
+            group.add_maneuver(maneuver)
+            act.add_maneuver_group(group)
+        story = xosc.Story("scengen")
+        story.add_act(act)
+        storyboard.add_story(story)
+    description = f"scengen test-case {testcase.name or testcase.junction}" + (
+        f", the ego on its {certificate} certificate" if certificate else ""
+    )
+    return xosc.Scenario(
+        description,
+        "scengen",
+        xosc.ParameterDeclarations(),
+        entities,
+        storyboard,
+        xosc.RoadNetwork(_network_file(testcase, flavour)),
+        xosc.Catalog(),
+        osc_minor_version=minor,
+        creation_date=CREATED,
+    )
+
+
+def rules_text(testcase: TestCase) -> str:
+    """The side file: what scengen judges and OpenSCENARIO cannot say."""
+    p = testcase.params
+    return f"""# Pass-fail criteria of this test-case (scengen)
+
+OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the run at
+{testcase.duration:g} s. scengen judges the ego's trajectory (`scengen check testcase.json
+--ego TRAJECTORY`) with these criteria; the ego passes when all of them hold:
+
+- it reaches its exit lane (route `{testcase.ego.route.id}`) within {testcase.duration:g} s;
+- it collides with no other car (footprints of {testcase.ego.length:g} m x
+  {testcase.ego.width:g} m for the ego, the non-egos' own sizes);
+- it obeys the traffic rules of `{testcase.rules}` at junction `{testcase.junction}`
+  (control `{testcase.control}`): the California Vehicle Code as scengen reads it
+  (README, "Traffic rules"): stop at the limit line where there is a stop sign (22450(a)),
+  yield to the cars that arrived first at an all-way stop (21800), to traffic on the
+  through road at a two-way stop (21802), to the right at an uncontrolled junction (21800);
+- parameters: minimum perceptible time difference m = {p.m:g} s, stopped at or below
+  {p.v_stop:g} m/s, running a sign at or above {p.v_run:g} m/s, arrival within
+  {p.arrival_distance:g} m of the line, speed limit {p.v_max:g} m/s, following gap
+  {p.gap:g} m plus {p.headway:g} s of headway.
+
+Coordinates: SUMO's network coordinates (the OpenDRIVE file's), a vehicle's reference
+point at the centre of its footprint, headings in radians counter-clockwise from the x
+axis. Run the trajectory of your player back through `scengen check` as SUMO FCD, CSV or
+JSON (README, `scengen check`).
+"""
+
+
+def export_openscenario(
+    testcase: TestCase,
+    folder: Path,
+    intersection: Intersection | None = None,
+    flavour: str = "asam",
+) -> list[Path]:
+    """Write the OpenSCENARIO files of ``testcase`` into ``folder``; the files written."""
+    if flavour not in FLAVOURS:
+        raise InvalidInput(f"unknown OpenSCENARIO flavour {flavour!r}; choose one of {FLAVOURS}")
+    junction = intersection or load_testcase_intersection(testcase)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [folder / f"{NAME}.xodr"]
+    written[0].write_text(opendrive_text(junction))
+    variants: list[tuple[str, str | None]] = [(f"{NAME}.xosc", None)]
+    if testcase.certificates is not None:
+        variants += [(f"{NAME}.{kind}.xosc", kind) for kind in ("solvability", "complexity")]
+    for name, certificate in variants:
+        scenario(testcase, junction, flavour, certificate).write_xml(str(folder / name))
+        written.append(folder / name)
+    (folder / RULES_FILE).write_text(rules_text(testcase))
+    written.append(folder / RULES_FILE)
+    return written
