@@ -353,7 +353,7 @@ def _intersection(
     try:
         path, how = find_network_file(testcase, args.network, near)
     except UnknownNetwork as error:
-        if args.network is not None or testcase.network.ref.endswith(".net.xml"):
+        if args.network is not None or testcase.network.ref.endswith((".net.xml", ".xodr", ".osm")):
             raise
         raise UnknownNetwork(
             f"{error}; a test-case from a server names the server's network id: pass the "
@@ -368,7 +368,9 @@ def _network_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "network",
         metavar="NET",
-        help=f"bundled network ({', '.join(bundled_networks())}) or a .net.xml",
+        help=f"bundled network ({', '.join(bundled_networks())}), a SUMO .net.xml, or a map "
+        "netconvert converts: OpenDRIVE .xodr, OpenStreetMap .osm (lane ids that start with "
+        "'-', as OpenDRIVE's right lanes do, go after '=': --ego=-5_0:-7_0)",
     )
     parser.add_argument(
         "--junction",

@@ -45,6 +45,18 @@ networks = sa.Table(
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
 )
 
+# The original file of a network imported from another format (the network itself is
+# the converted .net.xml, in networks)
+network_sources = sa.Table(
+    "network_sources",
+    metadata,
+    sa.Column("id", sa.String(80), primary_key=True),  # the network's id
+    sa.Column("filename", sa.String(255), nullable=False),
+    sa.Column("format", sa.String(20), nullable=False),  # opendrive | openstreetmap
+    sa.Column("sha256", sa.String(64), nullable=False),
+    sa.Column("content", sa.LargeBinary, nullable=False),
+)
+
 testcases = sa.Table(
     "testcases",
     metadata,
@@ -108,6 +120,7 @@ class NetworkRecord:
     size: int
     created_at: datetime | None  # None for a bundled network
     bundled: bool
+    source: dict[str, str] | None = None  # imported: format, filename, sha256 of the original
 
 
 @dataclass(frozen=True)
@@ -167,9 +180,17 @@ class Store:
 
     # networks
 
-    def add_network(self, filename: str, content: bytes, controls: dict[str, str]) -> NetworkRecord:
-        """Store an uploaded network (idempotent: the same bytes and overrides, the same id)."""
-        ident = network_id(filename, content, controls)
+    def add_network(
+        self,
+        filename: str,
+        content: bytes,
+        controls: dict[str, str],
+        source: tuple[str, str, bytes] | None = None,
+    ) -> NetworkRecord:
+        """Store an uploaded network (idempotent: the same bytes and overrides, the same id).
+        ``source``: the format, file name and bytes of the map it was converted from; the id
+        is then made from those bytes."""
+        ident = network_id(*(source[1:] if source else (filename, content)), controls)
         existing = self.network(ident)
         if existing is not None:
             return existing
@@ -185,6 +206,14 @@ class Store:
         try:
             with self.engine.begin() as connection:
                 connection.execute(networks.insert().values(**row))
+                if source is not None:
+                    kind, name, original = source
+                    connection.execute(
+                        network_sources.insert().values(
+                            id=ident, filename=Path(name).name[:255], format=kind,
+                            sha256=hashlib.sha256(original).hexdigest(), content=original,
+                        )
+                    )  # fmt: skip
         except sa.exc.IntegrityError:
             pass  # uploaded concurrently: the same bytes and overrides, the same network
         found = self.network(ident)
@@ -199,13 +228,34 @@ class Store:
         columns = [c for c in networks.c if c.name != "content"]
         with self.engine.connect() as connection:
             row = connection.execute(sa.select(*columns).where(networks.c.id == ident)).first()
-        return None if row is None else _network_record(row._mapping)
+            source = connection.execute(
+                sa.select(network_sources.c.format, network_sources.c.filename,
+                          network_sources.c.sha256).where(network_sources.c.id == ident)
+            ).first()  # fmt: skip
+        return None if row is None else _network_record(row._mapping, source)
+
+    def network_source(self, ident: str) -> tuple[str, bytes] | None:
+        """The original file (name, bytes) of an imported network, or None."""
+        with self.engine.connect() as connection:
+            row = connection.execute(
+                sa.select(network_sources.c.filename, network_sources.c.content).where(
+                    network_sources.c.id == ident
+                )
+            ).first()
+        return None if row is None else (row.filename, row.content)
 
     def list_networks(self) -> list[NetworkRecord]:
         columns = [c for c in networks.c if c.name != "content"]
         with self.engine.connect() as connection:
             rows = connection.execute(sa.select(*columns).order_by(networks.c.created_at))
-            uploaded = [_network_record(row._mapping) for row in rows]
+            sources = {
+                row.id: row
+                for row in connection.execute(
+                    sa.select(network_sources.c.id, network_sources.c.format,
+                              network_sources.c.filename, network_sources.c.sha256)
+                )
+            }  # fmt: skip
+            uploaded = [_network_record(row._mapping, sources.get(row.id)) for row in rows]
         bundled = [_bundled_record(name, path) for name, path in bundled_networks().items()]
         return bundled + uploaded
 
@@ -262,6 +312,7 @@ class Store:
     def delete_network(self, ident: str) -> None:
         with self.engine.begin() as connection:
             connection.execute(networks.delete().where(networks.c.id == ident))
+            connection.execute(network_sources.delete().where(network_sources.c.id == ident))
 
     # test-cases
 
@@ -412,7 +463,7 @@ def _bundled_record(name: str, path: Path) -> NetworkRecord:
     return NetworkRecord(name, path.name, file_sha256(path), {}, path.stat().st_size, None, True)
 
 
-def _network_record(row: Any) -> NetworkRecord:
+def _network_record(row: Any, source: Any = None) -> NetworkRecord:
     return NetworkRecord(
         row["id"],
         row["filename"],
@@ -421,6 +472,9 @@ def _network_record(row: Any) -> NetworkRecord:
         row["size"],
         utc(row["created_at"]),
         False,
+        None
+        if source is None
+        else {"format": source.format, "filename": source.filename, "sha256": source.sha256},
     )
 
 

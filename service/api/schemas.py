@@ -60,6 +60,12 @@ class NetworkPublic(BaseModel):
     size: int = Field(description="bytes")
     bundled: bool
     controls: dict[str, str] = Field(description="junction -> control type overridden at upload")
+    source: dict[str, str] | None = Field(
+        None,
+        description="where an imported network came from: format (opendrive or openstreetmap), "
+        "filename and sha256 of the original file (GET /networks/{id}/source); the network "
+        "itself is netconvert's conversion",
+    )
     created_at: datetime | None
     links: Links
 

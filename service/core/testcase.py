@@ -31,6 +31,7 @@ from service.core.network import (
     load_intersection,
     resolve_network,
 )
+from service.core.network.convert import convert_network, source_format
 from service.core.poses import plan_drive
 
 SCHEMA = "scengen/testcase/1"
@@ -324,7 +325,8 @@ def network_ref(network: str | Path) -> NetworkRef:
         return NetworkRef(ref=name, sha256=digest)
     _READ_FROM[digest] = path
     given = Path(network)
-    return NetworkRef(ref=path.name if given.is_absolute() else given.as_posix(), sha256=digest)
+    named = given if source_format(given) else path  # an imported map: its own name
+    return NetworkRef(ref=named.name if given.is_absolute() else given.as_posix(), sha256=digest)
 
 
 def local_network_name(ref: str) -> str:
@@ -351,6 +353,8 @@ def find_network_file(
         candidates = []
         if near is not None:
             candidates.append((near / local_network_name(ref), "next to the test-case"))
+            if source_format(ref):  # the map itself, converted again
+                candidates.append((near / PurePosixPath(ref).name, "next to the test-case"))
         candidates.append((Path(ref), "as named"))
         if digest in _READ_FROM:
             candidates.append((_READ_FROM[digest], "read before by this process"))
@@ -358,7 +362,8 @@ def find_network_file(
     for path, how in candidates:  # next to the test-case and as named can be one place
         unique.setdefault(path.resolve(), (path, how))
     candidates = list(unique.values())
-    present = [(path, how) for path, how in candidates if path.is_file()]
+    # an OpenDRIVE or OpenStreetMap map is compared as the network it converts to
+    present = [(_as_network(path), how) for path, how in candidates if path.is_file()]
     for path, how in present:
         if file_sha256(path) == digest:
             return path.resolve(), how
@@ -374,6 +379,10 @@ def find_network_file(
         "pass its file with --network FILE",
         network=ref,
     )
+
+
+def _as_network(path: Path) -> Path:
+    return convert_network(path.resolve()) if source_format(path) else path
 
 
 def new_testcase(

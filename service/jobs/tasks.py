@@ -59,6 +59,15 @@ def check_controls(network_file: Path, controls: dict[str, str], cache_dir: Path
         load_intersection(network_file, junction, control, cache_dir)
 
 
+def convert_upload(source: Path, controls: dict[str, str], cache_dir: Path) -> bytes:
+    """The SUMO network of an uploaded .xodr or .osm file, after ``check_controls`` on it."""
+    from service.core.network.convert import convert_network
+
+    converted = convert_network(source, cache_dir)
+    check_controls(converted, controls, cache_dir)
+    return converted.read_bytes()
+
+
 def describe_junction(
     network_file: Path, junction: str | None, control: str | None, cache_dir: Path
 ) -> dict[str, Any]:

@@ -163,6 +163,53 @@ def test_the_openscenario_export_of_an_uploaded_map(
     assert bad.status_code == 422 and "'asam' or 'carla'" in bad.text
 
 
+def test_opendrive_and_openstreetmap_uploads_are_converted_and_extended(
+    api: httpx.Client, tmp_path: Path
+) -> None:
+    """An .xodr (the export of the bundled four-way stop) and an .osm extract: each stored
+    with its original, described, and extended; the extension re-checked here."""
+    from service.core.network import bundled_networks
+    from service.core.openscenario import opendrive_text
+
+    xodr = opendrive_text(load_intersection(bundled_networks()["4way-stop"], "C")).encode()
+    osm = (Path(__file__).parents[1] / "data" / "maps" / "crossing.osm").read_bytes()
+    cases = [("4way.xodr", xodr, "allway_stop", "-54_1:-52_1", "-55_1:-50_1", "opendrive"),
+             ("crossing.osm", osm, "priority_stop", "11_0:10#1_0", "-10#1_0:-10#0_0",
+              "openstreetmap")]  # fmt: skip
+    for filename, content, control, ego, route, kind in cases:
+        reply = api.post(
+            "/networks",
+            files={"file": (filename, content, "application/xml")},
+            data={"controls": json.dumps({"1": control})},
+        )
+        assert reply.status_code == 201, reply.text
+        network = reply.json()
+        assert network["source"]["format"] == kind and network["source"]["filename"] == filename
+        assert network["filename"] == f"{filename}.net.xml"
+        assert api.get(network["links"]["source"]).content == content
+        converted = api.get(network["links"]["file"]).content
+        assert converted.lstrip().startswith(b"<?xml") and b"<net " in converted
+        root = api.post(
+            "/testcases", json={"network": network["id"], "junction": "1", "ego_route": ego}
+        )
+        assert root.status_code == 201, root.text
+        extended = api.post(
+            "/extend", json={"testcase_id": root.json()["id"], "routes": [route], "budget": 60}
+        )
+        assert extended.status_code == 201, extended.text
+        new = parse_testcase(extended.json()["testcase"])
+        assert new.certificates is not None
+        (tmp_path / f"{filename}.net.xml").write_bytes(converted)
+        junction = load_intersection(tmp_path / f"{filename}.net.xml", "1", control)
+        solvable = samples(new.certificates.solvability)
+        assert check_testcase(new, solvable, intersection=junction).passed
+        again = api.post("/networks", files={"file": (filename, content)},
+                          data={"controls": json.dumps({"1": control})})  # fmt: skip
+        assert again.json()["id"] == network["id"]  # the same upload, the same network
+    wrong = api.post("/networks", files={"file": ("x.xodr", b"<net><edge/></net>")})
+    assert wrong.status_code == 422 and "<OpenDRIVE>" in wrong.text
+
+
 def test_the_bundle_runs_in_sumo(
     api: httpx.Client, chain: list[dict[str, Any]], tmp_path: Path
 ) -> None:

@@ -17,9 +17,10 @@ from fastapi.responses import JSONResponse
 from service.api.media import IMAGE_RESPONSES, cached, picture_format
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.schemas import JunctionSummary, Links, NetworkPublic
-from service.api.state import State, Token
+from service.api.state import AppState, State, Token
 from service.core.errors import InvalidInput, UnknownJunction
 from service.core.network import ControlType
+from service.core.network.convert import source_format
 from service.jobs import tasks
 from service.store import NetworkRecord, network_id, safe_filename
 
@@ -42,10 +43,12 @@ def network_public(record: NetworkRecord) -> NetworkPublic:
         bundled=record.bundled,
         controls=record.controls,
         created_at=record.created_at,
+        source=record.source,
         links=Links(
             self=f"/networks/{record.id}",
             file=f"/networks/{record.id}/file",
             junctions=f"/networks/{record.id}/junctions",
+            **({"source": f"/networks/{record.id}/source"} if record.source else {}),
         ),
     )
 
@@ -66,7 +69,10 @@ async def list_networks(state: State) -> list[NetworkPublic]:
 async def upload_network(
     state: State,
     response: Response,
-    file: Annotated[UploadFile, File(description="a SUMO .net.xml")],
+    file: Annotated[
+        UploadFile,
+        File(description="a SUMO .net.xml, an OpenDRIVE .xodr or an OpenStreetMap .osm"),
+    ],
     controls: Annotated[str, Form(description=CONTROLS_FIELD)] = "{}",
 ) -> NetworkPublic:
     """Upload a network, optionally overriding junctions' control types."""
@@ -74,9 +80,12 @@ async def upload_network(
     if len(content) > state.settings.max_upload_bytes:
         raise Problem(413, f"the network exceeds {state.settings.max_upload_mb:g} MB")
     overrides = _parse_controls(controls)
-    await asyncio.to_thread(_check_xml, content)
     filename = file.filename or "network.net.xml"
+    kind = source_format(filename)
+    await asyncio.to_thread(_check_xml, content, kind)
     record = await asyncio.to_thread(state.store.network, network_id(filename, content, overrides))
+    if record is None and kind is not None:
+        record = await _import(state, filename, content, overrides, kind)
     if record is None:
         staged = state.cache_dir / "uploads" / str(time.monotonic_ns()) / safe_filename(filename)
         await asyncio.to_thread(_stage, staged, content)
@@ -94,6 +103,56 @@ async def upload_network(
         record = await asyncio.to_thread(state.store.add_network, filename, content, overrides)
     response.headers["Location"] = f"/networks/{record.id}"
     return network_public(record)
+
+
+async def _import(
+    state: AppState, filename: str, content: bytes, overrides: dict[str, str], kind: str
+) -> NetworkRecord:
+    """Convert an OpenDRIVE or OpenStreetMap upload and store both files."""
+    staged = state.cache_dir / "uploads" / str(time.monotonic_ns()) / Path(filename).name
+    await asyncio.to_thread(_stage, staged, content)
+    try:
+        converted = await state.run(
+            "upload",
+            tasks.convert_upload,
+            (staged, overrides, state.cache_dir),
+            state.settings.work_budget,
+            time.monotonic(),
+        )
+    finally:
+        staged.unlink(missing_ok=True)
+        staged.parent.rmdir()
+    return await asyncio.to_thread(
+        state.store.add_network,
+        f"{Path(filename).name}.net.xml",
+        converted,
+        overrides,
+        (kind, filename, content),
+    )
+
+
+@router.get(
+    "/{network}/source",
+    operation_id="get_network_source",
+    response_class=Response,
+    responses={
+        200: {"content": {"application/xml": {}}, "description": "the .xodr or .osm uploaded"},
+        **documented(404),
+    },
+)
+async def get_network_source(state: State, network: str) -> Response:
+    """The original file of a network imported from OpenDRIVE or OpenStreetMap (its SUMO
+    network, converted by netconvert, is at /networks/{id}/file)."""
+    record = state.network_or_404(network)
+    found = await asyncio.to_thread(state.store.network_source, record.id)
+    if found is None:
+        raise Problem(404, f"network {network!r} was uploaded as a SUMO network, not imported")
+    name, content = found
+    return Response(
+        content,
+        media_type="application/xml",
+        headers={"Content-Disposition": f'attachment; filename="{name}"'},
+    )
 
 
 @router.get("/{network}", operation_id="get_network")
@@ -265,8 +324,12 @@ def _parse_controls(text: str) -> dict[str, str]:
     return dict(value)
 
 
-def _check_xml(content: bytes) -> None:
-    """Parse with entities and DTDs forbidden; the root must be a SUMO <net>."""
+ROOTS = {None: "net", "opendrive": "OpenDRIVE", "openstreetmap": "osm"}
+
+
+def _check_xml(content: bytes, kind: str | None = None) -> None:
+    """Parse with entities and DTDs forbidden; the root must be a SUMO <net> (or, for a
+    map to convert, <OpenDRIVE> or <osm>)."""
     try:
         root = SafeElementTree.fromstring(content, forbid_dtd=True)
     except DefusedXmlException as error:
@@ -275,7 +338,12 @@ def _check_xml(content: bytes) -> None:
         ) from None
     except SafeElementTree.ParseError as error:
         raise Problem(400, f"the network is not well-formed XML: {error}") from None
-    if root.tag != "net":
-        raise InvalidInput(f"the upload's root element is <{root.tag}>, not a SUMO <net>")
-    if root.find("junction") is None or root.find("edge") is None:
+    if root.tag != ROOTS[kind]:
+        what = {None: "a SUMO <net>", "opendrive": "an OpenDRIVE map's <OpenDRIVE>",
+                "openstreetmap": "an OpenStreetMap extract's <osm>"}[kind]  # fmt: skip
+        raise InvalidInput(
+            f"the upload's root element is <{root.tag}>, not {what} (the file name says "
+            "which: .xodr for OpenDRIVE, .osm for OpenStreetMap, else a SUMO .net.xml)"
+        )
+    if kind is None and (root.find("junction") is None or root.find("edge") is None):
         raise InvalidInput("the SUMO <net> has no junctions or edges")

@@ -17,6 +17,7 @@ from service.core.errors import (
     UnsupportedIntersection,
     choices,
 )
+from service.core.network.convert import convert_network, source_format
 from service.core.network.lanes import (
     approach_polyline,
     departure_polyline,
@@ -66,16 +67,17 @@ def bundled_networks() -> dict[str, Path]:
 
 
 def resolve_network(ref: str | Path) -> Path:
-    """A bundled network's short name or a path to a ``.net.xml``, as a path that exists."""
+    """A bundled network's short name or a path to a ``.net.xml``, as a path that exists;
+    a ``.xodr`` or ``.osm`` file is converted first (service.core.network.convert)."""
     bundled = bundled_networks()
     if str(ref) in bundled:
         return bundled[str(ref)]
     path = Path(ref)
     if path.is_file():
-        return path.resolve()
+        return convert_network(path.resolve()) if source_format(path) else path.resolve()
     raise UnknownNetwork(
         f"network {str(ref)!r} is neither a bundled network ({choices(bundled)}) "
-        "nor a readable .net.xml file",
+        "nor a readable .net.xml, .xodr (OpenDRIVE) or .osm (OpenStreetMap) file",
         network=str(ref),
     )
 
