@@ -6,7 +6,8 @@ The folder holds:
   applied) written by ``netconvert --opendrive-output``. netconvert keeps SUMO's network
   coordinates (the network offset already applied), so a SUMO x, y is an OpenDRIVE x, y;
   the header's ``<offset>`` (OpenDRIVE 1.5, the negated netOffset) leads back to the
-  projected coordinates of the map, so the file is declared OpenDRIVE 1.5.
+  projected coordinates of the map, so the file is declared OpenDRIVE 1.5. A stop sign
+  (signal 206, CARLA's catalogue) stands at the end of every road into a stop line.
 - ``testcase.xosc``: every non-ego follows its trajectory (``FollowTrajectoryAction`` over
   a time-stamped ``Polyline`` of ``WorldPosition`` vertices, one per time step, absolute
   time, ``followingMode="position"``), placed at its first pose by a ``TeleportAction``;
@@ -35,6 +36,7 @@ import math
 import re
 import subprocess
 import tempfile
+import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -99,7 +101,62 @@ def opendrive_text(intersection: Intersection) -> str:
     # netconvert declares OpenDRIVE 1.4 but writes 1.5's <offset> (where the network has an
     # offset): the file is valid 1.5 either way
     text = re.sub(r'<header revMajor="1" revMinor="4"', '<header revMajor="1" revMinor="5"', text)
-    return re.sub(r' date="[^"]*"', f' date="{CREATED.isoformat()}"', text, count=1)
+    text = re.sub(r' date="[^"]*"', f' date="{CREATED.isoformat()}"', text, count=1)
+    return _with_stop_signs(text, intersection)
+
+
+def _road_of(roads: Sequence[ET.Element], start: tuple[float, float], heading: float) -> ET.Element:
+    """The road netconvert wrote for a SUMO edge: its reference line starts at the edge's
+    left border, in the edge's direction (``heading``, radians from the x axis)."""
+
+    def miss(road: ET.Element) -> float:
+        first = road.find("planView/geometry")
+        if first is None:
+            return math.inf
+        x, y = float(first.get("x", "nan")), float(first.get("y", "nan"))
+        turn = abs((float(first.get("hdg", "nan")) - heading + math.pi) % (2 * math.pi) - math.pi)
+        return math.hypot(x - start[0], y - start[1]) if turn < math.pi / 6 else math.inf
+
+    best = min(roads, key=miss)
+    if miss(best) > 0.5:
+        raise NetworkBuildFailed(f"no OpenDRIVE road of netconvert starts at the edge {start}")
+    return best
+
+
+def _with_stop_signs(text: str, intersection: Intersection) -> str:
+    """The text with a stop sign (OpenDRIVE signal, German catalogue 206 as CARLA reads it)
+    at the end of every road whose lanes meet a stop line of the junction."""
+    forks = [f for f in intersection.forks.values() if f.stop_sign]
+    if not forks:
+        return text
+    root = ET.fromstring(text)
+    roads = [r for r in root.iter("road") if r.get("junction") == "-1"]
+    path = intersection.network_file
+    net = _cached_network(str(path), path.stat().st_mtime)
+    signed: dict[str, ET.Element] = {}
+    for fork in forks:
+        edge = net.getLane(fork.lane).getEdge()
+        if edge.getID() in signed:
+            continue
+        left = max(edge.getLanes(), key=lambda lane: lane.getIndex())
+        (x0, y0), (x1, y1) = left.getShape()[:2]
+        norm = math.hypot(x1 - x0, y1 - y0) or 1.0
+        half = left.getWidth() / 2  # the reference line is the edge's left border
+        start = (x0 - (y1 - y0) / norm * half, y0 + (x1 - x0) / norm * half)
+        signed[edge.getID()] = _road_of(roads, start, math.atan2(y1 - y0, x1 - x0))
+    for number, (edge_id, road) in enumerate(sorted(signed.items()), start=1):
+        signals = road.find("signals")
+        if signals is None:
+            signals = ET.SubElement(road, "signals")
+        width = sum(lane.getWidth() for lane in net.getEdge(edge_id).getLanes())
+        ET.SubElement(signals, "signal", {
+            "s": f"{max(0.0, float(road.get('length', 0)) - 1.0):.4f}",
+            "t": f"{-width - 0.5:.4f}", "id": f"stop{number}", "name": f"stop {edge_id}",
+            "dynamic": "no", "orientation": "+", "zOffset": "1.5", "country": "DEU",
+            "type": "206", "subtype": "-1", "height": "0.8", "width": "0.8",
+        })  # fmt: skip
+    ET.indent(root, space="    ")
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
 def _world(x: float, y: float, angle: float) -> xosc.WorldPosition:

@@ -255,3 +255,29 @@ def test_opendrive_read_back_is_the_same_junction(
     assert set(mapped.values()) == set(read.routes)
     for route, conflicts in original.conflicts.items():
         assert {mapped[c] for c in conflicts} == set(read.conflicts[mapped[route]]), route
+
+
+def test_stop_signs_stand_on_the_roads_into_the_junction(
+    exported: list[tuple[TestCase, Path, Path]],
+) -> None:
+    """One stop sign (OpenDRIVE signal 206, as CARLA reads it) per incoming road with a stop
+    line: every arm of an all-way stop, the minor arms of a two-way stop, none where the
+    junction is uncontrolled; each at the end of a road that leads into the junction."""
+    seen = set()
+    for case, asam, _ in exported:
+        if case.network.ref in seen:
+            continue
+        seen.add(case.network.ref)
+        junction = load_testcase_intersection(case)
+        edges = {f.edge for f in junction.forks.values() if f.stop_sign}
+        root = ET.parse(asam / "testcase.xodr").getroot()
+        signed = [r for r in root.iter("road") for g in r.iter("signal") if g.get("type") == "206"]
+        assert len(signed) == len(edges), case.network.ref
+        for road in signed:
+            successor = road.find("link/successor")
+            assert successor is not None and successor.get("elementType") == "junction"
+            signal = road.find("signals/signal")
+            assert signal is not None
+            before_end = float(road.get("length", 0)) - float(signal.get("s", 0))
+            assert before_end == pytest.approx(1.0, abs=1e-3)
+    assert len(seen) == 5
