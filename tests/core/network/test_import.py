@@ -4,6 +4,9 @@ netconvert, described, and extended; the extension re-checked by the checker her
 
 from __future__ import annotations
 
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -85,3 +88,27 @@ def test_a_broken_map_is_the_users_error_with_netconvert_s_words(tmp_path: Path)
         InvalidInput, match=r"broken\.xodr is not an OpenDRIVE map netconvert can read: Error"
     ):
         convert_network(broken, tmp_path)
+
+
+def test_the_command_line_takes_both_maps(xodr: Path, tmp_path: Path) -> None:
+    """As a user types it, in a folder with the maps: new, extend, and a judge of the
+    extension run later, which finds the map next to the test-case and converts it again."""
+    shutil.copyfile(xodr, tmp_path / "town.xodr")
+    shutil.copyfile(OSM, tmp_path / "crossing.osm")
+    steps = [
+        ("town.xodr", "allway_stop", "-54_1:-52_1", "-55_1:-50_1"),
+        ("crossing.osm", "priority_stop", "11_0:10#1_0", "-10#1_0:-10#0_0"),
+    ]
+    for network, control, ego, route in steps:
+        name = Path(network).stem
+        commands = [
+            ["new", network, "--junction", "1", "--control", control, f"--ego={ego}",
+             "-o", f"{name}-0.json", "--duration", "25"],
+            ["extend", f"{name}-0.json", f"--add={route}", "-o", f"{name}-1.json"],
+            ["evaluate", f"{name}-1.json", "--controller", "certificate:solvability"],
+        ]  # fmt: skip
+        for command in commands:
+            done = subprocess.run([sys.executable, "-m", "service", *command], cwd=tmp_path,
+                                  capture_output=True, text=True, timeout=300)  # fmt: skip
+            assert done.returncode == 0, (command, done.stderr)
+        assert "PASS" in done.stdout and f"network {network}:" in done.stderr
