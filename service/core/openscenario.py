@@ -34,7 +34,6 @@ from __future__ import annotations
 import datetime
 import math
 import re
-import subprocess
 import tempfile
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
@@ -45,9 +44,8 @@ from shapely.geometry import LineString
 
 from service.core.errors import InvalidInput, NetworkBuildFailed
 from service.core.network import Intersection
-from service.core.network.override import NETCONVERT_BUDGET
+from service.core.network.override import run_netconvert
 from service.core.poses import _approach_line, _cached_network, interpolate_heading
-from service.core.sumo_binaries import sumo_binary
 from service.core.sumo_run import front_to_centre
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
 
@@ -76,26 +74,13 @@ def opendrive_text(intersection: Intersection) -> str:
     names a temporary path and the time, left out)."""
     with tempfile.TemporaryDirectory() as work:
         output = Path(work) / f"{NAME}.xodr"
-        command = [
-            sumo_binary("netconvert"),
-            "--sumo-net-file", str(intersection.network_file),
-            "--opendrive-output", str(output),
-            "--no-warnings", "true",
-        ]  # fmt: skip
-        try:
-            result = subprocess.run(
-                command, capture_output=True, text=True, timeout=NETCONVERT_BUDGET, check=False
-            )
-        except subprocess.TimeoutExpired as exc:
+        failed = run_netconvert(
+            ["--sumo-net-file", str(intersection.network_file), "--opendrive-output", str(output)],
+            output, "write OpenDRIVE", intersection.junction,
+        )  # fmt: skip
+        if failed is not None:
             raise NetworkBuildFailed(
-                f"netconvert did not write OpenDRIVE within {NETCONVERT_BUDGET:.0f} s",
-                junction=intersection.junction,
-            ) from exc
-        if result.returncode != 0 or not output.exists():
-            detail = (result.stderr or result.stdout).strip().splitlines()[-1:] or ["no output"]
-            raise NetworkBuildFailed(
-                f"netconvert could not write OpenDRIVE: {detail[0]}",
-                junction=intersection.junction,
+                f"netconvert could not write OpenDRIVE: {failed}", junction=intersection.junction
             )
         text = _COMMENT.sub("", output.read_text(), count=1)
     # netconvert declares OpenDRIVE 1.4 but writes 1.5's <offset> (where the network has an

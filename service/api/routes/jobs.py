@@ -197,13 +197,27 @@ async def get_job_junit(state: State, job: str) -> Response:
     return Response(await asyncio.to_thread(report), media_type="application/xml")
 
 
-def _made_by(state: State, job: str) -> list[tuple[str, str, Any]]:
-    """Every test-case the job made: id, document, network file."""
-    found = _job_or_404(state, job)
-    records = [
-        r for i in found.items for r in map(state.store.testcase, i.testcases) if r is not None
-    ]
-    return [(r.id, r.document, state.store.network_file_for(r.testcase)) for r in records]
+async def _zip_of(state: State, job: str, flavour: str | None, filename: str) -> Response:
+    """A zip of every test-case the job made, a folder each: the SUMO bundles, or with
+    ``flavour`` the OpenSCENARIO exports."""
+
+    def made_by() -> list[tuple[str, str, Any]]:
+        found = _job_or_404(state, job)
+        records = [
+            r for i in found.items for r in map(state.store.testcase, i.testcases) if r is not None
+        ]
+        return [(r.id, r.document, state.store.network_file_for(r.testcase)) for r in records]
+
+    listed = await asyncio.to_thread(made_by)
+    content = await state.run(
+        "bundles" if flavour is None else "openscenario", tasks.bundles,
+        (listed, state.cache_dir, flavour), state.settings.work_budget, time.monotonic(),
+    )  # fmt: skip
+    return Response(
+        content,
+        media_type="application/zip",
+        headers={"Content-Disposition": f'attachment; filename="{filename}"'},
+    )
 
 
 @router.get(
@@ -217,17 +231,7 @@ def _made_by(state: State, job: str) -> list[tuple[str, str, Any]]:
 )
 async def get_job_bundles(state: State, job: str) -> Response:
     """A zip with the SUMO bundle of every test-case the job made, one folder each."""
-
-    listed = await asyncio.to_thread(_made_by, state, job)
-    content = await state.run(
-        "bundles", tasks.bundles, (listed, state.cache_dir),
-        state.settings.work_budget, time.monotonic(),
-    )  # fmt: skip
-    return Response(
-        content,
-        media_type="application/zip",
-        headers={"Content-Disposition": f'attachment; filename="job-{job}.zip"'},
-    )
+    return await _zip_of(state, job, None, f"job-{job}.zip")
 
 
 @router.get(
@@ -248,14 +252,4 @@ async def get_job_openscenario(
 ) -> Response:
     """A zip with the OpenSCENARIO export (`GET /testcases/{id}/openscenario`) of every
     test-case the job made, one folder each."""
-
-    listed = await asyncio.to_thread(_made_by, state, job)
-    content = await state.run(
-        "openscenario", tasks.bundles, (listed, state.cache_dir, flavour),
-        state.settings.work_budget, time.monotonic(),
-    )  # fmt: skip
-    return Response(
-        content,
-        media_type="application/zip",
-        headers={"Content-Disposition": f'attachment; filename="job-{job}-openscenario.zip"'},
-    )
+    return await _zip_of(state, job, flavour, f"job-{job}-openscenario.zip")

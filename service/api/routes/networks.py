@@ -84,37 +84,31 @@ async def upload_network(
     kind = source_format(filename)
     await asyncio.to_thread(_check_xml, content, kind)
     record = await asyncio.to_thread(state.store.network, network_id(filename, content, overrides))
-    if record is None and kind is not None:
-        record = await _import(state, filename, content, overrides, kind)
+    if record is None and kind is not None:  # a map: converted, stored with its original
+        converted = await _run_staged(
+            state, tasks.convert_upload, f"map{Path(filename).suffix.lower()}", content, overrides
+        )
+        record = await asyncio.to_thread(
+            state.store.add_network, f"{Path(filename).name}.net.xml", converted, overrides,
+            (kind, filename, content),
+        )  # fmt: skip
     if record is None:
-        staged = state.cache_dir / "uploads" / str(time.monotonic_ns()) / safe_filename(filename)
-        await asyncio.to_thread(_stage, staged, content)
-        try:
-            await state.run(
-                "upload",
-                tasks.check_controls,
-                (staged, overrides, state.cache_dir),
-                state.settings.work_budget,
-                time.monotonic(),
-            )
-        finally:
-            staged.unlink(missing_ok=True)
-            staged.parent.rmdir()
+        await _run_staged(state, tasks.check_controls, safe_filename(filename), content, overrides)
         record = await asyncio.to_thread(state.store.add_network, filename, content, overrides)
     response.headers["Location"] = f"/networks/{record.id}"
     return network_public(record)
 
 
-async def _import(
-    state: AppState, filename: str, content: bytes, overrides: dict[str, str], kind: str
-) -> NetworkRecord:
-    """Convert an OpenDRIVE or OpenStreetMap upload and store both files."""
-    staged = state.cache_dir / "uploads" / str(time.monotonic_ns()) / Path(filename).name
+async def _run_staged(
+    state: AppState, task: Any, name: str, content: bytes, overrides: dict[str, str]
+) -> Any:
+    """``task(file, overrides, cache_dir)`` in a worker on the upload staged as ``name``."""
+    staged = state.cache_dir / "uploads" / str(time.monotonic_ns()) / name
     await asyncio.to_thread(_stage, staged, content)
     try:
-        converted = await state.run(
+        return await state.run(
             "upload",
-            tasks.convert_upload,
+            task,
             (staged, overrides, state.cache_dir),
             state.settings.work_budget,
             time.monotonic(),
@@ -122,13 +116,6 @@ async def _import(
     finally:
         staged.unlink(missing_ok=True)
         staged.parent.rmdir()
-    return await asyncio.to_thread(
-        state.store.add_network,
-        f"{Path(filename).name}.net.xml",
-        converted,
-        overrides,
-        (kind, filename, content),
-    )
 
 
 @router.get(

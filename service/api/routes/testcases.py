@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import json
 import time
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.responses import JSONResponse
@@ -203,24 +203,7 @@ async def get_lineage(state: State, testcase: str) -> Lineage:
 )
 async def get_bundle(state: State, testcase: str) -> Response:
     """The SUMO export as a zip: network, routes, FCD of the non-egos, .sumocfg, README."""
-    record = state.testcase_or_404(testcase)
-    loaded = record.testcase
-    content = await cached(
-        state,
-        f"testcases/{record.id}/bundle.zip",
-        lambda: state.run(
-            "bundle",
-            tasks.bundle,
-            (record.document, state.store.network_file_for(loaded), state.cache_dir),
-            state.settings.work_budget,
-            time.monotonic(),
-        ),
-    )
-    return Response(
-        content,
-        media_type="application/zip",
-        headers={"Content-Disposition": f'attachment; filename="{record.id}.zip"'},
-    )
+    return await _export(state, testcase, None)
 
 
 @router.get(
@@ -249,23 +232,31 @@ async def get_openscenario(
 ) -> Response:
     """The ASAM OpenSCENARIO XML export on an ASAM OpenDRIVE network, as a zip: the non-egos
     on their trajectories, the ego (`type = ego_vehicle`) left to the system under test."""
+    return await _export(state, testcase, flavour)
+
+
+async def _export(state: State, testcase: str, flavour: str | None) -> Response:
+    """The SUMO bundle (``flavour`` None) or the OpenSCENARIO export as a zip, cached."""
     record = state.testcase_or_404(testcase)
     loaded = record.testcase
-    content = await cached(
-        state,
-        f"testcases/{record.id}/openscenario-{flavour}.zip",
-        lambda: state.run(
-            "openscenario",
-            tasks.openscenario,
-            (record.document, state.store.network_file_for(loaded), state.cache_dir, flavour),
-            state.settings.work_budget,
-            time.monotonic(),
-        ),
-    )
+    key = "bundle.zip" if flavour is None else f"openscenario-{flavour}.zip"
+    name = f"{record.id}.zip" if flavour is None else f"{record.id}-openscenario.zip"
+
+    def work() -> Any:
+        network_file = state.store.network_file_for(loaded)
+        if flavour is None:
+            args: tuple[Any, ...] = (record.document, network_file, state.cache_dir)
+            return state.run("bundle", tasks.bundle, args, state.settings.work_budget,
+                             time.monotonic())  # fmt: skip
+        args = (record.document, network_file, state.cache_dir, flavour)
+        return state.run("openscenario", tasks.openscenario, args, state.settings.work_budget,
+                         time.monotonic())  # fmt: skip
+
+    content = await cached(state, f"testcases/{record.id}/{key}", work)
     return Response(
         content,
         media_type="application/zip",
-        headers={"Content-Disposition": f'attachment; filename="{record.id}-openscenario.zip"'},
+        headers={"Content-Disposition": f'attachment; filename="{name}"'},
     )
 
 

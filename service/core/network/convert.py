@@ -17,13 +17,11 @@ from __future__ import annotations
 
 import hashlib
 import re
-import subprocess
 import tempfile
 from pathlib import Path
 
-from service.core.errors import InvalidInput, NetworkBuildFailed
-from service.core.network.override import NETCONVERT_BUDGET, default_cache_dir, file_sha256
-from service.core.sumo_binaries import sumo_binary
+from service.core.errors import InvalidInput
+from service.core.network.override import default_cache_dir, file_sha256, run_netconvert
 
 FORMATS = {".xodr": "opendrive", ".osm": "openstreetmap"}
 OPTIONS = {
@@ -75,25 +73,13 @@ def convert_network(source: Path, cache_dir: Path | None = None) -> Path:
         return target
     with tempfile.TemporaryDirectory(dir=cache) as work:
         output = Path(work) / "converted.net.xml"
-        command = [
-            sumo_binary("netconvert"), INPUT[kind], str(source), "--output-file", str(output),
-            "--no-warnings", "true", *OPTIONS[kind],
-        ]  # fmt: skip
-        try:
-            result = subprocess.run(
-                command, capture_output=True, text=True, timeout=NETCONVERT_BUDGET, check=False
-            )
-        except subprocess.TimeoutExpired as exc:
-            raise NetworkBuildFailed(
-                f"netconvert did not convert {source.name} within {NETCONVERT_BUDGET:.0f} s"
-            ) from exc
-        if result.returncode != 0 or not output.exists():
-            lines = [line.strip() for line in (result.stderr or result.stdout).splitlines()]
-            lines = [line for line in lines if line]
-            detail = next((x for x in lines if x.startswith("Error")), lines[-1] if lines else "")
+        failed = run_netconvert(
+            [INPUT[kind], str(source), "--output-file", str(output), *OPTIONS[kind]],
+            output, f"convert {source.name}",
+        )  # fmt: skip
+        if failed is not None:
             raise InvalidInput(
-                f"{source.name} is not {NAMES[kind]} map netconvert can read: "
-                f"{detail or 'no output'}"
+                f"{source.name} is not {NAMES[kind]} map netconvert can read: {failed}"
             )
         output.write_bytes(_COMMENT.sub(b"", output.read_bytes(), count=1))
         output.replace(target)

@@ -48,27 +48,39 @@ def rebuild_with_control(
             f"<nodes>\n    <node id={quoteattr(junction)} type={quoteattr(control)}/>\n</nodes>\n"
         )
         output = Path(work) / "rebuilt.net.xml"
-        command = [
-            sumo_binary("netconvert"),
-            "--sumo-net-file", str(network_file),
-            "--node-files", str(patch),
-            "--output-file", str(output),
-            "--no-warnings", "true",
-        ]  # fmt: skip
-        try:
-            result = subprocess.run(
-                command, capture_output=True, text=True, timeout=NETCONVERT_BUDGET, check=False
-            )
-        except subprocess.TimeoutExpired as exc:
-            raise NetworkBuildFailed(
-                f"netconvert did not finish within {NETCONVERT_BUDGET:.0f} s", junction=junction
-            ) from exc
-        if result.returncode != 0 or not output.exists():
-            detail = (result.stderr or result.stdout).strip().splitlines()[-1:] or ["no output"]
+        failed = run_netconvert(
+            ["--sumo-net-file", str(network_file), "--node-files", str(patch),
+             "--output-file", str(output)],
+            output, f"give junction {junction!r} control type {control!r}", junction,
+        )  # fmt: skip
+        if failed is not None:
             raise NetworkBuildFailed(
                 f"netconvert failed to give junction {junction!r} control type {control!r}: "
-                f"{detail[0]}",
+                f"{failed}",
                 junction=junction,
             )
         output.replace(target)
     return target
+
+
+def run_netconvert(
+    arguments: list[str], output: Path, doing: str, junction: str | None = None
+) -> str | None:
+    """Run netconvert with ``arguments`` to write ``output``: None when it did, else its
+    error message. NetworkBuildFailed when it does not finish within NETCONVERT_BUDGET
+    (``doing`` says what it was asked to do)."""
+    command = [sumo_binary("netconvert"), *arguments, "--no-warnings", "true"]
+    try:
+        result = subprocess.run(
+            command, capture_output=True, text=True, timeout=NETCONVERT_BUDGET, check=False
+        )
+    except subprocess.TimeoutExpired as exc:
+        raise NetworkBuildFailed(
+            f"netconvert did not {doing} within {NETCONVERT_BUDGET:.0f} s",
+            **({"junction": junction} if junction else {}),
+        ) from exc
+    if result.returncode == 0 and output.exists():
+        return None
+    lines = [line.strip() for line in (result.stderr or result.stdout).splitlines()]
+    lines = [line for line in lines if line]
+    return next((x for x in lines if x.startswith("Error")), lines[-1] if lines else "no output")
