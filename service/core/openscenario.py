@@ -43,9 +43,10 @@ from scenariogeneration import xosc
 from shapely.geometry import LineString
 
 from service.core.errors import InvalidInput, NetworkBuildFailed
-from service.core.network import Intersection
+from service.core.network import ControlType, Intersection
 from service.core.network.override import run_netconvert
 from service.core.poses import _approach_line, _cached_network, interpolate_heading
+from service.core.rules import rule_set_file
 from service.core.sumo_run import front_to_centre
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
 
@@ -350,10 +351,14 @@ OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the r
 - it collides with no other car (footprints of {testcase.ego.length:g} m x
   {testcase.ego.width:g} m for the ego, the non-egos' own sizes);
 - it obeys the traffic rules of `{testcase.rules}` at junction `{testcase.junction}`
-  (control `{testcase.control}`): the California Vehicle Code as scengen reads it
-  (README, "Traffic rules"): stop at the limit line where there is a stop sign (22450(a)),
-  yield to the cars that arrived first at an all-way stop (21800), to traffic on the
-  through road at a two-way stop (21802), to the right at an uncontrolled junction (21800);
+  (control `{testcase.control}`): the California Vehicle Code as scengen reads it (README,
+  "Traffic rules"), in the rule set `asp/rules/{testcase.rules}.lp`:
+
+{_rule_set_text(testcase)}
+
+- in a queue, each car stops at the limit line itself, a car behind another has not yet
+  arrived, and the ego keeps {testcase.params.gap:g} m plus {testcase.params.headway:g} s
+  of headway to the car ahead (running into it is a rear-end collision);
 - parameters: minimum perceptible time difference m = {p.m:g} s, stopped at or below
   {p.v_stop:g} m/s, running a sign at or above {p.v_run:g} m/s, arrival within
   {p.arrival_distance:g} m of the line, speed limit {p.v_max:g} m/s, following gap
@@ -364,6 +369,27 @@ point at the centre of its footprint, headings in radians counter-clockwise from
 axis. Run the trajectory of your player back through `scengen check` as SUMO FCD, CSV or
 JSON (README, `scengen check`).
 """
+
+
+def _rule_set_text(testcase: TestCase) -> str:
+    """The rule set's own summary (its header comment) and its rules with their sections."""
+    path = rule_set_file(ControlType(testcase.rules))
+    text = path.read_text()
+    header = []
+    for line in text.splitlines()[1:]:
+        if not line.startswith("%") or line.startswith("% Input predicates"):
+            break
+        header.append("    " + line[1:].strip() if line[1:].strip() else "")
+    while header and not header[-1]:
+        header.pop()
+    laws = [
+        f"  - `{name}`: CVC {section}"
+        for include in re.findall(r'#include "\.\./laws/([\w.]+)"', text)
+        for name, section in re.findall(
+            r'^law\((\w+), "([^"]+)"\)\.', (path.parent.parent / "laws" / include).read_text(), re.M
+        )
+    ]
+    return "\n".join([*header, "", *laws]).strip("\n")
 
 
 def export_openscenario(

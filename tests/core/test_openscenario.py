@@ -110,6 +110,8 @@ def test_every_export_passes_the_asam_quality_checkers(
         issues += [issue for scenario in scenarios for issue in _issues("xosc", scenario)]
     assert len(networks) == 5  # the three bundled junctions, Town05 396, Town07 358
     assert issues == []
+    rules = (exported[3][1] / "verdict-rules.md").read_text()  # four-way-3, an all-way stop
+    assert "`stopAtSign`: CVC 22450(a)" in rules and "`yieldToRightAtAllWayStop`" in rules
     names = {p.name for p in exported[-1][1].iterdir()}
     assert names == {"testcase.xodr", "testcase.xosc", "testcase.solvability.xosc",
                      "testcase.complexity.xosc", "verdict-rules.md"}  # fmt: skip
