@@ -27,11 +27,10 @@ from service.core.errors import (
     UnsupportedIntersection,
 )
 from service.core.events import compute_events
-from service.core.export import export_bundle
+from service.core.export import FLAVOURS, export_bundle
 from service.core.generate import StartDistances, extend_testcase
 from service.core.network import ControlType, Intersection, bundled_networks, load_intersection
 from service.core.network.describe import describe_intersection
-from service.core.openscenario import FLAVOURS, export_openscenario
 from service.core.poses import PoseSample, generate_poses
 from service.core.replay import evaluate as evaluate_controller
 from service.core.testcase import (
@@ -836,6 +835,8 @@ class StepProgress:
 def _run_export(args: argparse.Namespace) -> int:
     testcase = read_testcase(args.testcase)
     if args.format == "openscenario":
+        from service.core.openscenario import export_openscenario  # scenariogeneration: 0.5 s
+
         for path in export_openscenario(
             testcase, args.output, _intersection(testcase, args), args.flavour
         ):

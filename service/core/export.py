@@ -16,6 +16,7 @@ from __future__ import annotations
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Literal, get_args
 from xml.sax.saxutils import quoteattr
 
 from service.core import sumo_run
@@ -39,6 +40,10 @@ from service.core.testcase import (
 )
 
 NAME = "testcase"
+# The flavours of the OpenSCENARIO export (service.core.openscenario, which imports the
+# scenariogeneration library: named here so that the command line and the API need not)
+Flavour = Literal["asam", "carla"]
+FLAVOURS: tuple[Flavour, ...] = get_args(Flavour)
 
 
 def fcd_text(testcase: TestCase, nonegos: Sequence[Departure]) -> str:

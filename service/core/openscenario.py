@@ -43,20 +43,19 @@ from scenariogeneration import xosc
 from shapely.geometry import LineString
 
 from service.core.errors import InvalidInput, NetworkBuildFailed
+from service.core.export import FLAVOURS
 from service.core.network import ControlType, Intersection
 from service.core.network.override import run_netconvert
-from service.core.poses import _approach_line, _cached_network, interpolate_heading
-from service.core.rules import rule_set_file
+from service.core.poses import _cached_network, interpolate_heading, start_front
+from service.core.rules import rule_set_file, solve_rules
 from service.core.sumo_run import front_to_centre
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
 
 NAME = "testcase"
-FLAVOURS = ("asam", "carla")
 CARLA_STEP = 0.05  # s: CARLA's fixed 20 Hz
 HEIGHT = 1.5  # m: a car's height (scengen has none)
 CREATED = datetime.datetime(2026, 1, 1)  # a fixed header date: the same test-case, the same bytes
 RULES_FILE = "verdict-rules.md"
-_COMMENT = re.compile(r"<!--.*?-->\s*", re.DOTALL)
 
 
 def heading_of(angle: float) -> float:
@@ -71,8 +70,7 @@ def angle_of(heading: float) -> float:
 
 
 def opendrive_text(intersection: Intersection) -> str:
-    """The junction's network as OpenDRIVE, by netconvert (its generated-by comment, which
-    names a temporary path and the time, left out)."""
+    """The junction's network as OpenDRIVE, by netconvert."""
     with tempfile.TemporaryDirectory() as work:
         output = Path(work) / f"{NAME}.xodr"
         failed = run_netconvert(
@@ -83,7 +81,7 @@ def opendrive_text(intersection: Intersection) -> str:
             raise NetworkBuildFailed(
                 f"netconvert could not write OpenDRIVE: {failed}", junction=intersection.junction
             )
-        text = _COMMENT.sub("", output.read_text(), count=1)
+        text = output.read_text()
     # netconvert declares OpenDRIVE 1.4 but writes 1.5's <offset> (where the network has an
     # offset): the file is valid 1.5 either way
     text = re.sub(r'<header revMajor="1" revMinor="4"', '<header revMajor="1" revMinor="5"', text)
@@ -214,26 +212,20 @@ def _starts_now(name: str, minor: int) -> xosc.ValueTrigger:
 
 def _ego_start(testcase: TestCase, intersection: Intersection) -> tuple[float, float, float]:
     """The ego's start pose (centre x, y and SUMO angle): the front bumper at its start
-    distance before the line, where the checker expects it; the heading, as SUMO's, from
-    the rear bumper to the front one along the road (the chord on a curve)."""
+    distance before the line, where the checker expects it (``start_front``); the heading,
+    as SUMO's, from the rear bumper to the front one along the road (the chord on a curve),
+    or the fork's approach heading where the road behind is shorter than the car."""
     ego = testcase.ego
     route = intersection.route(ego.route.id)
-    line = _approach_line(intersection, route, ego.start.distance + ego.length + 1.0)
-    if line.length < ego.start.distance:
-        raise InvalidInput(
-            f"the ego's start distance {ego.start.distance:g} m is longer than the road "
-            f"before fork {route.fork!r} ({line.length:.1f} m)"
-        )
-    at = line.length - ego.start.distance
-    front = line.interpolate(at)
-    rear = line.interpolate(max(0.0, at - ego.length))
-    if front.distance(rear) < 0.1:  # no road behind the start: the direction there
-        rear, front_ahead = front, line.interpolate(min(line.length, at + 0.5))
-        angle = math.degrees(math.atan2(front_ahead.x - rear.x, front_ahead.y - rear.y))
+    front = start_front(intersection, route, ego.start.distance)
+    try:
+        rear = start_front(intersection, route, ego.start.distance + ego.length)
+    except InvalidInput:
+        angle = intersection.forks[route.fork].heading
     else:
-        angle = math.degrees(math.atan2(front.x - rear.x, front.y - rear.y))
-    x, y = front_to_centre(front.x, front.y, angle % 360.0, ego.length)
-    return x, y, angle % 360.0
+        angle = math.degrees(math.atan2(front[0] - rear[0], front[1] - rear[1])) % 360.0
+    x, y = front_to_centre(*front, angle, ego.length)
+    return x, y, angle
 
 
 def _ego_route(
@@ -259,6 +251,11 @@ def _network_file(testcase: TestCase, flavour: str) -> str:
     return f"{NAME}.xodr"
 
 
+def _check_flavour(flavour: str) -> None:
+    if flavour not in FLAVOURS:
+        raise InvalidInput(f"unknown OpenSCENARIO flavour {flavour!r}; choose one of {FLAVOURS}")
+
+
 def scenario(
     testcase: TestCase,
     intersection: Intersection,
@@ -268,8 +265,7 @@ def scenario(
     """The test-case as an OpenSCENARIO scenario; with ``certificate`` ("solvability" or
     "complexity"), the ego follows that certificate instead of being left to the system
     under test."""
-    if flavour not in FLAVOURS:
-        raise InvalidInput(f"unknown OpenSCENARIO flavour {flavour!r}; choose one of {FLAVOURS}")
+    _check_flavour(flavour)
     minor = 0 if flavour == "carla" else 2
     step = CARLA_STEP if flavour == "carla" else None
     entities = xosc.Entities()
@@ -357,12 +353,11 @@ OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the r
 {_rule_set_text(testcase)}
 
 - in a queue, each car stops at the limit line itself, a car behind another has not yet
-  arrived, and the ego keeps {testcase.params.gap:g} m plus {testcase.params.headway:g} s
-  of headway to the car ahead (running into it is a rear-end collision);
+  arrived, and the ego keeps {p.gap:g} m plus {p.headway:g} s of headway to the car
+  ahead (running into it is a rear-end collision);
 - parameters: minimum perceptible time difference m = {p.m:g} s, stopped at or below
   {p.v_stop:g} m/s, running a sign at or above {p.v_run:g} m/s, arrival within
-  {p.arrival_distance:g} m of the line, speed limit {p.v_max:g} m/s, following gap
-  {p.gap:g} m plus {p.headway:g} s of headway.
+  {p.arrival_distance:g} m of the line, speed limit {p.v_max:g} m/s.
 
 Coordinates: SUMO's network coordinates (the OpenDRIVE file's), a vehicle's reference
 point at the centre of its footprint, headings in radians counter-clockwise from the x
@@ -372,24 +367,21 @@ JSON (README, `scengen check`).
 
 
 def _rule_set_text(testcase: TestCase) -> str:
-    """The rule set's own summary (its header comment) and its rules with their sections."""
-    path = rule_set_file(ControlType(testcase.rules))
-    text = path.read_text()
+    """The rule set's own summary (its header comment) and its rules with their sections
+    (the rule set's law/2 atoms)."""
+    control = ControlType(testcase.rules)
     header = []
-    for line in text.splitlines()[1:]:
+    for line in rule_set_file(control).read_text().splitlines()[1:]:
         if not line.startswith("%") or line.startswith("% Input predicates"):
             break
         header.append("    " + line[1:].strip() if line[1:].strip() else "")
     while header and not header[-1]:
         header.pop()
     laws = [
-        f"  - `{name}`: CVC {section}"
-        for include in re.findall(r'#include "\.\./laws/([\w.]+)"', text)
-        for name, section in re.findall(
-            r'^law\((\w+), "([^"]+)"\)\.', (path.parent.parent / "laws" / include).read_text(), re.M
-        )
+        f"  - `{atom.arguments[0]}`: CVC {atom.arguments[1].string}"
+        for atom in solve_rules(control, [], shown=[("law", 2)])
     ]
-    return "\n".join([*header, "", *laws]).strip("\n")
+    return "\n".join([*header, "", *sorted(laws)]).strip("\n")
 
 
 def export_openscenario(
@@ -399,8 +391,7 @@ def export_openscenario(
     flavour: str = "asam",
 ) -> list[Path]:
     """Write the OpenSCENARIO files of ``testcase`` into ``folder``; the files written."""
-    if flavour not in FLAVOURS:
-        raise InvalidInput(f"unknown OpenSCENARIO flavour {flavour!r}; choose one of {FLAVOURS}")
+    _check_flavour(flavour)
     junction = intersection or load_testcase_intersection(testcase)
     folder.mkdir(parents=True, exist_ok=True)
     written = [folder / f"{NAME}.xodr"]

@@ -31,7 +31,7 @@ from service.core.network import (
     load_intersection,
     resolve_network,
 )
-from service.core.network.convert import convert_network, source_format
+from service.core.network.convert import source_format
 from service.core.poses import plan_drive
 
 SCHEMA = "scengen/testcase/1"
@@ -363,7 +363,7 @@ def find_network_file(
         unique.setdefault(path.resolve(), (path, how))
     candidates = list(unique.values())
     # an OpenDRIVE or OpenStreetMap map is compared as the network it converts to
-    present = [(_as_network(path), how) for path, how in candidates if path.is_file()]
+    present = [(resolve_network(path), how) for path, how in candidates if path.is_file()]
     for path, how in present:
         if file_sha256(path) == digest:
             return path.resolve(), how
@@ -379,10 +379,6 @@ def find_network_file(
         "pass its file with --network FILE",
         network=ref,
     )
-
-
-def _as_network(path: Path) -> Path:
-    return convert_network(path.resolve()) if source_format(path) else path
 
 
 def new_testcase(

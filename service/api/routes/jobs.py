@@ -5,7 +5,7 @@ from __future__ import annotations
 import asyncio
 import dataclasses
 import time
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Header, Query, Response, status
 from fastapi.responses import Response as PlainResponse
@@ -14,6 +14,7 @@ from service.api.bodies import OffLoopValidation
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.schemas import MAX_OFFSET, JobItemPublic, JobPage, JobPublic, Links
 from service.api.state import AppState, State, Token, json_answer
+from service.core.export import Flavour
 from service.core.verdict import Verdict, junit_report
 from service.jobs import tasks
 from service.jobs.batch import Batch
@@ -246,9 +247,7 @@ async def get_job_bundles(state: State, job: str) -> Response:
 async def get_job_openscenario(
     state: State,
     job: str,
-    flavour: Annotated[
-        Literal["asam", "carla"], Query(description="asam (default) or carla")
-    ] = "asam",
+    flavour: Annotated[Flavour, Query(description="asam (default) or carla")] = "asam",
 ) -> Response:
     """A zip with the OpenSCENARIO export (`GET /testcases/{id}/openscenario`) of every
     test-case the job made, one folder each."""

@@ -311,7 +311,11 @@ def _parse_controls(text: str) -> dict[str, str]:
     return dict(value)
 
 
-ROOTS = {None: "net", "opendrive": "OpenDRIVE", "openstreetmap": "osm"}
+ROOTS = {  # the root element of each kind of upload, and what it is
+    None: ("net", "a SUMO <net>"),
+    "opendrive": ("OpenDRIVE", "an OpenDRIVE map's <OpenDRIVE>"),
+    "openstreetmap": ("osm", "an OpenStreetMap extract's <osm>"),
+}
 
 
 def _check_xml(content: bytes, kind: str | None = None) -> None:
@@ -325,9 +329,8 @@ def _check_xml(content: bytes, kind: str | None = None) -> None:
         ) from None
     except SafeElementTree.ParseError as error:
         raise Problem(400, f"the network is not well-formed XML: {error}") from None
-    if root.tag != ROOTS[kind]:
-        what = {None: "a SUMO <net>", "opendrive": "an OpenDRIVE map's <OpenDRIVE>",
-                "openstreetmap": "an OpenStreetMap extract's <osm>"}[kind]  # fmt: skip
+    tag, what = ROOTS[kind]
+    if root.tag != tag:
         raise InvalidInput(
             f"the upload's root element is <{root.tag}>, not {what} (the file name says "
             "which: .xodr for OpenDRIVE, .osm for OpenStreetMap, else a SUMO .net.xml)"

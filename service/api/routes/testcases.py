@@ -5,7 +5,8 @@ from __future__ import annotations
 import asyncio
 import json
 import time
-from typing import Annotated, Any, Literal
+from collections.abc import Awaitable, Callable
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.responses import JSONResponse
@@ -25,11 +26,10 @@ from service.api.schemas import (
 from service.api.state import State, Token, json_answer
 from service.core.controllers import controller_names
 from service.core.errors import InvalidInput, choices
+from service.core.export import Flavour
 from service.core.testcase import NetworkRef, check_samples, parse_testcase
 from service.jobs import tasks
 from service.store import TestCaseRecord
-
-Flavour = Literal["asam", "carla"]
 
 router = APIRouter(prefix="/testcases", tags=["testcases"], route_class=OffLoopValidation)
 
@@ -242,15 +242,14 @@ async def _export(state: State, testcase: str, flavour: str | None) -> Response:
     key = "bundle.zip" if flavour is None else f"openscenario-{flavour}.zip"
     name = f"{record.id}.zip" if flavour is None else f"{record.id}-openscenario.zip"
 
-    def work() -> Any:
+    def work() -> Awaitable[bytes]:
         network_file = state.store.network_file_for(loaded)
-        if flavour is None:
-            args: tuple[Any, ...] = (record.document, network_file, state.cache_dir)
-            return state.run("bundle", tasks.bundle, args, state.settings.work_budget,
-                             time.monotonic())  # fmt: skip
-        args = (record.document, network_file, state.cache_dir, flavour)
-        return state.run("openscenario", tasks.openscenario, args, state.settings.work_budget,
-                         time.monotonic())  # fmt: skip
+        args: tuple[Any, ...] = (record.document, network_file, state.cache_dir)
+        function: Callable[..., bytes] = tasks.bundle
+        if flavour is not None:
+            args, function = (*args, flavour), tasks.openscenario
+        work = "bundle" if flavour is None else "openscenario"
+        return state.run(work, function, args, state.settings.work_budget, time.monotonic())
 
     content = await cached(state, f"testcases/{record.id}/{key}", work)
     return Response(

@@ -8,15 +8,15 @@ first right lane. OpenStreetMap is read with netconvert's usual urban options (S
 documentation, "OSM import": joined junction clusters, guessed ramps, roundabouts and
 signals, passenger roads only, isolated pieces removed).
 
-The conversion is cached by the source's content; netconvert's generated-by comment (the
-time, the paths) is left out, so the same file gives the same network bytes, and a
-test-case made from it the same network hash, wherever it is converted with the same SUMO.
+The conversion is cached by the source's content; run_netconvert leaves netconvert's
+generated-by comment (the time, the paths) out, so the same file gives the same network
+bytes, and a test-case made from it the same network hash, wherever it is converted with
+the same SUMO.
 """
 
 from __future__ import annotations
 
 import hashlib
-import re
 import tempfile
 from pathlib import Path
 
@@ -46,7 +46,6 @@ OPTIONS = {
 }  # fmt: skip
 INPUT = {"opendrive": "--opendrive-files", "openstreetmap": "--osm-files"}
 NAMES = {"opendrive": "an OpenDRIVE", "openstreetmap": "an OpenStreetMap"}
-_COMMENT = re.compile(rb"<!--.*?-->\s*", re.DOTALL)
 
 
 def source_format(path: str | Path) -> str | None:
@@ -81,6 +80,5 @@ def convert_network(source: Path, cache_dir: Path | None = None) -> Path:
             raise InvalidInput(
                 f"{source.name} is not {NAMES[kind]} map netconvert can read: {failed}"
             )
-        output.write_bytes(_COMMENT.sub(b"", output.read_bytes(), count=1))
         output.replace(target)
     return target

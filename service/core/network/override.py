@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import subprocess
 import tempfile
 from pathlib import Path
@@ -17,6 +18,7 @@ from service.core.errors import NetworkBuildFailed
 from service.core.sumo_binaries import sumo_binary
 
 NETCONVERT_BUDGET = 120.0  # seconds
+_GENERATED = re.compile(rb"<!-- generated on .*?-->\s*", re.DOTALL)
 
 
 def file_sha256(path: Path) -> str:
@@ -68,7 +70,8 @@ def run_netconvert(
 ) -> str | None:
     """Run netconvert with ``arguments`` to write ``output``: None when it did, else its
     error message. NetworkBuildFailed when it does not finish within NETCONVERT_BUDGET
-    (``doing`` says what it was asked to do)."""
+    (``doing`` says what it was asked to do). The output's generated-by comment (the time,
+    the input paths) is left out: the same input gives the same bytes."""
     command = [sumo_binary("netconvert"), *arguments, "--no-warnings", "true"]
     try:
         result = subprocess.run(
@@ -80,6 +83,7 @@ def run_netconvert(
             **({"junction": junction} if junction else {}),
         ) from exc
     if result.returncode == 0 and output.exists():
+        output.write_bytes(_GENERATED.sub(b"", output.read_bytes(), count=1))
         return None
     lines = [line.strip() for line in (result.stderr or result.stdout).splitlines()]
     lines = [line for line in lines if line]
