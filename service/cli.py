@@ -328,6 +328,57 @@ def _parser() -> argparse.ArgumentParser:
         "--idempotency-key", metavar="KEY", help="resubmitting with the same key is safe"
     )
     submit.set_defaults(run=_run_submit)
+
+    campaign = commands.add_parser(
+        "campaign",
+        help="grow chains of test-cases and judge every level with controllers: where they fail",
+        description="Grows CHAINS chains per ego route to DEPTH levels (one new car per level, "
+        "on a route chosen as `extend`'s automatic choice does, steered towards rules no "
+        "level has covered yet), and evaluates every level, the ego-only start included, "
+        "with every controller. Writes campaign.json, junit.xml, report.html and testcases/ "
+        "into DIR; run the same command again to resume after a crash or Ctrl-C. Exit "
+        "codes: 0 every evaluation passed, 1 some failed, 2 bad input, 3 the campaign "
+        "could not run.",
+    )
+    _network_arguments(campaign)
+    egos = campaign.add_mutually_exclusive_group(required=True)
+    egos.add_argument(
+        "--ego", action="append", metavar="FORK_LANE:EXIT_LANE", help="an ego route (repeatable)"
+    )
+    egos.add_argument("--all-egos", action="store_true", help="every route of the junction")
+    campaign.add_argument("--depth", type=int, required=True, metavar="K", help="levels (1-10)")
+    campaign.add_argument(
+        "--chains", type=int, required=True, metavar="N", help="chains per ego route (1-20)"
+    )
+    campaign.add_argument(
+        "--controller", action="append", required=True, metavar="NAME",
+        help="who drives the ego (repeatable): " + ", ".join(controller_names())
+        + ", or module:attribute",
+    )  # fmt: skip
+    campaign.add_argument("--seed", type=int, default=0, help="chain c has seed SEED + c")
+    campaign.add_argument(
+        "--budget-per-level", type=float, default=60.0, metavar="SECONDS",
+        help="budget of growing one level (default 60 s)",
+    )  # fmt: skip
+    campaign.add_argument(
+        "--budget", type=float, default=60.0, metavar="SECONDS",
+        help="budget of each replay (default 60 s)",
+    )  # fmt: skip
+    campaign.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
+    campaign.set_defaults(run=_run_campaign)
+
+    report = commands.add_parser(
+        "report",
+        help="write a campaign's report as one self-contained HTML file",
+        description="SOURCE is a folder `scengen campaign` wrote, or a job id on a server "
+        "(--server): the report is the results browser with the campaign's data inside; "
+        "it opens offline.",
+    )
+    report.add_argument("source", metavar="DIR|JOB", help="a campaign folder or a job id")
+    report.add_argument("--server", metavar="URL", help="the server of JOB")
+    report.add_argument("--token", metavar="T", help="the server's API token (or SCENGEN_TOKEN)")
+    report.add_argument("-o", "--output", type=Path, required=True, metavar="FILE")
+    report.set_defaults(run=_run_report)
     return parser
 
 
@@ -458,6 +509,67 @@ def _run_submit(args: argparse.Namespace) -> int:
               f"fetched: {error}", file=sys.stderr)  # fmt: skip
         return EXIT_FAILED
     return code
+
+
+def _run_campaign(args: argparse.Namespace) -> int:
+    from service.campaign_folder import elapsed_printer, run_folder_campaign
+    from service.core.campaign import failure_table
+
+    for name in args.controller:
+        resolve_driver(name)  # a bad name fails before any work
+    spec = {
+        "network": args.network,
+        "junction": args.junction,
+        "control": args.control,
+        "egos": args.ego,
+        "all_egos": args.all_egos,
+        "depth": args.depth,
+        "chains": args.chains,
+        "controllers": args.controller,
+        "seed": args.seed,
+        "budget_per_level": args.budget_per_level,
+        "budget": args.budget,
+    }
+    outcome = run_folder_campaign(spec, args.output, elapsed_printer(time.monotonic()))
+    print("failed evaluations per level (failed/test-cases):")
+    _print_table(failure_table(outcome))
+    covered = [c["rule"] for c in outcome["coverage"] if c["covered"]]
+    missing = [c["rule"] for c in outcome["coverage"] if c["coverable"] and not c["covered"]]
+    print(f"rules covered by complexity certificates: {', '.join(covered) or 'none'}; "
+          f"not covered: {', '.join(missing) or 'none'}")  # fmt: skip
+    for chain in outcome["chains"]:
+        if chain["end"]:
+            print(f"{chain['ego']} chain {chain['chain'] + 1} ended at {chain['end']}")
+    print(f"written: {args.output}/campaign.json, junit.xml, report.html, testcases/")
+    failed = any(
+        not verdict["passed"]
+        for chain in outcome["chains"]
+        for level in chain["levels"]
+        for verdict in level["verdicts"].values()
+    )
+    return EXIT_FAILED_CHECK if failed else EXIT_OK
+
+
+def _run_report(args: argparse.Namespace) -> int:
+    from service import report
+
+    if args.server is None:
+        from service.campaign_folder import folder_report
+
+        page = folder_report(Path(args.source))
+    else:
+        from service import submit
+
+        client = submit.Client(args.server, args.token or os.environ.get("SCENGEN_TOKEN"))
+        job = args.source
+        outcome = client.json("GET", f"/jobs/{job}/campaign")
+        data = report.campaign_paths(job, outcome, lambda path: client.json("GET", path))
+        plan = outcome["plan"]
+        title = f"scengen campaign: {plan['network']} junction {plan['junction']}"
+        page = report.report_html(job, data, title)
+    args.output.write_text(page)
+    print(f"written: {args.output}", file=sys.stderr)
+    return EXIT_OK
 
 
 def _run_networks(args: argparse.Namespace) -> int:

@@ -82,6 +82,15 @@ evaluations = sa.Table(
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
 )
 
+# The ego's drive of an evaluation (its replay), apart from the verdict: rows of
+# [t, x, y, heading, speed, distance], the centre of the ego's footprint
+drives = sa.Table(
+    "evaluation_drives",
+    metadata,
+    sa.Column("id", sa.String(32), primary_key=True),  # the evaluation's id
+    sa.Column("trajectory", sa.Text, nullable=False),  # JSON
+)
+
 
 def now() -> datetime:
     return datetime.now(UTC)
@@ -389,6 +398,8 @@ class Store:
 
     def delete_testcase(self, ident: str) -> None:
         with self.engine.begin() as connection:
+            judged = sa.select(evaluations.c.id).where(evaluations.c.testcase == ident)
+            connection.execute(drives.delete().where(drives.c.id.in_(judged)))
             connection.execute(evaluations.delete().where(evaluations.c.testcase == ident))
             connection.execute(testcases.delete().where(testcases.c.id == ident))
 
@@ -401,8 +412,10 @@ class Store:
         verdict: dict[str, Any],
         seconds: float,
         ident: str | None = None,
+        drive: list[list[float]] | None = None,
     ) -> EvaluationRecord:
-        """Store a verdict; with ``ident`` (a job item's), at most once."""
+        """Store a verdict, and the ego's ``drive`` when given; with ``ident`` (a job
+        item's), at most once."""
         if ident is not None:
             existing = self.evaluation(ident)
             if existing is not None:
@@ -419,6 +432,9 @@ class Store:
         try:
             with self.engine.begin() as connection:
                 connection.execute(evaluations.insert().values(**row))
+                if drive is not None:
+                    trajectory = json.dumps(drive, separators=(",", ":"))
+                    connection.execute(drives.insert().values(id=row["id"], trajectory=trajectory))
         except sa.exc.IntegrityError:
             if ident is None:
                 raise
@@ -433,6 +449,14 @@ class Store:
                 sa.select(evaluations).where(evaluations.c.id == ident)
             ).first()
         return None if row is None else _evaluation_record(row._mapping)
+
+    def drive(self, ident: str) -> list[list[float]] | None:
+        """The ego's drive of an evaluation, or None (stored before drives were kept)."""
+        with self.engine.connect() as connection:
+            found = connection.execute(
+                sa.select(drives.c.trajectory).where(drives.c.id == ident)
+            ).scalar()
+        return None if found is None else list(json.loads(found))
 
     def evaluations_passed(self, idents: list[str]) -> list[bool]:
         """Whether each stored evaluation among ``idents`` passed (one query)."""

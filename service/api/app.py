@@ -111,6 +111,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         app.include_router(module.router)
     install_problem_handlers(app)
     _serve_docs(app)
+    _serve_ui(app)
     app.middleware("http")(_count_requests)
     app.add_middleware(BodyLimit, limit=chosen.max_upload_bytes, token=chosen.api_token)
     app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
@@ -231,6 +232,15 @@ def remove_stale_uploads(folder: Path, budget: float) -> list[Path]:
 
 async def _no_body() -> dict[str, Any]:
     return {"type": "http.request", "body": b"", "more_body": False}
+
+
+UI_ASSETS = Path(__file__).parent / "ui"
+
+
+def _serve_ui(app: FastAPI) -> None:
+    """The results browser at /ui: static pages that read the API (service/api/ui)."""
+
+    app.mount("/ui", StaticFiles(directory=UI_ASSETS, html=True), name="ui")
 
 
 def _serve_docs(app: FastAPI) -> None:

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import random
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 
 from service.core.check import Judge
@@ -66,14 +66,18 @@ def grow(
     budget: float = 60.0,
     intersection: Intersection | None = None,
     progress: Progress | None = None,
+    last: Collection[str] = (),
 ) -> Growth:
     """The next level of a chain: one new car on the first candidate route (in the seed's
-    order) that has an extension. NoMoreComplexTestCase when none can have one; NoneFound
-    when some were not found (with ``budget_exhausted`` when the budget stopped it)."""
+    order, those in ``last`` after the others) that has an extension.
+    NoMoreComplexTestCase when none can have one; NoneFound when some were not found (with
+    ``budget_exhausted`` when the budget stopped it)."""
     junction = intersection or load_testcase_intersection(old)
     judge = checked_judge(old, junction)  # once for every route tried
     candidates = candidate_routes(old, junction)
     random.Random(seed).shuffle(candidates)
+    held_back = set(last)
+    candidates.sort(key=lambda route: route in held_back)  # stable: the seed's order stays
     end = time.monotonic() + budget
     outcomes: list[str] = []
     proven = True

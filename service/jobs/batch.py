@@ -1,6 +1,7 @@
 """A batch: what a CI pipeline submits as one job (`POST /jobs`, `scengen submit`).
 
-Each item is an extension, a chain of successive extensions, or an evaluation of controllers.
+Each item is an extension, a chain of successive extensions, an evaluation of controllers,
+or a campaign (chains grown from ego-only test-cases, every level evaluated).
 An item can start from a stored test-case, an inline document, or the last test-case an
 earlier item made; an evaluation can cover every test-case of earlier items.
 """
@@ -96,7 +97,31 @@ class EvaluateItem(_Item):
         return self
 
 
-Item = Annotated[ExtendItem | ChainItem | EvaluateItem, Field(discriminator="kind")]
+class CampaignItem(_Item):
+    """A campaign (service.core.campaign): `chains` chains of `depth` levels grown from an
+    ego-only test-case per ego route on `network`, every level judged with every controller."""
+
+    kind: Literal["campaign"]
+    network: str = Field(min_length=1, description="a bundled network name or a network id")
+    junction: str | None = Field(None, description="default: the network's only junction")
+    control: Literal["allway_stop", "priority_stop", "right_before_left"] | None = None
+    egos: list[str] | None = Field(None, min_length=1, max_length=20, description="routes")
+    all_egos: bool = Field(False, description="a chain set for every route of the junction")
+    depth: int = Field(ge=1, le=10)
+    chains: int = Field(ge=1, le=20, description="chains per ego route")
+    controllers: list[str] = Field(min_length=1, max_length=20)
+    seed: int = Field(0, ge=0, le=MAX_SEED)
+    budget_per_level: float | None = Field(None, gt=0, description="seconds per level")
+    budget: float | None = Field(None, gt=0, description="seconds per evaluation")
+
+    @model_validator(mode="after")
+    def _egos_or_all(self) -> CampaignItem:
+        if (self.egos is None) == (not self.all_egos):
+            raise ValueError("give exactly one of egos (routes) and all_egos: true")
+        return self
+
+
+Item = Annotated[ExtendItem | ChainItem | EvaluateItem | CampaignItem, Field(discriminator="kind")]
 
 
 class Batch(BaseModel):
@@ -151,14 +176,19 @@ class Batch(BaseModel):
         return hashlib.sha256(canonical.encode()).hexdigest()
 
 
-def dependencies(item: ExtendItem | ChainItem | EvaluateItem) -> list[int]:
+AnyItem = ExtendItem | ChainItem | EvaluateItem | CampaignItem
+
+
+def dependencies(item: AnyItem) -> list[int]:
     """Indices of the items this one waits for."""
     return sorted(set(_references(item)))
 
 
-def _references(item: ExtendItem | ChainItem | EvaluateItem) -> list[int]:
+def _references(item: AnyItem) -> list[int]:
     if isinstance(item, EvaluateItem):
         return list(item.items or [])
+    if isinstance(item, CampaignItem):
+        return []
     return [] if item.after is None else [item.after]
 
 

@@ -24,7 +24,8 @@ from service.core.budget import decode_outcome, encode_call
 from service.core.errors import BudgetExceeded, ScengenError
 from service.core.testcase import parse_testcase
 from service.jobs import tasks
-from service.jobs.batch import ChainItem, EvaluateItem, ExtendItem
+from service.jobs.batch import CampaignItem, ChainItem, EvaluateItem, ExtendItem
+from service.jobs.campaign_steps import JobCampaign
 from service.jobs.executor import WORKER_COMMAND
 from service.jobs.store import ItemRecord, JobStore
 from service.settings import Settings
@@ -123,6 +124,8 @@ class Work:
             self._extend(ExtendItem.model_validate(self.item.spec))
         elif kind == "chain":
             self._chain(ChainItem.model_validate(self.item.spec))
+        elif kind == "campaign":
+            JobCampaign(self, CampaignItem.model_validate(self.item.spec)).run()
         else:
             self._evaluate(EvaluateItem.model_validate(self.item.spec))
 
@@ -171,18 +174,23 @@ class Work:
         budget = spec.budget or self.settings.evaluate_budget
         pairs = [(t, c) for t in targets for c in spec.controllers]
         for number, (target, controller) in enumerate(pairs, start=1):
-            ident = _evaluation_id(self.item, target.id, controller)
+            ident = evaluation_id(self.item, target.id, controller)
             progress = f"evaluation {number}/{len(pairs)}"
             if ident not in done and self.store.evaluation(ident) is None:
                 self.jobs.record(self.item.job, self.item.position, self.owner, progress)
-                result = self._call(
+                result = self.call(
                     tasks.evaluate_controller,
                     (target.document, self.store.network_file_for(target.testcase),
                      self.settings.cache_dir, controller, budget),
                     budget + self.settings.work_budget, f"evaluating {controller}",
                 )  # fmt: skip
                 self.store.add_evaluation(
-                    target.id, controller, result["verdict"], result["seconds"], ident
+                    target.id,
+                    controller,
+                    result["verdict"],
+                    result["seconds"],
+                    ident,
+                    result["drive"],
                 )
             if ident not in done:
                 done.append(ident)
@@ -218,10 +226,10 @@ class Work:
         else:
             call, args = tasks.extend, (*common, routes, seed, chosen, start_distance)
             what = f"extending {old.id} by {', '.join(routes)}"
-        result = self._call(call, args, chosen + 5.0, what)
+        result = self.call(call, args, chosen + 5.0, what)
         return self.store.add_testcase(parse_testcase(result["document"]), parent=old.id)
 
-    def _call(
+    def call(
         self, function: Callable[..., Any], args: tuple[Any, ...], budget: float, what: str
     ) -> Any:
         return run_stoppable(function, args, budget, what, self.stop)
@@ -264,7 +272,7 @@ def run_stoppable(
     return decode_outcome(answer.get("out", b""), answer.get("err", b""), what)
 
 
-def _evaluation_id(item: ItemRecord, testcase: str, controller: str) -> str:
+def evaluation_id(item: ItemRecord, testcase: str, controller: str) -> str:
     """The same item, test-case and controller: the same stored evaluation, once."""
     key = f"{item.job}/{item.position}/{testcase}/{controller}"
     return hashlib.sha256(key.encode()).hexdigest()[:16]

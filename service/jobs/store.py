@@ -56,6 +56,17 @@ items = sa.Table(
     sa.Column("finished_at", sa.DateTime(timezone=True), nullable=True),
 )
 
+# What an item remembers of its steps beyond test-cases and evaluations (a campaign's
+# chain ends and its outcome so far), so that a retry answers them from memory
+memos = sa.Table(
+    "job_item_memos",
+    metadata,
+    sa.Column("job", sa.String(32), primary_key=True),
+    sa.Column("position", sa.Integer, primary_key=True),
+    sa.Column("key", sa.String(255), primary_key=True),
+    sa.Column("value", sa.Text, nullable=False),  # JSON
+)
+
 FINISHED = ("succeeded", "failed", "cancelled")
 SWEEP_PERIOD = 10.0  # seconds between looks for jobs left unfinished with finished items
 
@@ -237,6 +248,30 @@ class JobStore:
             values["evaluations"] = json.dumps(evaluations)
         with self.engine.begin() as connection:
             connection.execute(items.update().where(*_owned(job, position, owner)).values(**values))
+
+    def memo(self, job: str, position: int, key: str) -> Any:
+        """What the item remembered under ``key``, or None."""
+        with self.engine.connect() as connection:
+            found = connection.execute(
+                sa.select(memos.c.value).where(
+                    memos.c.job == job, memos.c.position == position, memos.c.key == key
+                )
+            ).scalar()
+        return None if found is None else json.loads(found)
+
+    def remember(self, job: str, position: int, owner: str, key: str, value: Any) -> None:
+        """Keep ``value`` under ``key`` (replacing it), while the item is this owner's."""
+        where = [memos.c.job == job, memos.c.position == position, memos.c.key == key]
+        with self.engine.begin() as connection:
+            owned = connection.execute(
+                sa.select(items.c.position).where(*_owned(job, position, owner))
+            ).first()
+            if owned is None:
+                return  # cancelled or taken over: the new owner writes its own
+            connection.execute(memos.delete().where(*where))
+            connection.execute(
+                memos.insert().values(job=job, position=position, key=key, value=json.dumps(value))
+            )
 
     def finish(
         self,

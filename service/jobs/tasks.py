@@ -79,6 +79,24 @@ def describe_junction(
     return description
 
 
+def junction_geometry(
+    network_file: Path, junction: str | None, control: str | None, cache_dir: Path
+) -> dict[str, Any]:
+    """The junction's shapes for the results browser (service.core.network.geometry)."""
+    from service.core.network.geometry import junction_geometry as shapes
+
+    return shapes(load_intersection(network_file, junction, control, cache_dir))
+
+
+def rule_set_laws(control: str) -> list[tuple[str, str]]:
+    """The rules of a control type's rule set with their CVC sections, sorted."""
+    from service.core.network import ControlType
+    from service.core.rules import solve_rules
+
+    atoms = solve_rules(ControlType(control), [], shown=[("law", 2)])
+    return sorted((str(atom.arguments[0]), atom.arguments[1].string) for atom in atoms)
+
+
 def plot_junction(
     network_file: Path,
     junction: str | None,
@@ -153,14 +171,23 @@ def extend(
 def evaluate_controller(
     document: str, network_file: Path, cache_dir: Path, controller: str, budget: float
 ) -> dict[str, Any]:
-    """A controller's verdict on a test-case (``Verdict.to_dict``) and the seconds it took."""
+    """A controller's verdict on a test-case (``Verdict.to_dict``), the seconds it took and
+    the ego's drive (rows of t, x, y, heading, speed, distance)."""
     from service.core.replay import evaluate
 
     testcase = parse_testcase(document)
     intersection = load_testcase_intersection(testcase, cache_dir, network_file)
     clock = time.monotonic()
     evaluation = evaluate(testcase, controller, intersection, budget)
-    return {"verdict": evaluation.verdict.to_dict(), "seconds": time.monotonic() - clock}
+    drive = [
+        [round(value, 3) for value in (s.t, s.x, s.y, s.heading, s.speed, s.distance)]
+        for s in evaluation.trajectory
+    ]
+    return {
+        "verdict": evaluation.verdict.to_dict(),
+        "seconds": time.monotonic() - clock,
+        "drive": drive,
+    }
 
 
 def bundle(document: str, network_file: Path, cache_dir: Path) -> bytes:
@@ -226,17 +253,22 @@ def plot_testcase(
 
 
 def extend_any(
-    document: str, network_file: Path, cache_dir: Path, seed: int, budget: float
+    document: str,
+    network_file: Path,
+    cache_dir: Path,
+    seed: int,
+    budget: float,
+    last: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """An extension by one car on a route the service chooses (service.core.chain.grow):
     the routes that conflict with the ego's or start ahead of it, from forks no car uses
     first, then from forks in use (the new car joins the queue), in an order drawn from
-    ``seed``; the budget only stops the call."""
+    ``seed`` (routes in ``last`` after the others); the budget only stops the call."""
     from service.core.chain import grow
 
     old = parse_testcase(document)
     intersection = load_testcase_intersection(old, cache_dir, network_file)
-    growth = grow(old, seed, budget, intersection)
+    growth = grow(old, seed, budget, intersection, last=last)
     extension = growth.extension
     return {
         "document": dump_testcase(extension.testcase),

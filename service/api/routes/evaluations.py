@@ -114,7 +114,7 @@ async def create_evaluation(
         started,
     )
     stored = state.store.add_evaluation(
-        record.id, body.controller, result["verdict"], result["seconds"]
+        record.id, body.controller, result["verdict"], result["seconds"], drive=result["drive"]
     )
     answer = _answer(stored, junit)
     answer.status_code = status.HTTP_201_CREATED
@@ -162,3 +162,19 @@ async def get_evaluation(
     if record is None:
         raise Problem(404, f"no evaluation {evaluation!r}; GET /evaluations lists them")
     return _answer(record, junit)
+
+
+@router.get("/evaluations/{evaluation}/drive", operation_id="get_evaluation_drive")
+async def get_evaluation_drive(state: State, evaluation: str) -> dict[str, Any]:
+    """The ego's drive in the evaluation: rows of t, x, y, heading, speed, distance (the
+    centre of its footprint; SUMO's coordinates and headings); empty when it was evaluated
+    before drives were kept."""
+
+    def found() -> dict[str, Any]:
+        if state.store.evaluation(evaluation) is None:
+            raise Problem(404, f"no evaluation {evaluation!r}; GET /evaluations lists them")
+        trajectory = state.store.drive(evaluation) or []
+        columns = ["t", "x", "y", "heading", "speed", "distance"]
+        return {"evaluation": evaluation, "columns": columns, "trajectory": trajectory}
+
+    return await asyncio.to_thread(found)

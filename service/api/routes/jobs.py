@@ -14,20 +14,20 @@ from service.api.bodies import OffLoopValidation
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.schemas import MAX_OFFSET, JobItemPublic, JobPage, JobPublic, Links
 from service.api.state import AppState, State, Token, json_answer
+from service.core.campaign import campaign_junit
 from service.core.export import Flavour
 from service.core.verdict import Verdict, junit_report
 from service.jobs import tasks
 from service.jobs.batch import Batch
 from service.jobs.store import FINISHED, IdempotencyConflict, JobRecord, JobStore
+from service.store import Store
 
 router = APIRouter(prefix="/jobs", tags=["jobs"], route_class=OffLoopValidation)
 STATES = ("queued", "running", *FINISHED)
 
 
-def job_public(state: AppState, job: JobRecord) -> JobPublic:
-    verdicts = list(
-        state.store.evaluations_passed([e for item in job.items for e in item.evaluations])
-    )
+def job_public(store: Store, job: JobRecord) -> JobPublic:
+    verdicts = list(store.evaluations_passed([e for item in job.items for e in item.evaluations]))
     base = f"/jobs/{job.id}"
     return JobPublic(
         id=job.id,
@@ -114,7 +114,7 @@ async def create_job(
                 409, f"Idempotency-Key {idempotency_key!r} was used with another batch"
             ) from None
         code = status.HTTP_202_ACCEPTED if created else status.HTTP_200_OK
-        return json_answer(job_public(state, job), code, f"/jobs/{job.id}")
+        return json_answer(job_public(state.store, job), code, f"/jobs/{job.id}")
 
     answer = await asyncio.to_thread(create)
     state.dispatcher.nudge()
@@ -141,7 +141,7 @@ async def list_jobs(
             where = f"state={job_state}&" if job_state else ""
             following = f"/jobs?{where}limit={limit}&offset={offset + limit}"
         return JobPage(
-            items=[job_public(state, j) for j in found.items],
+            items=[job_public(state.store, j) for j in found.items],
             total=found.total, limit=limit, offset=offset, next=following,
         )  # fmt: skip
 
@@ -151,7 +151,9 @@ async def list_jobs(
 @router.get("/{job}", operation_id="get_job", response_model=JobPublic)
 async def get_job(state: State, job: str) -> Response:
     """A job: state, per-item progress, results, timestamps."""
-    return await asyncio.to_thread(lambda: json_answer(job_public(state, _job_or_404(state, job))))
+    return await asyncio.to_thread(
+        lambda: json_answer(job_public(state.store, _job_or_404(state, job)))
+    )
 
 
 @router.delete(
@@ -167,7 +169,9 @@ async def cancel_job(state: State, job: str) -> Response:
     def cancel() -> Response:
         _job_or_404(state, job)
         _jobs(state).cancel(job)
-        return json_answer(job_public(state, _job_or_404(state, job)), status.HTTP_202_ACCEPTED)
+        return json_answer(
+            job_public(state.store, _job_or_404(state, job)), status.HTTP_202_ACCEPTED
+        )
 
     answer = await asyncio.to_thread(cancel)
     state.dispatcher.nudge()
@@ -196,6 +200,64 @@ async def get_job_junit(state: State, job: str) -> Response:
         return junit_report(verdicts, suite_name=f"scengen job {found.name or found.id}")
 
     return Response(await asyncio.to_thread(report), media_type="application/xml")
+
+
+def _campaign_or_404(state: AppState, job: str) -> dict[str, Any]:
+    from service.report import outcome_of
+
+    _job_or_404(state, job)
+    try:
+        return outcome_of(state.store, job)
+    except KeyError:
+        raise Problem(
+            404,
+            f"job {job!r} has no campaign outcome (no campaign item, or none has finished "
+            "a level yet)",
+        ) from None
+
+
+@router.get("/{job}/campaign", operation_id="get_job_campaign")
+async def get_job_campaign(state: State, job: str) -> dict[str, Any]:
+    """The campaign's outcome so far (schema scengen/campaign/1): failure shares per level
+    and controller, chains with their first failing levels, rule coverage."""
+    return await asyncio.to_thread(_campaign_or_404, state, job)
+
+
+@router.get(
+    "/{job}/campaign/junit",
+    operation_id="get_job_campaign_junit",
+    response_class=PlainResponse,
+    responses={200: {"content": {"application/xml": {}}, "description": "JUnit XML"}},
+)
+async def get_job_campaign_junit(state: State, job: str) -> Response:
+    """The campaign as JUnit XML: a test case per chain, level and controller."""
+    outcome = await asyncio.to_thread(_campaign_or_404, state, job)
+    return Response(campaign_junit(outcome), media_type="application/xml")
+
+
+@router.get(
+    "/{job}/campaign/report",
+    operation_id="get_job_campaign_report",
+    response_class=PlainResponse,
+    responses={200: {"content": {"text/html": {}}, "description": "the report"}},
+)
+async def get_job_campaign_report(state: State, job: str) -> Response:
+    """The campaign's self-contained HTML report (`scengen report`), to save and publish."""
+    from service.report import campaign_paths, report_html, store_fetch
+
+    outcome = await asyncio.to_thread(_campaign_or_404, state, job)
+    plan = outcome["plan"]
+    path = await asyncio.to_thread(state.store.network_file, plan["network"])
+    geometry = await state.run(
+        "junction", tasks.junction_geometry, (path, plan["junction"], plan["control"],
+        state.cache_dir), state.settings.work_budget, time.monotonic(),
+    )  # fmt: skip
+
+    def build() -> str:
+        data = campaign_paths(job, outcome, store_fetch(state.store, lambda *_: geometry))
+        return report_html(job, data, f"scengen campaign: {plan['network']} {plan['junction']}")
+
+    return Response(await asyncio.to_thread(build), media_type="text/html")
 
 
 async def _zip_of(state: State, job: str, flavour: str | None, filename: str) -> Response:

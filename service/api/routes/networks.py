@@ -267,6 +267,30 @@ async def plot_junction(
     return Response(content, media_type=media)
 
 
+@router.get(
+    "/{network}/junctions/{junction}/geometry",
+    operation_id="get_junction_geometry",
+    responses=documented(*WORK_PROBLEMS),
+)
+async def get_junction_geometry(
+    state: State,
+    network: str,
+    junction: str,
+    control: Annotated[
+        ControlType | None, Query(description="a control type override (default: the stored)")
+    ] = None,
+) -> JSONResponse:
+    """The junction's shapes for drawing: roads, area, paths through it, stop lines (m)."""
+    record = state.network_or_404(network)
+    chosen = control.value if control else record.controls.get(junction)
+    path = state.store.network_file(network)
+    geometry = await _junction_work(
+        state, record, junction, f"geometry-{chosen or 'own'}.json", tasks.junction_geometry,
+        (path, junction, chosen, state.cache_dir),
+    )  # fmt: skip
+    return JSONResponse(geometry)
+
+
 async def _junction_work(
     state: State, record: NetworkRecord, junction: str, name: str, function: Any, args: Any
 ) -> Any:

@@ -1,0 +1,585 @@
+// scengen results browser: networks, test-case lineage, animations, evaluations, jobs and
+// campaigns. Plain JavaScript, no build step, no request leaving the server. A report
+// written by `scengen report` is this page with every answer it needs embedded
+// (window.SCENGEN_REPORT), so it works from a file as well.
+"use strict";
+
+const REPORT = window.SCENGEN_REPORT || null;
+const COLOURS = ["#2456a6", "#c62828", "#1a7f37", "#8e44ad", "#d97706", "#0e7490", "#be185d", "#4d7c0f"];
+const CAR_COLOURS = ["#2456a6", "#8e44ad", "#d97706", "#0e7490", "#be185d", "#64748b", "#a16207", "#0f766e"];
+const CONTROLLER_COLOURS = {};
+
+// ---------- data ----------
+
+async function get(path) {
+  if (REPORT) {
+    if (path in REPORT.answers) return REPORT.answers[path];
+    throw new Error(`this report does not hold ${path}`);
+  }
+  const answer = await fetch(path, { headers: { Accept: "application/json" } });
+  if (!answer.ok) {
+    let detail = answer.statusText;
+    try { detail = (await answer.json()).detail || detail; } catch (e) { /* not JSON */ }
+    throw new Error(`${answer.status}: ${detail}`);
+  }
+  return answer.json();
+}
+
+// ---------- elements ----------
+
+function h(tag, attrs, ...children) {
+  const node = document.createElement(tag);
+  for (const [key, value] of Object.entries(attrs || {})) {
+    if (value === null || value === undefined || value === false) continue;
+    if (key.startsWith("on")) node.addEventListener(key.slice(2), value);
+    else if (key === "class") node.className = value;
+    else node.setAttribute(key, value === true ? "" : value);
+  }
+  for (const child of children.flat(Infinity)) {
+    if (child === null || child === undefined || child === false) continue;
+    node.append(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  return node;
+}
+
+function svg(tag, attrs, ...children) {
+  const node = document.createElementNS("http://www.w3.org/2000/svg", tag);
+  for (const [key, value] of Object.entries(attrs || {})) node.setAttribute(key, value);
+  for (const child of children.flat(Infinity)) {
+    if (child === null || child === undefined) continue;
+    node.append(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  return node;
+}
+
+function table(head, rows) {
+  return h("table", {}, h("thead", {}, h("tr", {}, head.map((c) => h("th", {}, c)))),
+    h("tbody", {}, rows.map((r) => (r instanceof Node ? r : h("tr", {}, r.map((c) => (c instanceof Node && c.tagName === "TD" ? c : h("td", {}, c))))))));
+}
+
+function link(text, hash) { return h("a", { href: hash }, text); }
+function short(id) { return id ? id.slice(0, 8) : ""; }
+function colourOf(controller, all) {
+  if (!(controller in CONTROLLER_COLOURS)) {
+    CONTROLLER_COLOURS[controller] = COLOURS[(all ? all.indexOf(controller) : Object.keys(CONTROLLER_COLOURS).length) % COLOURS.length];
+  }
+  return CONTROLLER_COLOURS[controller];
+}
+function download(text, name) {
+  return h("a", { href: URL.createObjectURL(new Blob([text], { type: "application/json" })), download: name }, name);
+}
+
+// ---------- routing ----------
+
+const main = document.getElementById("main");
+// the page's content (null and false leave nothing)
+function render(...nodes) { main.replaceChildren(...nodes.flat(Infinity).filter((n) => n !== null && n !== undefined && n !== false)); }
+let stopPage = () => {};
+
+const PAGES = [
+  [/^#\/?$/, home],
+  [/^#\/networks\/([^/]+)$/, networkPage],
+  [/^#\/testcases(?:\?(.*))?$/, testcasesPage],
+  [/^#\/testcases\/([0-9a-f]+)$/, testcasePage],
+  [/^#\/evaluations(?:\?(.*))?$/, evaluationsPage],
+  [/^#\/replay\/([0-9a-f]+)$/, replayPage],
+  [/^#\/jobs\/?$/, jobsPage],
+  [/^#\/jobs\/([0-9a-f]+)$/, jobPage],
+];
+
+function navigation() {
+  const items = REPORT ? [["Campaign", REPORT.start]]
+    : [["Networks", "#/"], ["Test-cases", "#/testcases"], ["Evaluations", "#/evaluations"], ["Jobs & campaigns", "#/jobs"]];
+  const nav = document.getElementById("nav");
+  nav.replaceChildren(...items.map(([text, hash]) => h("a", { href: hash, class: location.hash.startsWith(hash) && hash !== "#/" || location.hash === hash ? "active" : null }, text)));
+}
+
+async function route() {
+  stopPage();
+  stopPage = () => {};
+  if (REPORT && (location.hash === "" || location.hash === "#/")) { location.hash = REPORT.start; return; }
+  navigation();
+  const hash = location.hash || "#/";
+  for (const [pattern, page] of PAGES) {
+    const found = hash.match(pattern);
+    if (found) {
+      render(h("p", { class: "muted" }, "Loading…"));
+      try {
+        await page(...found.slice(1));
+      } catch (error) {
+        render(h("h1", {}, "Something went wrong"), h("p", { class: "error" }, String(error.message || error)));
+      }
+      return;
+    }
+  }
+  render(h("h1", {}, "No such page"), h("p", {}, link("Start page", "#/")));
+}
+window.addEventListener("hashchange", route);
+
+// ---------- networks ----------
+
+async function home() {
+  const networks = await get("/networks");
+  render(h("h1", {}, "Networks and junctions"),
+    h("p", { class: "muted" }, "Bundled and uploaded road networks; each junction with a supported control type can grow test-cases."));
+  const list = h("div", {});
+  main.append(list);
+  for (const network of networks) {
+    const card = h("div", { class: "card" }, h("h2", {}, link(network.id, `#/networks/${encodeURIComponent(network.id)}`),
+      " ", h("span", { class: "badge" }, network.bundled ? "bundled" : "uploaded")), h("p", { class: "muted" }, "Loading junctions…"));
+    list.append(card);
+    junctionCards(network, card, 4);
+  }
+}
+
+async function junctionCards(network, card, most) {
+  const junctions = (await get(`/networks/${encodeURIComponent(network.id)}/junctions`)).filter((j) => j.supported);
+  const grid = h("div", { class: "grid" });
+  for (const junction of junctions.slice(0, most)) {
+    grid.append(h("div", {}, h("img", { src: junction.links.plot, alt: `junction ${junction.id}` }),
+      h("div", {}, link(`junction ${junction.id}`, `#/testcases?network=${encodeURIComponent(network.id)}&junction=${encodeURIComponent(junction.id)}`),
+        ` · ${junction.control} · ${junction.approaches} approaches`)));
+  }
+  const more = junctions.length > most ? h("p", {}, link(`all ${junctions.length} supported junctions`, `#/networks/${encodeURIComponent(network.id)}`)) : null;
+  card.replaceChildren(card.firstChild, junctions.length ? grid : h("p", { class: "muted" }, "no junction with a supported control type"));
+  if (more) card.append(more);
+}
+
+async function networkPage(network) {
+  const record = await get(`/networks/${network}`);
+  render(h("h1", {}, `Network ${record.id}`));
+  const card = h("div", { class: "card" }, h("h2", {}, "Junctions"));
+  main.append(card);
+  await junctionCards(record, card, 1000);
+}
+
+// ---------- test-cases and their lineage ----------
+
+async function allTestcases() {
+  const found = [];
+  for (let offset = 0; offset < 2000; offset += 200) {
+    const page = await get(`/testcases?limit=200&offset=${offset}`);
+    found.push(...page.items);
+    if (!page.next) break;
+  }
+  return found;
+}
+
+async function testcasesPage(query) {
+  const filters = new URLSearchParams(query || "");
+  const found = await allTestcases();
+  const byId = Object.fromEntries(found.map((t) => [t.id, t]));
+  const children = {};
+  for (const t of found) if (t.parent && byId[t.parent]) (children[t.parent] = children[t.parent] || []).push(t);
+  const roots = found.filter((t) => !t.parent || !byId[t.parent]);
+  const egos = {};
+  await Promise.all(roots.map(async (root) => {
+    const record = await get(`/testcases/${root.id}`);
+    const route = record.testcase.ego.route;
+    egos[root.id] = `${route.fork}:${route.exit}`;
+  }));
+  const level = {};
+  const visit = (t, depth, root) => { level[t.id] = depth; egos[t.id] = egos[root.id]; (children[t.id] || []).forEach((c) => visit(c, depth + 1, root)); };
+  roots.forEach((r) => visit(r, 0, r));
+
+  const choices = (key, values) => h("label", {}, key, h("select", { name: key },
+    h("option", { value: "" }, "any"), [...new Set(values)].sort().map((v) => h("option", { value: v, selected: filters.get(key) === String(v) ? true : null }, v))));
+  const form = h("form", { class: "filters", onsubmit: (event) => {
+    event.preventDefault();
+    const chosen = new URLSearchParams([...new FormData(form)].filter(([, v]) => v));
+    location.hash = `#/testcases?${chosen}`;
+  } }, choices("network", found.map((t) => t.network)), choices("junction", found.map((t) => t.junction)),
+  choices("ego", Object.values(egos)), choices("level", Object.values(level).map(String)), h("button", { type: "submit" }, "Filter"));
+  const keep = (t) => (!filters.get("network") || t.network === filters.get("network"))
+    && (!filters.get("junction") || t.junction === filters.get("junction"))
+    && (!filters.get("ego") || egos[t.id] === filters.get("ego"));
+  render(h("h1", {}, "Test-cases"), form);
+  if (filters.get("level")) {
+    const wanted = Number(filters.get("level"));
+    const rows = found.filter((t) => keep(t) && level[t.id] === wanted).map((t) => [link(t.name || t.id, `#/testcases/${t.id}`), t.network, t.junction, egos[t.id], String(t.nonegos)]);
+    main.append(h("p", { class: "muted" }, `${rows.length} test-cases at level ${wanted}`), table(["test-case", "network", "junction", "ego route", "other cars"], rows));
+    return;
+  }
+  const item = (t) => h("li", {}, link(t.name || t.id, `#/testcases/${t.id}`), " ",
+    h("span", { class: "badge" }, `level ${level[t.id]}`), " ", h("span", { class: "muted" }, `${t.nonegos} other cars · ${short(t.id)}`),
+    children[t.id] ? h("ul", { class: "tree" }, children[t.id].map(item)) : null);
+  const shown = roots.filter(keep);
+  main.append(h("p", { class: "muted" }, `${shown.length} roots (ego-only or uploaded test-cases); their extensions below them, siblings side by side.`),
+    shown.length ? h("ul", { class: "tree", id: "lineage" }, shown.map((root) => h("li", {}, h("strong", {}, `${root.network} · junction ${root.junction} · ego ${egos[root.id]}`), h("ul", { class: "tree" }, item(root))))) : h("p", {}, "No test-case matches."));
+}
+
+// ---------- drawing: junction and cars ----------
+
+class Player {
+  // tracks: [{id, label, colour, length, width, samples: [[t, x, y, heading]], highlight, hidden}]
+  constructor(geometry, tracks, duration, options = {}) {
+    this.geometry = geometry; this.tracks = tracks; this.duration = duration;
+    this.time = 0; this.speed = 1; this.playing = false; this.frame = null;
+    this.canvas = h("canvas", { width: options.width || 720, height: options.height || 560, id: "animation" });
+    this.view();
+    this.slider = h("input", { type: "range", min: 0, max: duration, step: 0.05, value: 0, id: "scrub", oninput: () => { this.seek(Number(this.slider.value)); } });
+    this.clock = h("span", { id: "clock" }, "0.0 s");
+    this.button = h("button", { id: "play", onclick: () => (this.playing ? this.pause() : this.play()) }, "Play");
+    const speeds = h("select", { id: "speed", onchange: () => { this.speed = Number(speeds.value); } },
+      [0.25, 0.5, 1, 2, 4].map((s) => h("option", { value: s, selected: s === 1 ? true : null }, `${s}×`)));
+    this.controls = h("div", { class: "controls" }, this.button, this.slider, this.clock, h("label", {}, "speed ", speeds));
+    this.element = h("div", {}, this.canvas, this.controls);
+    this.draw();
+  }
+
+  view() {
+    const [x0, y0, x1, y1] = boundsOf(this.geometry.area.flat());
+    const cx = (x0 + x1) / 2, cy = (y0 + y1) / 2;
+    const half = Math.max(x1 - x0, y1 - y0) / 2 + 40;
+    const scale = Math.min(this.canvas.width, this.canvas.height) / (2 * half);
+    this.toScreen = (x, y) => [this.canvas.width / 2 + (x - cx) * scale, this.canvas.height / 2 - (y - cy) * scale];
+    this.scale = scale;
+  }
+
+  play() {
+    if (this.time >= this.duration) this.time = 0;
+    this.playing = true; this.button.textContent = "Pause";
+    let last = performance.now();
+    const step = (now) => {
+      if (!this.playing) return;
+      this.seek(Math.min(this.duration, this.time + ((now - last) / 1000) * this.speed));
+      last = now;
+      if (this.time >= this.duration) { this.pause(); return; }
+      this.frame = requestAnimationFrame(step);
+    };
+    this.frame = requestAnimationFrame(step);
+  }
+
+  pause() { this.playing = false; this.button.textContent = "Play"; if (this.frame) cancelAnimationFrame(this.frame); }
+
+  seek(time) {
+    this.time = time; this.slider.value = time; this.clock.textContent = `${time.toFixed(1)} s`;
+    this.canvas.dataset.time = time.toFixed(2);
+    this.draw();
+  }
+
+  draw() {
+    const c = this.canvas.getContext("2d");
+    c.fillStyle = "#fbfbf8"; c.fillRect(0, 0, this.canvas.width, this.canvas.height);
+    const polygon = (ring, fill) => {
+      c.beginPath();
+      ring.forEach(([x, y], i) => { const [sx, sy] = this.toScreen(x, y); if (i) c.lineTo(sx, sy); else c.moveTo(sx, sy); });
+      c.closePath(); c.fillStyle = fill; c.fill();
+    };
+    for (const road of this.geometry.roads) road.polygon.forEach((ring) => polygon(ring, "#d4d6da"));
+    this.geometry.area.forEach((ring) => polygon(ring, "#c8cace"));
+    c.setLineDash([4, 4]); c.strokeStyle = "#ffffff"; c.lineWidth = 1;
+    for (const path of this.geometry.paths) {
+      c.beginPath();
+      path.line.forEach(([x, y], i) => { const [sx, sy] = this.toScreen(x, y); if (i) c.lineTo(sx, sy); else c.moveTo(sx, sy); });
+      c.stroke();
+    }
+    c.setLineDash([]);
+    for (const stop of this.geometry.stop_lines) {
+      c.beginPath(); c.strokeStyle = stop.stop_sign ? "#b91c1c" : "#6b7280"; c.lineWidth = stop.stop_sign ? 3 : 1.5;
+      const [a, b] = stop.line.map(([x, y]) => this.toScreen(x, y));
+      c.moveTo(...a); c.lineTo(...b); c.stroke();
+    }
+    for (const track of this.tracks) {
+      if (track.hidden) continue;
+      const pose = poseAt(track.samples, this.time);
+      if (!pose) continue;
+      const [sx, sy] = this.toScreen(pose[0], pose[1]);
+      const angle = (pose[2] * Math.PI) / 180; // clockwise from north
+      c.save(); c.translate(sx, sy); c.rotate(angle);
+      const l = track.length * this.scale, w = track.width * this.scale;
+      c.globalAlpha = track.ghost ? 0.55 : 1;
+      c.fillStyle = track.colour; c.fillRect(-w / 2, -l / 2, w, l);
+      c.fillStyle = "#ffffff"; c.fillRect(-w / 2, -l / 2, w, Math.min(l * 0.18, 4));
+      if (track.highlight) { c.strokeStyle = "#f59e0b"; c.lineWidth = 3; c.strokeRect(-w / 2 - 3, -l / 2 - 3, w + 6, l + 6); }
+      c.restore();
+      c.fillStyle = "#111827"; c.font = "12px system-ui, sans-serif";
+      c.fillText(track.label, sx + 8, sy - 8 + (track.ghost ? 14 * (track.label.includes("complexity") ? 1 : 0) : 0));
+    }
+    c.fillStyle = "#111827"; c.font = "13px system-ui, sans-serif";
+    c.fillText(`t = ${this.time.toFixed(1)} s`, 10, 18);
+  }
+}
+
+function boundsOf(points) {
+  const xs = points.map((p) => p[0]), ys = points.map((p) => p[1]);
+  return [Math.min(...xs), Math.min(...ys), Math.max(...xs), Math.max(...ys)];
+}
+
+function poseAt(samples, time) {
+  if (!samples.length || time < samples[0][0] - 1e-9 || time > samples[samples.length - 1][0] + 1e-9) return null;
+  let lo = 0, hi = samples.length - 1;
+  while (hi - lo > 1) { const mid = (lo + hi) >> 1; if (samples[mid][0] <= time) lo = mid; else hi = mid; }
+  const a = samples[lo], b = samples[hi];
+  const f = b[0] > a[0] ? Math.max(0, Math.min(1, (time - a[0]) / (b[0] - a[0]))) : 0;
+  let turn = ((b[3] - a[3] + 540) % 360) - 180;
+  return [a[1] + (b[1] - a[1]) * f, a[2] + (b[2] - a[2]) * f, a[3] + turn * f];
+}
+
+const rows = (samples) => samples.map((s) => [s.t, s.x, s.y, s.heading, s.speed, s.distance]);
+
+function tracksOf(testcase) {
+  const level = testcase.provenance ? testcase.provenance.level : 0;
+  const tracks = testcase.nonegos.map((car, i) => ({
+    id: car.id, label: car.added_in === level && level ? `${car.id} (new)` : car.id,
+    colour: CAR_COLOURS[i % CAR_COLOURS.length], length: car.length, width: car.width,
+    samples: rows(car.trajectory), highlight: car.added_in === level && level > 0, events: car.events,
+  }));
+  return tracks;
+}
+
+function egoTrack(testcase, samples, label, colour, ghost) {
+  return { id: label, label, colour, length: testcase.ego.length, width: testcase.ego.width, samples, ghost };
+}
+
+function timeDistance(tracks, duration) {
+  const width = 560, height = 300, left = 48, bottom = 30;
+  const most = Math.max(1, ...tracks.flatMap((t) => t.samples.map((s) => s[5] || 0)));
+  const x = (t) => left + (t / duration) * (width - left - 10);
+  const y = (d) => height - bottom - (d / most) * (height - bottom - 10);
+  const plot = svg("svg", { width, height, id: "time-distance", viewBox: `0 0 ${width} ${height}` });
+  plot.append(svg("line", { x1: left, y1: height - bottom, x2: width - 10, y2: height - bottom, stroke: "#6b7280" }),
+    svg("line", { x1: left, y1: 10, x2: left, y2: height - bottom, stroke: "#6b7280" }),
+    svg("text", { x: width / 2, y: height - 4, "font-size": 12, "text-anchor": "middle" }, "time (s)"),
+    svg("text", { x: 12, y: height / 2, "font-size": 12, transform: `rotate(-90 12 ${height / 2})`, "text-anchor": "middle" }, "distance driven (m)"));
+  for (let t = 0; t <= duration + 1e-9; t += Math.max(1, Math.round(duration / 10))) {
+    plot.append(svg("text", { x: x(t), y: height - bottom + 14, "font-size": 10, "text-anchor": "middle" }, t.toFixed(0)));
+  }
+  for (const track of tracks) {
+    if (track.hidden) continue;
+    const points = track.samples.map((s) => `${x(s[0]).toFixed(1)},${y(s[5] || 0).toFixed(1)}`).join(" ");
+    plot.append(svg("polyline", { points, fill: "none", stroke: track.colour, "stroke-width": track.highlight ? 3 : 1.6, "stroke-dasharray": track.ghost ? "5 3" : "none" }));
+    const end = track.samples[track.samples.length - 1];
+    plot.append(svg("text", { x: Math.min(width - 40, x(end[0]) + 2), y: y(end[5] || 0), "font-size": 10, fill: track.colour }, track.id));
+  }
+  return plot;
+}
+
+function eventsTable(testcase, tracks) {
+  const found = [];
+  for (const car of testcase.nonegos) for (const e of car.events) found.push([e.t, car.id, e.kind, e.lane]);
+  found.sort((a, b) => a[0] - b[0]);
+  return table(["t (s)", "car", "event", "lane"], found.map(([t, car, kind, lane]) => [t.toFixed(2), car, kind, lane]));
+}
+
+function provenanceOf(testcase) {
+  const p = testcase.provenance;
+  if (!p) return h("p", { class: "muted" }, "An ego-only or uploaded test-case: no provenance.");
+  const violates = (p.complexity_certificate_violates || []).map((v) => `${v.rule} against ${v.car}`);
+  const rear = (p.complexity_certificate || {}).rear_end || [];
+  return table(["", ""], [
+    ["level", String(p.level)], ["new cars", (p.new_nonegos || []).join(", ")],
+    ["the complexity certificate breaks", [...violates, ...rear.map((car) => `runs into ${car} (rear-end)`)].join("; ") || "—"],
+    ["seed", String(p.seed)], ["answer sets tried", String(p.answer_sets_tried)],
+    ["order of events", h("pre", {}, Array.isArray(p.order) ? p.order.join("\n") : JSON.stringify(p.order, null, 1))],
+  ]);
+}
+
+async function geometryOf(testcase) {
+  return get(`/networks/${encodeURIComponent(testcase.network.ref)}/junctions/${encodeURIComponent(testcase.junction)}/geometry?control=${testcase.control}`);
+}
+
+// ---------- a test-case ----------
+
+async function testcasePage(id) {
+  const record = await get(`/testcases/${id}`);
+  const testcase = record.testcase;
+  const geometry = await geometryOf(testcase);
+  const tracks = tracksOf(testcase);
+  const certificates = [];
+  if (testcase.certificates) {
+    certificates.push(egoTrack(testcase, rows(testcase.certificates.solvability), "ego (solvability)", "#111827", true));
+    certificates.push(egoTrack(testcase, rows(testcase.certificates.complexity), "ego (complexity)", "#dc2626", true));
+  }
+  const player = new Player(geometry, [...tracks, ...certificates], testcase.duration);
+  stopPage = () => player.pause();
+  const toggle = h("label", {}, h("input", { type: "checkbox", id: "certificates", checked: certificates.length ? true : null, disabled: certificates.length ? null : true,
+    onchange: (event) => { certificates.forEach((t) => { t.hidden = !event.target.checked; }); player.draw(); distance.replaceChildren(timeDistance(player.tracks, testcase.duration)); } }),
+  " certificates (the ego's two proofs)");
+  player.controls.append(toggle);
+  const distance = h("div", {}, timeDistance(player.tracks, testcase.duration));
+  const ego = testcase.ego.route;
+  const evaluations = await get(`/evaluations?testcase=${id}&limit=200`).catch(() => ({ items: [] }));
+  const downloads = REPORT
+    ? [download(JSON.stringify(testcase, null, 1), `${testcase.name || id}.json`), h("span", { class: "muted" }, " (SUMO bundle and OpenSCENARIO: from the server, or `scengen export`)")]
+    : [h("a", { href: record.links.document }, "test-case JSON"), " · ", h("a", { href: record.links.bundle }, "SUMO bundle (zip)"), " · ",
+      h("a", { href: record.links.openscenario }, "OpenSCENARIO (zip)"), " · ", h("a", { href: `${record.links.openscenario}?flavour=carla` }, "OpenSCENARIO for CARLA")];
+  render(
+    h("h1", {}, titleOf(testcase, id)),
+    h("p", { class: "muted" }, `${testcase.network.ref} · junction ${testcase.junction} (${testcase.control}) · ego ${ego.fork}:${ego.exit} · ${testcase.nonegos.length} other cars · id ${id}`,
+      record.parent ? [" · parent ", link(short(record.parent), `#/testcases/${record.parent}`)] : null),
+    h("div", { class: "row" }, h("div", { class: "card" }, player.element,
+      h("div", { class: "legend" }, player.tracks.map((t) => h("span", {}, h("span", { class: "swatch", style: `background:${t.colour}` }), t.label))),
+    ), h("div", {},
+      h("div", { class: "card" }, h("h2", {}, "Time and distance"), distance),
+      h("div", { class: "card" }, h("h2", {}, "Downloads"), h("p", {}, downloads)))),
+    h("h2", {}, "Provenance"), provenanceOf(testcase),
+    h("h2", {}, "Evaluations"), evaluations.items.length
+      ? table(["controller", "verdict", "replay"], evaluations.items.map((e) => [e.controller, verdictCell(e.verdict), link("replay", `#/replay/${e.id}`)]))
+      : h("p", { class: "muted" }, "none yet"),
+    h("details", {}, h("summary", {}, h("strong", {}, "Events"), ` (${testcase.nonegos.reduce((n, car) => n + car.events.length, 0)}: each car's arrivals, stops and lane entries and exits)`), eventsTable(testcase, tracks)),
+    REPORT ? null : h("p", {}, link("lineage: every test-case of this tree", `#/testcases?network=${encodeURIComponent(testcase.network.ref)}&junction=${encodeURIComponent(testcase.junction)}`)),
+  );
+  player.seek(0);
+}
+
+function titleOf(testcase, id) {
+  if (testcase.name) return testcase.name;
+  const level = testcase.provenance ? testcase.provenance.level : 0;
+  return `level ${level} · ego ${testcase.ego.route.fork}:${testcase.ego.route.exit} · ${short(id)}`;
+}
+
+function verdictCell(verdict) {
+  if (verdict.passed) return h("span", { class: "pass" }, "pass");
+  return h("span", { class: "fail", title: verdict.reasons.join("\n") }, `FAIL: ${failureOf(verdict)}`);
+}
+
+function failureOf(verdict) {
+  const rules = [...new Set(verdict.violations.map((v) => v.rule))];
+  if (rules.length) return rules.join(", ");
+  if (verdict.collisions.length) return "collision";
+  if (verdict.errors && verdict.errors.length) return "error";
+  if (!verdict.goal.reached) return "goal missed";
+  return "failed";
+}
+
+// ---------- a controller's drive ----------
+
+async function replayPage(id) {
+  const evaluation = await get(`/evaluations/${id}`);
+  const record = await get(`/testcases/${evaluation.testcase}`);
+  const testcase = record.testcase;
+  const [geometry, drive] = await Promise.all([geometryOf(testcase), get(`/evaluations/${id}/drive`)]);
+  const samples = drive.trajectory.map((r) => [r[0], r[1], r[2], r[3], r[4], r[5]]);
+  const tracks = [...tracksOf(testcase), egoTrack(testcase, samples, `ego (${evaluation.controller})`, "#111827", false)];
+  const player = new Player(geometry, tracks, testcase.duration);
+  stopPage = () => player.pause();
+  const verdict = evaluation.verdict;
+  render(
+    h("h1", {}, `${evaluation.controller} on ${titleOf(testcase, evaluation.testcase)}`),
+    h("p", { id: "verdict" }, verdictCell(verdict), " · test-case ", link(testcase.name || short(evaluation.testcase), `#/testcases/${evaluation.testcase}`)),
+    verdict.reasons.length ? h("ul", {}, verdict.reasons.map((r) => h("li", {}, r))) : h("p", { class: "muted" }, "The ego reached its exit without collision, obeying every rule."),
+    samples.length ? null : h("p", { class: "muted" }, "This evaluation was stored before drives were kept: the ego is not shown."),
+    h("div", { class: "row" }, h("div", { class: "card" }, player.element), h("div", { class: "card" }, h("h2", {}, "Time and distance"), timeDistance(tracks, testcase.duration))),
+  );
+  player.seek(0);
+}
+
+// ---------- evaluations matrix ----------
+
+async function evaluationsPage() {
+  const found = [];
+  for (let offset = 0; offset < 2000; offset += 200) {
+    const page = await get(`/evaluations?limit=200&offset=${offset}`);
+    found.push(...page.items);
+    if (!page.next) break;
+  }
+  const controllers = [...new Set(found.map((e) => e.controller))].sort();
+  const testcases = [...new Set(found.map((e) => e.testcase))];
+  const cell = {};
+  for (const e of found) { const key = `${e.testcase}|${e.controller}`; if (!(key in cell)) cell[key] = e; } // newest first
+  const names = {};
+  await Promise.all(testcases.slice(0, 300).map(async (t) => { try { const r = await get(`/testcases/${t}`); names[t] = r.name || t; } catch (e) { names[t] = t; } }));
+  render(h("h1", {}, "Evaluations"), h("p", { class: "muted" }, "Test-cases by controllers: pass, or the rule that failed; each cell opens that drive."),
+    found.length ? matrix(testcases.map((t) => ({ id: t, label: names[t] || t })), controllers, (t, c) => cell[`${t}|${c}`]) : h("p", {}, "No evaluation yet."));
+}
+
+function matrix(testcases, controllers, lookup) {
+  return table(["test-case", ...controllers], testcases.map((t) => h("tr", {},
+    h("td", {}, link(t.label, `#/testcases/${t.id}`)),
+    controllers.map((c) => {
+      const e = lookup(t.id, c);
+      if (!e) return h("td", { class: "muted" }, "—");
+      const passed = e.passed;
+      const text = passed ? "pass" : (e.rules && e.rules.length ? e.rules.join(", ") : (e.verdict ? failureOf(e.verdict) : e.reasons && e.reasons.length ? "failed" : "failed"));
+      return h("td", { class: `cell ${passed ? "pass" : "fail"}` }, h("a", { href: `#/replay/${e.evaluation || e.id}`, "data-evaluation": e.evaluation || e.id, "data-testcase": t.id, "data-controller": c }, text));
+    }))));
+}
+
+// ---------- jobs and campaigns ----------
+
+async function jobsPage() {
+  const jobs = await get("/jobs?limit=100");
+  render(h("h1", {}, "Jobs and campaigns"),
+    jobs.items.length ? table(["job", "name", "items", "state", "done", "evaluations", "created"], jobs.items.map((j) => [
+      link(short(j.id), `#/jobs/${j.id}`), j.name || "", j.items.map((i) => i.kind).join(", "), h("span", { class: `state-${j.state}` }, j.state),
+      `${j.done}/${j.total}`, `${j.evaluations.passed} passed, ${j.evaluations.failed} failed`, new Date(j.created_at).toLocaleString()]))
+      : h("p", {}, "No job yet: POST /jobs, `scengen submit`, or `scengen campaign`."));
+}
+
+async function jobPage(id) {
+  let timer = null;
+  stopPage = () => clearTimeout(timer);
+  const show = async () => {
+    const job = await get(`/jobs/${id}`);
+    const hasCampaign = job.items.some((i) => i.kind === "campaign");
+    const campaign = hasCampaign ? await get(`/jobs/${id}/campaign`).catch(() => null) : null;
+    const content = [
+      h("h1", {}, campaign ? `Campaign: ${campaign.plan.network} · junction ${campaign.plan.junction}` : `Job ${job.name || short(id)}`),
+      h("p", { id: "job-state" }, h("span", { class: `state-${job.state}` }, job.state), ` · ${job.done}/${job.total} items`),
+      table(["item", "kind", "state", "progress", "error"], job.items.map((i) => [String(i.position), i.kind, h("span", { class: `state-${i.state}` }, i.state), i.progress, i.error ? h("span", { class: "error" }, i.error) : ""])),
+    ];
+    if (!REPORT) content.push(h("p", {}, h("a", { href: `/jobs/${id}/junit` }, "JUnit"), " · ", h("a", { href: `/jobs/${id}/bundles` }, "SUMO bundles"),
+      campaign ? [" · ", h("a", { href: `/jobs/${id}/campaign` }, "campaign JSON"), " · ", h("a", { href: `/jobs/${id}/campaign/junit` }, "campaign JUnit"), " · ", h("a", { href: `/jobs/${id}/campaign/report` }, "self-contained report")] : null));
+    if (campaign) content.push(...campaignView(campaign));
+    else if (hasCampaign) content.push(h("p", { class: "muted" }, "The campaign has not finished a level yet."));
+    render(...content);
+    if (!REPORT && (job.state === "queued" || job.state === "running")) timer = setTimeout(() => show().catch(() => {}), 2000);
+  };
+  await show();
+}
+
+function campaignView(outcome) {
+  const plan = outcome.plan;
+  const controllers = plan.controllers;
+  controllers.forEach((c) => colourOf(c, controllers));
+  const levelRows = outcome.levels.map((level) => [String(level.level), String(level.testcases),
+    ...controllers.map((c) => { const s = level.controllers[c]; const rules = Object.entries(s.rules).map(([r, n]) => `${r} ${n}`).join(", ");
+      return h("td", { class: s.failed ? "fail" : "pass" }, `${s.failed}/${s.evaluated}`, rules ? h("div", { class: "muted" }, rules) : null,
+        s.collisions ? h("div", { class: "muted" }, `${s.collisions} collisions`) : null, s.goal_misses ? h("div", { class: "muted" }, `${s.goal_misses} goal misses`) : null); })]);
+  const chainRows = outcome.chains.map((c) => [c.ego, String(c.chain + 1), String(c.reached), ...controllers.map((k) => (c.first_failure[k] === null ? "—" : `level ${c.first_failure[k]}`)), c.end || ""]);
+  const cases = [];
+  for (const chain of outcome.chains) for (const level of chain.levels) cases.push({ id: level.testcase, label: `${chain.ego} · chain ${chain.chain + 1} · level ${level.level}`, level });
+  return [
+    h("p", { class: "muted" }, `ego routes ${plan.egos.join(", ")} · depth ${plan.depth} · ${plan.chains} chains each · seed ${plan.seed} · ${outcome.finished ? "finished" : "in progress"}`),
+    h("h2", {}, "Share of test-cases each controller fails, by level"),
+    h("div", { class: "card" }, failurePlot(outcome)),
+    table(["level", "test-cases", ...controllers], levelRows),
+    h("h2", {}, "Rule coverage"),
+    h("p", { class: "muted" }, "A rule is covered when some level's complexity certificate breaks it: the suite then tests a controller on that rule."),
+    table(["rule", "CVC", "covered by"], outcome.coverage.map((r) => [r.rule, r.law, r.covered ? h("span", {}, r.testcases.map((t, i) => [i ? ", " : "", link(short(t), `#/testcases/${t}`)])) : r.coverable !== false ? h("span", { class: "fail" }, "not covered") : h("span", { class: "muted" }, "the ego's own rule: no new car makes it harder")])),
+    h("h2", {}, "Chains: the first level each controller fails"),
+    table(["ego route", "chain", "levels", ...controllers, "ended"], chainRows),
+    h("h2", {}, "Verdicts"),
+    h("p", { class: "muted" }, "Every level of every chain by controller; a cell opens the replay of that drive with its verdict."),
+    h("div", { id: "verdict-matrix" }, matrix(cases, controllers, (t, c) => { const found = cases.find((x) => x.id === t); return found ? found.level.verdicts[c] : null; })),
+  ];
+}
+
+function failurePlot(outcome) {
+  const controllers = outcome.plan.controllers;
+  const width = 640, height = 320, left = 50, bottom = 36, right = 170;
+  const levels = outcome.levels.map((l) => l.level);
+  const most = Math.max(1, ...levels);
+  const x = (l) => left + (l / most) * (width - left - right);
+  const y = (s) => height - bottom - s * (height - bottom - 14);
+  const plot = svg("svg", { width, height, viewBox: `0 0 ${width} ${height}`, id: "failure-plot" });
+  for (const s of [0, 0.25, 0.5, 0.75, 1]) {
+    plot.append(svg("line", { x1: left, y1: y(s), x2: width - right, y2: y(s), stroke: "#e5e7eb" }),
+      svg("text", { x: left - 6, y: y(s) + 4, "font-size": 11, "text-anchor": "end" }, `${Math.round(s * 100)}%`));
+  }
+  for (const l of levels) plot.append(svg("text", { x: x(l), y: height - bottom + 16, "font-size": 11, "text-anchor": "middle" }, String(l)));
+  plot.append(svg("text", { x: (left + width - right) / 2, y: height - 4, "font-size": 12, "text-anchor": "middle" }, "level (cars added)"),
+    svg("text", { x: 12, y: (height - bottom) / 2, "font-size": 12, "text-anchor": "middle", transform: `rotate(-90 12 ${(height - bottom) / 2})` }, "test-cases failed"));
+  controllers.forEach((c, i) => {
+    const colour = colourOf(c, controllers);
+    const points = outcome.levels.map((l) => [x(l.level), y(l.controllers[c].share || 0)]);
+    plot.append(svg("polyline", { points: points.map((p) => p.join(",")).join(" "), fill: "none", stroke: colour, "stroke-width": 2.2 }));
+    points.forEach(([px, py]) => plot.append(svg("circle", { cx: px, cy: py, r: 3.5, fill: colour })));
+    plot.append(svg("rect", { x: width - right + 14, y: 20 + i * 20, width: 12, height: 12, fill: colour }),
+      svg("text", { x: width - right + 32, y: 30 + i * 20, "font-size": 12 }, c));
+  });
+  return plot;
+}
+
+route();

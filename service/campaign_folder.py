@@ -1,0 +1,181 @@
+"""``scengen campaign``: a campaign on this machine, its state and results in one folder.
+
+The command runs the very job item a server runs (``service.jobs.runner``, each solver and
+SUMO call in a killable child process) against a SQLite store inside the folder. Run the
+same command again after a crash or Ctrl-C and it goes on where it stopped; a different
+campaign in the same folder is refused. When it ends, the folder holds:
+
+    campaign.json        the outcome (service.core.campaign, schema scengen/campaign/1)
+    junit.xml            one test case per chain, level and controller
+    report.html          the self-contained report (the results browser, offline)
+    testcases/           every test-case as JSON, named chain by chain, with the network
+    campaign.sqlite3     the state (a resumed run reads it)
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from service.core import errors
+from service.core.campaign import campaign_junit
+from service.core.errors import InvalidInput, ScengenError
+from service.core.network import bundled_networks, resolve_network
+from service.core.network.convert import source_format
+from service.core.testcase import local_network_name
+from service.jobs import tasks
+from service.jobs.batch import parse_batch
+from service.jobs.runner import run_item
+from service.jobs.store import JobStore
+from service.report import campaign_paths, outcome_of, report_html, store_fetch
+from service.settings import Settings
+from service.store import Store
+
+STATE_FILE = "campaign.sqlite3"
+OWNER = "scengen-campaign"  # the only worker of a folder's store
+
+
+def open_store(folder: Path) -> tuple[Store, Settings]:
+    settings = Settings(data_dir=folder, database_url=f"sqlite:///{folder.resolve()}/{STATE_FILE}")
+    return Store(settings.database, settings.cache_dir), settings
+
+
+def network_id(store: Store, network: str) -> str:
+    """The store's id of ``network``: a bundled name, or a file (a map is converted)."""
+    if network in bundled_networks():
+        return network
+    path = Path(network)
+    if not path.is_file():
+        resolve_network(network)  # the error names the bundled networks
+    content = resolve_network(path).read_bytes()  # a map: the network it converts to
+    kind = source_format(path)
+    source = (kind, path.name, path.read_bytes()) if kind else None
+    name = f"{path.name}.net.xml" if kind else path.name
+    return store.add_network(name, content, {}, source).id
+
+
+def run_folder_campaign(
+    spec: dict[str, Any], folder: Path, say: Callable[[str], None]
+) -> dict[str, Any]:
+    """Run (or resume) the campaign ``spec`` (a campaign item with ``network`` a bundled name
+    or a file) in ``folder`` and write its results there; its outcome."""
+    folder.mkdir(parents=True, exist_ok=True)
+    store, settings = open_store(folder)
+    try:
+        spec = {**spec, "network": network_id(store, spec["network"])}
+        batch = parse_batch({"name": "scengen campaign", "items": [{"kind": "campaign", **spec}]})
+        jobs = JobStore(store)
+        existing = jobs.list_jobs(limit=2).items
+        if existing and existing[0].fingerprint != batch.fingerprint():
+            raise InvalidInput(
+                f"{folder} holds another campaign ({json.dumps(existing[0].items[0].spec)}); "
+                "give a new folder with -o, or the same options to resume it"
+            )
+        job = existing[0] if existing else jobs.create(batch)[0]
+        if existing:
+            jobs.release(OWNER)  # left running by a run that was killed: resumed here
+            say(f"resuming the campaign in {folder}")
+        _run(store, settings, job.id, say)
+        item = jobs.item(job.id, 0)
+        assert item is not None
+        if item.state == "failed":
+            _raise_failure(item.error or "")
+        return write_results(store, settings, job.id, folder)
+    finally:
+        store.close()
+
+
+def _raise_failure(error: str) -> None:
+    """The item's error (``Class: message``) raised again as that error of the core."""
+    name, _, message = error.partition(": ")
+    found = getattr(errors, name, None)
+    if isinstance(found, type) and issubclass(found, ScengenError):
+        raise found(f"the campaign stopped: {message}")
+    raise RuntimeError(f"the campaign stopped: {error}")
+
+
+def _run(store: Store, settings: Settings, job: str, say: Callable[[str], None]) -> None:
+    """The item in a thread; its progress told as it changes. Ctrl-C stops it (resumable)."""
+    shutdown = threading.Event()
+    worker = threading.Thread(
+        target=run_item, args=(store, settings, job, 0, OWNER, shutdown), daemon=True
+    )
+    worker.start()
+    jobs, told = JobStore(store), ""
+    try:
+        while worker.is_alive():
+            worker.join(0.5)
+            item = jobs.item(job, 0)
+            if item is not None and item.progress != told:
+                told = item.progress
+                say(told)
+    except KeyboardInterrupt:
+        shutdown.set()
+        worker.join(10)
+        jobs.release(OWNER)
+        raise
+
+
+def report_of(store: Store, settings: Settings, job: str) -> tuple[dict[str, Any], str]:
+    """The outcome of the campaign ``job`` and its self-contained report."""
+    outcome = outcome_of(store, job)
+
+    def shapes(network: Path, junction: str, control: str) -> dict[str, Any]:
+        return tasks.junction_geometry(network, junction, control, settings.cache_dir)
+
+    data = campaign_paths(job, outcome, store_fetch(store, shapes))
+    plan = outcome["plan"]
+    title = f"scengen campaign: {plan['network']} junction {plan['junction']}"
+    return outcome, report_html(job, data, title)
+
+
+def folder_report(folder: Path) -> str:
+    """The report of the campaign in ``folder`` (as far as it got)."""
+    if not (folder / STATE_FILE).is_file():
+        raise InvalidInput(
+            f"{folder} is not a campaign folder (no {STATE_FILE}); give a folder "
+            "`scengen campaign -o` wrote, or a job id with --server URL"
+        )
+    store, settings = open_store(folder)
+    try:
+        found = JobStore(store).list_jobs(limit=1).items
+        if not found:
+            raise InvalidInput(f"{folder} holds no campaign yet")
+        return report_of(store, settings, found[0].id)[1]
+    finally:
+        store.close()
+
+
+def write_results(store: Store, settings: Settings, job: str, folder: Path) -> dict[str, Any]:
+    """campaign.json, junit.xml, report.html and testcases/ of the campaign ``job``."""
+    outcome, report = report_of(store, settings, job)
+    (folder / "campaign.json").write_text(json.dumps(outcome, indent=1) + "\n")
+    (folder / "junit.xml").write_text(campaign_junit(outcome))
+    (folder / "report.html").write_text(report)
+    cases = folder / "testcases"
+    cases.mkdir(exist_ok=True)
+    network = outcome["plan"]["network"]
+    if network not in bundled_networks():
+        target = cases / local_network_name(network)
+        if not target.exists():
+            target.write_bytes(store.network_file(network).read_bytes())
+    for chain in outcome["chains"]:
+        ego = chain["ego"].replace(":", "-")
+        for level in chain["levels"]:
+            record = store.testcase(level["testcase"])
+            assert record is not None
+            name = f"{ego}.chain{chain['chain'] + 1}.level{level['level']}.json"
+            (cases / name).write_text(record.document)
+    return outcome
+
+
+def elapsed_printer(started: float) -> Callable[[str], None]:
+    def say(message: str) -> None:
+        print(f"[{time.monotonic() - started:7.1f} s] {message}", file=sys.stderr, flush=True)
+
+    return say

@@ -1,0 +1,194 @@
+"""A campaign item's steps (service.core.campaign.CampaignSteps) over the service's state.
+
+Every step runs in a killable child process (``Work.call``) and is remembered as soon as
+it is done: test-cases and evaluations in the store (and in the item's lists), the end of a
+chain and the outcome so far in the item's memos. A retried item runs the campaign's loop
+again and every step done before answers from memory, so it goes on where it stopped.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from typing import TYPE_CHECKING, Any
+
+from service.core.campaign import CHAIN_ENDS, CampaignPlan, run_campaign
+from service.core.errors import InvalidInput, ScengenError, UnknownNetwork, choices
+from service.core.testcase import NetworkRef, TestCase, parse_testcase
+from service.jobs import tasks
+from service.jobs.batch import CampaignItem
+
+if TYPE_CHECKING:
+    from service.jobs.runner import Work
+
+OUTCOME = "outcome"  # the memo key of the campaign's outcome (so far)
+_ENDS = {error.__name__: error for error in CHAIN_ENDS}
+
+
+class JobCampaign:
+    """The steps of one campaign item; ``run`` runs it."""
+
+    def __init__(self, work: Work, spec: CampaignItem) -> None:
+        self.work, self.spec = work, spec
+        self.item = work.item
+        self.made = list(work.item.testcases)
+        self.evaluated = list(work.item.evaluations)
+        network = work.store.network(spec.network)
+        if network is None:
+            known = [n.id for n in work.store.list_networks()]
+            raise UnknownNetwork(
+                f"unknown network {spec.network!r}; known networks: {choices(known)}"
+            )
+        self.network = network
+        self.network_file = work.store.network_file(network.id)
+        self.ref = NetworkRef(ref=network.id, sha256=network.sha256)
+
+    def run(self) -> dict[str, Any]:
+        junction, control = self._junction()
+        description = self._remembered(
+            f"junction/{junction}/{control}",
+            lambda: self.work.call(
+                tasks.describe_junction,
+                (self.network_file, junction, control, self.work.settings.cache_dir),
+                self.work.settings.work_budget, f"reading junction {junction}",
+            ),
+        )  # fmt: skip
+        routes = [r["id"] for r in description["routes"]]
+        egos = routes if self.spec.all_egos else list(self.spec.egos or [])
+        for ego in egos:
+            if ego not in routes:
+                raise InvalidInput(
+                    f"ego route {ego!r} is not a route of junction {description['junction']!r}; "
+                    f"valid routes: {choices(routes)}"
+                )
+        self.junction, self.control = description["junction"], description["control"]
+        laws = self._remembered(
+            f"laws/{self.control}",
+            lambda: self.work.call(tasks.rule_set_laws, (self.control,),
+                                    self.work.settings.work_budget, "reading the rule set"),
+        )  # fmt: skip
+        plan = CampaignPlan(
+            network=self.network.id,
+            junction=self.junction,
+            control=self.control,
+            egos=tuple(egos),
+            depth=self.spec.depth,
+            chains=self.spec.chains,
+            controllers=tuple(self.spec.controllers),
+            seed=self.spec.seed,
+            budget_per_level=self.spec.budget_per_level or self.work.settings.extend_budget,
+        )
+        return run_campaign(
+            plan, self, [(rule, law) for rule, law in laws], self._progress, self._save
+        )
+
+    def _junction(self) -> tuple[str | None, str | None]:
+        junction: str | None = self.spec.junction
+        control: str | None = self.spec.control
+        if control is None and junction is not None:
+            control = self.network.controls.get(junction)
+        if control is None and junction is None and len(self.network.controls) == 1:
+            junction, control = next(iter(self.network.controls.items()))
+        return junction, control
+
+    # CampaignSteps
+
+    def root(self, ego: str) -> tuple[str, TestCase]:
+        def create() -> str:
+            request = {"ego_route": ego, "junction": self.junction, "control": self.control}
+            document = self.work.call(
+                tasks.create_testcase,
+                (self.network_file, self.ref, self.work.settings.cache_dir, request),
+                self.work.settings.work_budget, f"creating the test-case of ego {ego}",
+            )  # fmt: skip
+            return self.work.store.add_testcase(parse_testcase(document)).id
+
+        ident = self._remembered(f"root/{ego}", create)
+        self._made(ident)
+        return ident, self._testcase(ident)
+
+    def grow(
+        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...]
+    ) -> tuple[str, TestCase, str]:
+        key = f"grow/{parent}/{seed}/" + hashlib.sha256(",".join(last).encode()).hexdigest()[:16]
+        found = self.work.jobs.memo(self.item.job, self.item.position, key)
+        if found is None:
+            budget = self.spec.budget_per_level or self.work.settings.extend_budget
+            args = (
+                self.work.store.testcase(parent).document,  # type: ignore[union-attr]
+                self.network_file, self.work.settings.cache_dir, seed, budget, last,
+            )  # fmt: skip
+            try:
+                result = self.work.call(tasks.extend_any, args, budget + 5.0,
+                                         f"growing a level on {parent}")  # fmt: skip
+                record = self.work.store.add_testcase(
+                    parse_testcase(result["document"]), parent=parent
+                )
+                found = {"testcase": record.id, "route": result["route"]}
+            except CHAIN_ENDS as error:
+                found = {"end": type(error).__name__, "message": error.message}
+            self._remember(key, found)
+        if "end" in found:
+            raise _ENDS[found["end"]](found["message"])
+        self._made(found["testcase"])
+        return found["testcase"], self._testcase(found["testcase"]), found["route"]
+
+    def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
+        from service.jobs.runner import evaluation_id
+
+        key = evaluation_id(self.item, ident, controller)
+        stored = self.work.store.evaluation(key)
+        if stored is None:
+            budget = self.spec.budget or self.work.settings.evaluate_budget
+            record = self.work.store.testcase(ident)
+            assert record is not None
+            result = self.work.call(
+                tasks.evaluate_controller,
+                (record.document, self.network_file, self.work.settings.cache_dir, controller,
+                 budget),
+                budget + self.work.settings.work_budget, f"evaluating {controller} on {ident}",
+            )  # fmt: skip
+            stored = self.work.store.add_evaluation(
+                ident, controller, result["verdict"], result["seconds"], key, result["drive"]
+            )
+        if key not in self.evaluated:
+            self.evaluated.append(key)
+            self._record(None)
+        return {**stored.verdict, "evaluation": key}
+
+    # memory
+
+    def _testcase(self, ident: str) -> TestCase:
+        record = self.work.store.testcase(ident)
+        if record is None:
+            raise ScengenError(f"the campaign's test-case {ident} is no longer stored")
+        return record.testcase
+
+    def _made(self, ident: str) -> None:
+        if ident not in self.made:
+            self.made.append(ident)
+            self._record(None)
+
+    def _remembered(self, key: str, compute: Any) -> Any:
+        found = self.work.jobs.memo(self.item.job, self.item.position, key)
+        if found is None:
+            found = compute()
+            self._remember(key, found)
+        return found
+
+    def _remember(self, key: str, value: Any) -> None:
+        self.work.jobs.remember(self.item.job, self.item.position, self.work.owner, key, value)
+
+    def _record(self, progress: str | None) -> None:
+        self.work.jobs.record(
+            self.item.job, self.item.position, self.work.owner,
+            progress if progress is not None else self.progress, self.made, self.evaluated,
+        )  # fmt: skip
+
+    progress = "starting"
+
+    def _progress(self, message: str, done: int, total: int) -> None:
+        self.progress = f"{done}/{total}: {message}"
+        self._record(self.progress)
+
+    def _save(self, outcome: dict[str, Any]) -> None:
+        self._remember(OUTCOME, outcome)
