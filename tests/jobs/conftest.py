@@ -5,10 +5,13 @@ from __future__ import annotations
 import os
 import secrets
 from collections.abc import Iterator
+from pathlib import Path
 
 import psycopg
 import pytest
+import redis
 
+LEASE = "3"  # seconds: a killed worker's items come back quickly
 POSTGRES = os.environ.get("SCENGEN_TEST_POSTGRES", "postgresql://postgres@127.0.0.1:5432/test")
 
 
@@ -22,3 +25,24 @@ def postgres_url() -> Iterator[str]:
     yield f"{base}/{name}"
     with psycopg.connect(POSTGRES, autocommit=True) as admin:
         admin.execute(f"DROP DATABASE IF EXISTS {name} WITH (FORCE)")
+
+
+@pytest.fixture
+def celery_settings(postgres_url: str, tmp_path: Path) -> Iterator[dict[str, str]]:
+    broker = "redis://127.0.0.1:6379/7"
+    redis.Redis.from_url(broker).flushdb()
+    yield {
+        "executor": "celery",
+        "broker_url": broker,
+        "database_url": postgres_url,
+        "lease_seconds": LEASE,
+    }
+    redis.Redis.from_url(broker).flushdb()
+    from sqlalchemy import create_engine
+
+    engine = create_engine(postgres_url)
+    with engine.begin() as connection:
+        for table in ("job_items", "job_item_memos", "jobs", "evaluation_drives", "evaluations",
+                      "testcases", "networks"):
+            connection.exec_driver_sql(f"DELETE FROM {table}")
+    engine.dispose()

@@ -6,19 +6,16 @@ as on the embedded executor."""
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-import redis
 
 from tests.jobs.batches import regression_batch, results
+from tests.jobs.conftest import LEASE
 from tests.servers import Server, Worker
 
 pytestmark = pytest.mark.slow
-
-LEASE = "3"  # seconds: a killed worker's items come back quickly
 
 
 def wait_until(condition: Any, timeout: float = 120) -> Any:
@@ -61,26 +58,6 @@ def test_the_embedded_executor_survives_a_killed_server(tmp_path: Path) -> None:
         assert "item 1: resuming after 1 test-case(s)" in server.log.read_text()
     finally:
         server.stop()
-
-
-@pytest.fixture
-def celery_settings(postgres_url: str, tmp_path: Path) -> Iterator[dict[str, str]]:
-    broker = "redis://127.0.0.1:6379/7"
-    redis.Redis.from_url(broker).flushdb()
-    yield {
-        "executor": "celery",
-        "broker_url": broker,
-        "database_url": postgres_url,
-        "lease_seconds": LEASE,
-    }
-    redis.Redis.from_url(broker).flushdb()
-    from sqlalchemy import create_engine
-
-    engine = create_engine(postgres_url)
-    with engine.begin() as connection:
-        for table in ("job_items", "jobs", "evaluations", "testcases", "networks"):
-            connection.exec_driver_sql(f"DELETE FROM {table}")
-    engine.dispose()
 
 
 def test_celery_survives_a_killed_worker(tmp_path: Path, celery_settings: dict[str, str]) -> None:

@@ -1,0 +1,187 @@
+"""The results browser (/ui) in headless Chromium on a real server with generated data: a
+small campaign run as a job (the server has an API token: pages read without it), then
+every page: networks with their pictures, the lineage tree and its filter, a test-case's
+animation (the cars move: frames differ when played, scrubbed or with the certificates
+off), the campaign with its failure-rate plot, and the verdict matrix whose cells open the
+replay of that very evaluation. The report the server writes works from a file, offline.
+Screenshots go to build/screenshots/ui-*.png (look at them)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from playwright.sync_api import Page, sync_playwright
+
+from tests.api.test_docs_browser import CHROMIUM_FLAGS, SCREENSHOTS, chromium, external
+from tests.servers import Server
+
+pytestmark = pytest.mark.slow
+
+TOKEN = "ui-test-token"
+CAMPAIGN = {
+    "kind": "campaign",
+    "network": "t-stop",
+    "egos": ["S2C_0:C2E_0"],
+    "depth": 2,
+    "chains": 1,
+    "controllers": ["sumo", "sumo-rolling-stop"],
+}
+
+
+@pytest.fixture(scope="module")
+def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, str, dict[str, Any]]]:
+    server = Server(tmp_path_factory.mktemp("ui"), workers="2", api_token=TOKEN)
+    try:
+        refused = server.client.post("/jobs", json={"items": [CAMPAIGN]})
+        assert refused.status_code == 401  # writes need the token; the pages below do not
+        job = server.client.post(
+            "/jobs", json={"name": "ui campaign", "items": [CAMPAIGN]},
+            headers={"Authorization": f"Bearer {TOKEN}"},
+        ).json()["id"]  # fmt: skip
+        finished = server.wait_for_job(job)
+        assert finished["state"] == "succeeded", finished["items"][0]["error"]
+        outcome = server.client.get(f"/jobs/{job}/campaign").json()
+        yield server, job, outcome
+    finally:
+        server.stop()
+
+
+@pytest.fixture(scope="module")
+def browser_page(served: tuple[Server, str, dict[str, Any]]) -> Iterator[tuple[Page, list[str]]]:
+    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
+    requested: list[str] = []
+    errors: list[str] = []
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=chromium(), args=CHROMIUM_FLAGS)
+        context = browser.new_context(viewport={"width": 1400, "height": 1000})
+        opened = context.new_page()
+        opened.on("request", lambda request: requested.append(request.url))
+        opened.on("pageerror", lambda error: errors.append(str(error)))
+        yield opened, requested
+        browser.close()
+    assert errors == []  # no script error on any page
+
+
+def canvas_frame(page: Page) -> bytes:
+    return page.locator("#animation").screenshot()
+
+
+def test_networks_show_their_junction_pictures(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    server, _, _ = served
+    page, requested = browser_page
+    page.goto(f"{server.url}/ui/")
+    picture = page.locator("img[alt='junction C']").first
+    picture.wait_for(timeout=60_000)
+    page.wait_for_function("() => [...document.images].every(i => i.complete && i.naturalWidth > 0)",
+                           timeout=60_000)  # fmt: skip
+    assert page.locator("img").count() == 3  # one supported junction per bundled network
+    page.screenshot(path=str(SCREENSHOTS / "ui-networks.png"))
+    assert external(server, requested) == []
+
+
+def test_lineage_tree_filters_by_ego_and_level(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    server, _, outcome = served
+    page, _ = browser_page
+    page.goto(f"{server.url}/ui/#/testcases?ego=S2C_0:C2E_0")
+    page.wait_for_selector("#lineage")
+    made = [level["testcase"] for level in outcome["chains"][0]["levels"]]
+    for ident in made:  # root, level 1 and level 2, nested
+        assert page.locator(f"#lineage a[href='#/testcases/{ident}']").count() == 1
+    nested = page.locator(f"#lineage li:has(a[href='#/testcases/{made[0]}']) ul a[href='#/testcases/{made[2]}']")
+    assert nested.count() == 1
+    page.screenshot(path=str(SCREENSHOTS / "ui-lineage.png"))
+    page.goto(f"{server.url}/ui/#/testcases?level=2")
+    page.wait_for_selector("table")
+    assert page.locator(f"a[href='#/testcases/{made[2]}']").count() == 1
+    assert page.locator(f"a[href='#/testcases/{made[1]}']").count() == 0
+
+
+def test_the_animation_moves_the_cars(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    server, _, outcome = served
+    page, requested = browser_page
+    level2 = outcome["chains"][0]["levels"][2]["testcase"]
+    page.goto(f"{server.url}/ui/#/testcases/{level2}")
+    page.wait_for_selector("#animation")
+    start = canvas_frame(page)
+    page.locator("#speed").select_option("4")
+    page.locator("#play").click()
+    page.wait_for_function("() => Number(document.querySelector('#animation').dataset.time) > 2")
+    page.locator("#play").click()  # pause
+    played = canvas_frame(page)
+    assert played != start
+    page.locator("#scrub").fill("12")
+    scrubbed = canvas_frame(page)
+    assert scrubbed not in (start, played)
+    assert page.locator("#animation").get_attribute("data-time") == "12.00"
+    page.locator("#certificates").uncheck()
+    assert canvas_frame(page) != scrubbed  # the two ego certificates are gone
+    page.locator("#certificates").check()
+    assert page.locator("#time-distance polyline").count() == 2 + 2  # two cars, two proofs
+    body = page.locator("main").inner_text()
+    assert "car2 (new)" in body and "complexity certificate breaks" in body
+    for download in ("test-case JSON", "SUMO bundle (zip)", "OpenSCENARIO (zip)"):
+        href = page.locator(f"a:text-is('{download}')").get_attribute("href")
+        assert href and server.client.get(href).status_code == 200
+    page.screenshot(path=str(SCREENSHOTS / "ui-testcase.png"), full_page=True)
+    assert external(server, requested) == []
+
+
+def test_campaign_matrix_opens_the_replay_of_that_evaluation(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    server, job, outcome = served
+    page, requested = browser_page
+    page.goto(f"{server.url}/ui/#/jobs/{job}")
+    page.wait_for_selector("#failure-plot polyline")
+    assert page.locator("#failure-plot polyline").count() == 2  # one line per controller
+    page.screenshot(path=str(SCREENSHOTS / "ui-campaign.png"), full_page=True)
+    level = outcome["chains"][0]["levels"][2]
+    verdict = level["verdicts"]["sumo-rolling-stop"]
+    cell = page.locator(
+        f"#verdict-matrix a[data-testcase='{level['testcase']}'][data-controller='sumo-rolling-stop']"
+    ).first
+    assert cell.inner_text() == ("pass" if verdict["passed"] else ", ".join(verdict["rules"]))
+    cell.click()
+    page.wait_for_selector("#verdict")
+    assert page.url.endswith(f"#/replay/{verdict['evaluation']}")
+    assert "sumo-rolling-stop" in page.locator("h1").inner_text()
+    assert ("pass" if verdict["passed"] else "FAIL") in page.locator("#verdict").inner_text()
+    start = canvas_frame(page)
+    page.locator("#scrub").fill("6")
+    assert canvas_frame(page) != start
+    page.screenshot(path=str(SCREENSHOTS / "ui-replay.png"), full_page=True)
+    page.goto(f"{server.url}/ui/#/evaluations")
+    page.wait_for_selector("td.cell a")
+    assert page.locator("td.cell a").count() == 3 * 2  # three test-cases, two controllers
+    assert external(server, requested) == []
+
+
+def test_the_report_works_from_a_file_offline(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]],
+    tmp_path: Path,
+) -> None:  # fmt: skip
+    server, job, outcome = served
+    page, _ = browser_page
+    report = tmp_path / "report.html"
+    report.write_text(server.client.get(f"/jobs/{job}/campaign/report").text)
+    loaded: list[str] = []
+    page.on("request", lambda request: loaded.append(request.url))
+    page.goto(report.as_uri())
+    page.wait_for_selector("#verdict-matrix")
+    level = outcome["chains"][0]["levels"][1]
+    page.locator(f"#verdict-matrix a[data-testcase='{level['testcase']}'][data-controller='sumo']").first.click()
+    page.wait_for_selector("#animation")
+    assert "sumo on" in page.locator("h1").inner_text()
+    page.locator("a:text-is('" + page.locator("#verdict a").inner_text() + "')").click()
+    page.wait_for_selector("#time-distance")
+    page.screenshot(path=str(SCREENSHOTS / "ui-report.png"))
+    assert [url for url in loaded if not url.startswith(("file:", "data:", "blob:"))] == []

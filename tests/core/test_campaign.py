@@ -1,0 +1,129 @@
+"""The campaign loop over fake steps (the solver and SUMO layers are tested elsewhere):
+what it asks for, in which order, how it steers route choice towards uncovered rules, and
+what it reports. One test grows a real level to check that held-back routes come last."""
+
+from __future__ import annotations
+
+from typing import Any
+from xml.etree import ElementTree as ET
+
+from service.core.campaign import CampaignPlan, campaign_junit, failure_table, run_campaign
+from service.core.chain import candidate_routes, grow
+from service.core.errors import NoMoreComplexTestCase
+from service.core.network import Intersection
+from service.core.testcase import TestCase, new_testcase
+
+RULES = [("yieldToInside", "21800(a)"), ("yieldToRight", "21800(c)"), ("stopAtSign", "22450(a)")]
+BREAKS = {"r1": "yieldToInside", "r2": "yieldToInside", "r3": "yieldToRight"}
+
+
+class FakeSteps:
+    """Routes r1, r2, r3 in that order unless held back; r1 and r2 break yieldToInside, r3
+    yieldToRight. The controller 'weak' fails from level 2 on, 'strong' never."""
+
+    def __init__(self, end_at: int | None = None) -> None:
+        self.base = new_testcase("4way-stop", "S2C_0:C2N_0")
+        self.grown: list[tuple[str, int, tuple[str, ...]]] = []
+        self.evaluated: list[tuple[str, str]] = []
+        self.end_at = end_at
+
+    def root(self, ego: str) -> tuple[str, TestCase]:
+        return f"root-{ego}", self.base
+
+    def grow(
+        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...]
+    ) -> tuple[str, TestCase, str]:
+        self.grown.append((parent, seed, last))
+        level = (testcase.provenance or {}).get("level", 0) + 1
+        if self.end_at is not None and level >= self.end_at:
+            raise NoMoreComplexTestCase("no new car makes this test-case more complex")
+        route = sorted(BREAKS, key=lambda r: r in last)[0]
+        provenance = {
+            "level": level,
+            "new_nonegos": [f"car{level}"],
+            "complexity_certificate_violates": [{"car": f"car{level}", "rule": BREAKS[route]}],
+            "complexity_certificate": {"rear_end": []},
+        }
+        return f"{parent}/{route}", testcase.model_copy(update={"provenance": provenance}), route
+
+    def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
+        self.evaluated.append((ident, controller))
+        level = (testcase.provenance or {}).get("level", 0)
+        failed = controller == "weak" and level >= 2
+        violations = [{"rule": "yieldToInside"}] if failed else []
+        return {
+            "passed": not failed,
+            "violations": violations,
+            "collisions": [],
+            "goal": {"reached": True},
+            "errors": [],
+            "reasons": ["violated yieldToInside"] if failed else [],
+            "evaluation": f"e-{ident}-{controller}",
+        }
+
+
+def plan(**changes: Any) -> CampaignPlan:
+    fields = {"network": "4way-stop", "junction": "C", "control": "allway_stop",
+              "egos": ("S2C_0:C2N_0",), "depth": 3, "chains": 2,
+              "controllers": ("strong", "weak"), "seed": 7}  # fmt: skip
+    return CampaignPlan(**{**fields, **changes})
+
+
+def test_every_level_is_judged_by_every_controller_and_summarised() -> None:
+    steps, told, saved = FakeSteps(), [], []
+    outcome = run_campaign(plan(), steps, RULES, lambda *a: told.append(a), saved.append)
+    # the root is judged once per ego; each chain's levels by each controller
+    assert len(steps.evaluated) == 2 + 2 * 3 * 2
+    assert [seed for _, seed, _ in steps.grown] == [7, 7, 7, 8, 8, 8]  # chain c: seed + c
+    assert told[-1][1] == told[-1][2] == plan().steps  # the progress reaches its total
+    assert saved[-1] == outcome and len(saved) > 2  # saved after every level
+    weak = [level["controllers"]["weak"] for level in outcome["levels"]]
+    assert [lv["testcases"] for lv in outcome["levels"]] == [1, 1, 2, 2]  # distinct ones
+    assert [s["failed"] for s in weak] == [0, 0, 2, 2]
+    assert weak[2]["rules"] == {"yieldToInside": 2} and weak[2]["share"] == 1.0
+    assert [c["first_failure"] for c in outcome["chains"]] == [{"strong": None, "weak": 2}] * 2
+    assert outcome["finished"]
+    rows = failure_table(outcome)
+    assert rows[0] == ["level", "test-cases", "strong", "weak"] and rows[3][3] == "2/2"
+
+
+def test_route_choice_holds_back_routes_whose_rules_are_covered() -> None:
+    steps = FakeSteps()
+    outcome = run_campaign(plan(), steps, RULES)
+    routes = [[lv["route"] for lv in chain["levels"][1:]] for chain in outcome["chains"]]
+    # r1 covers yieldToInside and waits; r2 is unknown, so it may cover another rule: it
+    # comes next, breaks only yieldToInside too and waits; r3 covers yieldToRight. Once
+    # every rule a new car can make harder is covered, nothing is held back.
+    assert routes[0] == ["r1", "r2", "r3"]
+    assert [last for _, _, last in steps.grown] == [(), ("r1",), ("r1", "r2"), (), (), ()]
+    coverage = {c["rule"]: c for c in outcome["coverage"]}
+    assert coverage["yieldToInside"]["covered"] and coverage["yieldToRight"]["covered"]
+    assert not coverage["stopAtSign"]["coverable"]  # the ego's own rule
+    assert not coverage["rearEnd"]["covered"] and coverage["rearEnd"]["coverable"]
+
+
+def test_a_chain_that_cannot_grow_ends_with_its_reason() -> None:
+    outcome = run_campaign(plan(chains=1), FakeSteps(end_at=2), RULES)
+    chain = outcome["chains"][0]
+    assert chain["reached"] == 1
+    assert chain["end"] == "level 2: no new car makes this test-case more complex"
+    assert outcome["finished"]
+
+
+def test_junit_has_a_case_per_chain_level_and_controller() -> None:
+    outcome = run_campaign(plan(), FakeSteps(), RULES)
+    suite = ET.fromstring(campaign_junit(outcome)).find("testsuite")
+    assert suite is not None
+    cases = suite.findall("testcase")
+    assert len(cases) == int(suite.get("tests", "0")) == 2 * 4 * 2
+    failed = [c for c in cases if c.find("failure") is not None]
+    assert len(failed) == int(suite.get("failures", "0")) == 2 * 2  # weak at levels 2 and 3
+    assert all("/ weak" in c.get("name", "") for c in failed)
+
+
+def test_held_back_routes_are_tried_after_the_others(four_way: Intersection) -> None:
+    old = new_testcase("4way-stop", "S2C_0:C2N_0")
+    candidates = candidate_routes(old, four_way)
+    free = grow(old, 0, 60.0, four_way).route
+    held = grow(old, 0, 60.0, four_way, last=[free]).route
+    assert held != free and held in candidates

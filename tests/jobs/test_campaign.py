@@ -1,0 +1,87 @@
+"""A campaign as a batch job: the same outcome on the embedded executor and on Celery, and
+a Celery worker killed with kill -9 in the middle of it loses nothing: the retried item
+answers every step it took from memory and goes on."""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.jobs.test_durability import wait_until
+from tests.servers import Server, Worker
+
+pytestmark = pytest.mark.slow
+
+CAMPAIGN = {
+    "kind": "campaign",
+    "network": "4way-stop",
+    "egos": ["S2C_0:C2N_0"],
+    "depth": 2,
+    "chains": 2,
+    "controllers": ["sumo", "sumo-rolling-stop"],
+    "seed": 3,
+}
+
+
+def outcome(server: Server, job: str) -> dict[str, Any]:
+    """The campaign's outcome without the evaluations' ids (they name their job)."""
+    found: dict[str, Any] = copy.deepcopy(server.client.get(f"/jobs/{job}/campaign").json())
+    for chain in found["chains"]:
+        for level in chain["levels"]:
+            for verdict in level["verdicts"].values():
+                assert len(verdict.pop("evaluation")) == 16
+    return found
+
+
+def halfway(server: Server, job: str) -> dict[str, Any] | None:
+    """The job once its campaign has grown its first chain and works on the second."""
+    found: dict[str, Any] = server.client.get(f"/jobs/{job}").json()
+    item = found["items"][0]
+    return found if item["state"] == "running" and len(item["testcases"]) >= 3 else None
+
+
+def test_campaign_resumes_after_kill_and_matches_the_local_executor(
+    tmp_path: Path, celery_settings: dict[str, str]
+) -> None:
+    local = Server(tmp_path / "local", workers="2")
+    try:
+        job = local.client.post("/jobs", json={"items": [CAMPAIGN]}).json()["id"]
+        finished = local.wait_for_job(job)
+        assert finished["state"] == "succeeded", finished["items"][0]["error"]
+        on_local = outcome(local, job)
+        junit = local.client.get(f"/jobs/{job}/campaign/junit").text
+    finally:
+        local.stop()
+    assert on_local["finished"]
+    assert [c["reached"] for c in on_local["chains"]] == [2, 2]
+    assert [lv["testcases"] for lv in on_local["levels"]] == [1, 2, 2]
+    # rolling through the stop sign fails every level; SUMO's own driver passes level 0
+    rolling = [lv["controllers"]["sumo-rolling-stop"] for lv in on_local["levels"]]
+    assert all(s["share"] == 1.0 and s["rules"].get("stopAtSign") for s in rolling)
+    assert on_local["levels"][0]["controllers"]["sumo"]["failed"] == 0
+    assert junit.count("<testcase ") == 2 * 3 * 2  # chains x levels (0 to 2) x controllers
+    covered = [c for c in on_local["coverage"] if c["covered"]]
+    assert covered and all(c["testcases"] for c in covered)
+
+    server = Server(tmp_path / "celery", **celery_settings)
+    worker = Worker(tmp_path / "w1", "w1", **celery_settings)
+    try:
+        job = server.client.post("/jobs", json={"items": [CAMPAIGN]}).json()["id"]
+        before = wait_until(lambda: halfway(server, job), timeout=300)
+        worker.kill()
+        worker = Worker(tmp_path / "w2", "w2", **celery_settings)
+        after = server.wait_for_job(job)
+        assert after["state"] == "succeeded", after["items"][0]["error"]
+        item = after["items"][0]
+        assert item["attempts"] >= 2  # interrupted and resumed
+        assert item["testcases"][:3] == before["items"][0]["testcases"][:3]  # kept, not remade
+        assert len(item["testcases"]) == len(set(item["testcases"])) == 5  # root + 2 x 2
+        assert len(item["evaluations"]) == len(set(item["evaluations"])) == 5 * 2
+        assert "resuming after" in worker.log.read_text()
+        assert outcome(server, job) == on_local
+    finally:
+        worker.stop()
+        server.stop()

@@ -1,0 +1,92 @@
+"""`scengen campaign` and `scengen report` as a user runs them: a campaign killed with
+kill -9 halfway resumes when the same command runs again and ends with the outcome an
+uninterrupted run gives; the report opens without a server; a different campaign in the
+same folder is refused; bad input is a one-line error."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+from xml.etree import ElementTree as ET
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+COMMAND = ["campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "1", "--chains", "2",
+           "--controller", "sumo", "--controller", "sumo-rolling-stop"]  # fmt: skip
+
+
+def scengen(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "service", *args], capture_output=True, text=True, check=False
+    )
+
+
+def without_evaluation_ids(folder: Path) -> dict[str, Any]:
+    outcome: dict[str, Any] = json.loads((folder / "campaign.json").read_text())
+    for chain in outcome["chains"]:
+        for level in chain["levels"]:
+            for verdict in level["verdicts"].values():
+                verdict.pop("evaluation")
+    return outcome
+
+
+def test_a_killed_campaign_resumes_and_ends_as_an_uninterrupted_one(tmp_path: Path) -> None:
+    resumed = tmp_path / "resumed"
+    child = subprocess.Popen(
+        [sys.executable, "-m", "service", *COMMAND, "-o", str(resumed)],
+        stderr=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    assert child.stderr is not None
+    for line in child.stderr:  # the second chain's level is grown: kill -9 mid-campaign
+        if "chain 2: level 1 grown" in line:
+            break
+    os.killpg(child.pid, signal.SIGKILL)
+    child.wait()
+    assert not (resumed / "campaign.json").exists()
+    again = scengen(*COMMAND, "-o", str(resumed))
+    assert again.returncode == 1, again.stderr  # rolling through the stop sign fails
+    assert "resuming the campaign" in again.stderr
+    assert "level 1 grown" not in again.stderr.split("chain 2: level 1 grown")[0]  # remembered
+    fresh = tmp_path / "fresh"
+    uninterrupted = scengen(*COMMAND, "-o", str(fresh))
+    assert uninterrupted.returncode == 1, uninterrupted.stderr
+    assert without_evaluation_ids(resumed) == without_evaluation_ids(fresh)
+    assert "level  test-cases  sumo  sumo-rolling-stop" in again.stdout
+
+    outcome = without_evaluation_ids(fresh)
+    assert [lv["controllers"]["sumo-rolling-stop"]["share"] for lv in outcome["levels"]] == [1, 1]
+    cases = sorted(p.name for p in (fresh / "testcases").glob("*.json"))
+    assert cases == [f"S2C_0-C2N_0.chain{c}.level{lv}.json" for c in (1, 2) for lv in (0, 1)]
+    check = scengen("evaluate", str(fresh / "testcases"), "--controller", "sumo", "--json")
+    assert check.returncode == 0, check.stderr  # the files are test-cases a user can replay
+    suite = ET.parse(fresh / "junit.xml").getroot().find("testsuite")
+    assert suite is not None and suite.get("tests") == str(2 * 2 * 2)
+
+    report = tmp_path / "report.html"
+    written = scengen("report", str(fresh), "-o", str(report))
+    assert written.returncode == 0, written.stderr
+    page = report.read_text()
+    assert "window.SCENGEN_REPORT" in page
+    assert not re.search(r'(src|href)="(https?:|/)', page)  # nothing loaded from elsewhere
+
+    other = scengen(*COMMAND[:-2], "-o", str(fresh))  # another campaign, same folder
+    assert other.returncode == 2
+    assert "holds another campaign" in other.stderr
+
+
+def test_bad_campaign_input_is_a_one_line_error(tmp_path: Path) -> None:
+    wrong_route = scengen(*COMMAND[:3], "S2C_0:C2S_0", *COMMAND[4:], "-o", str(tmp_path / "a"))
+    assert wrong_route.returncode == 2
+    assert "valid routes" in wrong_route.stderr and "Traceback" not in wrong_route.stderr
+    wrong_driver = scengen(*COMMAND[:-1], "no-such-driver", "-o", str(tmp_path / "b"))
+    assert wrong_driver.returncode == 2 and "Traceback" not in wrong_driver.stderr
+    not_a_folder = scengen("report", str(tmp_path), "-o", str(tmp_path / "r.html"))
+    assert not_a_folder.returncode == 2 and "not a campaign folder" in not_a_folder.stderr
