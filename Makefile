@@ -94,6 +94,9 @@ bench-generator: $(STAMP)
 	$(BIN)/python -m bench.bench_chains
 	$(BIN)/python -m bench.bench_ordering
 
+campaign-curve: $(STAMP)
+	$(BIN)/python -m bench.campaign_curve
+
 bench-api: $(STAMP)
 	$(BIN)/python -m bench.bench_api
 

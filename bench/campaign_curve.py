@@ -6,7 +6,8 @@ of docs/controllers.md (`careful:Careful`, written from the docs into the run fo
 then draws the failure share by level per junction (docs/images/campaign-failure-rate.png)
 and writes the tables (docs/campaigns.md). Each junction gets three ego routes (a left
 turn, a straight and a right turn where it has them, else the first routes by id), three
-chains per ego route, depth 5, seed 0.
+chains per ego route, depth 5, seed 0, test-cases of 45 s (room for deep chains, as in
+bench_chains).
 
 Run with `make campaign-curve` (about half an hour on two cores). Campaign folders go to
 build/campaigns/; run it again and finished campaigns are read back, not grown again.
@@ -34,7 +35,7 @@ JUNCTIONS = [  # (label, network, junction, control)
     ("Town05 396 as allway_stop", str(ROOT / "tests/data/carla/Town05.net.xml"), "396",
      "allway_stop"),
 ]  # fmt: skip
-DEPTH, CHAINS, SEED = 5, 3, 0
+DEPTH, CHAINS, SEED, DURATION = 5, 3, 0, 45.0
 
 
 def careful_source() -> str:
@@ -67,7 +68,8 @@ def run(label: str, network: str, junction: str | None, control: str | None) -> 
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "careful.py").write_text(careful_source())
     command = [sys.executable, "-m", "service", "campaign", network, "--depth", str(DEPTH),
-               "--chains", str(CHAINS), "--seed", str(SEED), "-o", str(folder)]  # fmt: skip
+               "--chains", str(CHAINS), "--seed", str(SEED), "--duration", str(DURATION),
+               "-o", str(folder)]  # fmt: skip
     if junction:
         command += ["--junction", junction]
     if control:
@@ -129,7 +131,8 @@ def main() -> None:
         "",
         f"Measured {date.today()} on {platform.node()} ({platform.machine()}, Python "
         f"{platform.python_version()}) by `make campaign-curve` (bench/campaign_curve.py): "
-        f"depth {DEPTH}, {CHAINS} chains per ego route, seed {SEED}; each cell is failed / "
+        f"depth {DEPTH}, {CHAINS} chains per ego route, seed {SEED}, test-cases of "
+        f"{DURATION:g} s; each cell is failed / "
         "test-cases at that level, with the rules broken and collisions.",
         "",
         "![failure rate by level](images/campaign-failure-rate.png)",

@@ -357,6 +357,10 @@ def _parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     campaign.add_argument("--seed", type=int, default=0, help="chain c has seed SEED + c")
     campaign.add_argument(
+        "--duration", type=float, default=20.0, metavar="SECONDS",
+        help="how long each test-case lasts (default 20 s; deep chains need room: try 45)",
+    )  # fmt: skip
+    campaign.add_argument(
         "--budget-per-level", type=float, default=60.0, metavar="SECONDS",
         help="budget of growing one level (default 60 s)",
     )  # fmt: skip
@@ -527,12 +531,25 @@ def _run_campaign(args: argparse.Namespace) -> int:
         "chains": args.chains,
         "controllers": args.controller,
         "seed": args.seed,
+        "duration": args.duration,
         "budget_per_level": args.budget_per_level,
         "budget": args.budget,
     }
     outcome = run_folder_campaign(spec, args.output, elapsed_printer(time.monotonic()))
-    print("failed evaluations per level (failed/test-cases):")
+    print("failed test-cases per level (failed/test-cases):")
     _print_table(failure_table(outcome))
+    failed = False
+    for controller in outcome["plan"]["controllers"]:
+        shares = [level["controllers"][controller] for level in outcome["levels"]]
+        count, total = sum(s["failed"] for s in shares), sum(s["evaluated"] for s in shares)
+        firsts = [c["first_failure"][controller] for c in outcome["chains"]]
+        failing = [level for level in firsts if level is not None]
+        if not count:
+            print(f"{controller}: passed all {total} test-cases")
+            continue
+        failed = True
+        print(f"FAIL {controller}: failed {count} of {total} test-cases; first at level "
+              f"{min(failing)}, in {len(failing)} of {len(firsts)} chains")  # fmt: skip
     covered = [c["rule"] for c in outcome["coverage"] if c["covered"]]
     missing = [c["rule"] for c in outcome["coverage"] if c["coverable"] and not c["covered"]]
     print(f"rules covered by complexity certificates: {', '.join(covered) or 'none'}; "
@@ -541,12 +558,6 @@ def _run_campaign(args: argparse.Namespace) -> int:
         if chain["end"]:
             print(f"{chain['ego']} chain {chain['chain'] + 1} ended at {chain['end']}")
     print(f"written: {args.output}/campaign.json, junit.xml, report.html, testcases/")
-    failed = any(
-        not verdict["passed"]
-        for chain in outcome["chains"]
-        for level in chain["levels"]
-        for verdict in level["verdicts"].values()
-    )
     return EXIT_FAILED_CHECK if failed else EXIT_OK
 
 

@@ -60,6 +60,7 @@ def test_a_killed_campaign_resumes_and_ends_as_an_uninterrupted_one(tmp_path: Pa
     assert uninterrupted.returncode == 1, uninterrupted.stderr
     assert without_evaluation_ids(resumed) == without_evaluation_ids(fresh)
     assert "level  test-cases  sumo  sumo-rolling-stop" in again.stdout
+    assert "FAIL sumo-rolling-stop: failed 3 of 3 test-cases; first at level 0" in again.stdout
 
     outcome = without_evaluation_ids(fresh)
     assert [lv["controllers"]["sumo-rolling-stop"]["share"] for lv in outcome["levels"]] == [1, 1]

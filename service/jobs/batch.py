@@ -111,6 +111,7 @@ class CampaignItem(_Item):
     chains: int = Field(ge=1, le=20, description="chains per ego route")
     controllers: list[str] = Field(min_length=1, max_length=20)
     seed: int = Field(0, ge=0, le=MAX_SEED)
+    duration: float = Field(20.0, gt=0, le=120, description="seconds each test-case lasts")
     budget_per_level: float | None = Field(None, gt=0, description="seconds per level")
     budget: float | None = Field(None, gt=0, description="seconds per evaluation")
 

@@ -94,7 +94,8 @@ class JobCampaign:
 
     def root(self, ego: str) -> tuple[str, TestCase]:
         def create() -> str:
-            request = {"ego_route": ego, "junction": self.junction, "control": self.control}
+            request = {"ego_route": ego, "junction": self.junction, "control": self.control,
+                       "duration": self.spec.duration}  # fmt: skip
             document = self.work.call(
                 tasks.create_testcase,
                 (self.network_file, self.ref, self.work.settings.cache_dir, request),

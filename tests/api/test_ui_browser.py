@@ -32,7 +32,9 @@ CAMPAIGN = {
 
 
 @pytest.fixture(scope="module")
-def served(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, str, dict[str, Any]]]:
+def served(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> Iterator[tuple[Server, str, dict[str, Any]]]:
     server = Server(tmp_path_factory.mktemp("ui"), workers="2", api_token=TOKEN)
     try:
         refused = server.client.post("/jobs", json={"items": [CAMPAIGN]})
@@ -77,8 +79,8 @@ def test_networks_show_their_junction_pictures(
     page.goto(f"{server.url}/ui/")
     picture = page.locator("img[alt='junction C']").first
     picture.wait_for(timeout=60_000)
-    page.wait_for_function("() => [...document.images].every(i => i.complete && i.naturalWidth > 0)",
-                           timeout=60_000)  # fmt: skip
+    loaded = "() => [...document.images].every(i => i.complete && i.naturalWidth > 0)"
+    page.wait_for_function(loaded, timeout=60_000)
     assert page.locator("img").count() == 3  # one supported junction per bundled network
     page.screenshot(path=str(SCREENSHOTS / "ui-networks.png"))
     assert external(server, requested) == []
@@ -94,7 +96,9 @@ def test_lineage_tree_filters_by_ego_and_level(
     made = [level["testcase"] for level in outcome["chains"][0]["levels"]]
     for ident in made:  # root, level 1 and level 2, nested
         assert page.locator(f"#lineage a[href='#/testcases/{ident}']").count() == 1
-    nested = page.locator(f"#lineage li:has(a[href='#/testcases/{made[0]}']) ul a[href='#/testcases/{made[2]}']")
+    nested = page.locator(
+        f"#lineage li:has(a[href='#/testcases/{made[0]}']) ul a[href='#/testcases/{made[2]}']"
+    )
     assert nested.count() == 1
     page.screenshot(path=str(SCREENSHOTS / "ui-lineage.png"))
     page.goto(f"{server.url}/ui/#/testcases?level=2")
@@ -147,7 +151,8 @@ def test_campaign_matrix_opens_the_replay_of_that_evaluation(
     level = outcome["chains"][0]["levels"][2]
     verdict = level["verdicts"]["sumo-rolling-stop"]
     cell = page.locator(
-        f"#verdict-matrix a[data-testcase='{level['testcase']}'][data-controller='sumo-rolling-stop']"
+        f"#verdict-matrix a[data-testcase='{level['testcase']}']"
+        "[data-controller='sumo-rolling-stop']"
     ).first
     assert cell.inner_text() == ("pass" if verdict["passed"] else ", ".join(verdict["rules"]))
     cell.click()
@@ -178,7 +183,9 @@ def test_the_report_works_from_a_file_offline(
     page.goto(report.as_uri())
     page.wait_for_selector("#verdict-matrix")
     level = outcome["chains"][0]["levels"][1]
-    page.locator(f"#verdict-matrix a[data-testcase='{level['testcase']}'][data-controller='sumo']").first.click()
+    page.locator(
+        f"#verdict-matrix a[data-testcase='{level['testcase']}'][data-controller='sumo']"
+    ).first.click()
     page.wait_for_selector("#animation")
     assert "sumo on" in page.locator("h1").inner_text()
     page.locator("a:text-is('" + page.locator("#verdict a").inner_text() + "')").click()

@@ -42,7 +42,14 @@ def celery_settings(postgres_url: str, tmp_path: Path) -> Iterator[dict[str, str
 
     engine = create_engine(postgres_url)
     with engine.begin() as connection:
-        for table in ("job_items", "job_item_memos", "jobs", "evaluation_drives", "evaluations",
-                      "testcases", "networks"):
+        for table in (
+            "job_items",
+            "job_item_memos",
+            "jobs",
+            "evaluation_drives",
+            "evaluations",
+            "testcases",
+            "networks",
+        ):
             connection.exec_driver_sql(f"DELETE FROM {table}")
     engine.dispose()

@@ -18,7 +18,7 @@ from service.core.campaign import campaign_junit
 from service.core.export import Flavour
 from service.core.verdict import Verdict, junit_report
 from service.jobs import tasks
-from service.jobs.batch import Batch
+from service.jobs.batch import Batch, CampaignItem
 from service.jobs.store import FINISHED, IdempotencyConflict, JobRecord, JobStore
 from service.store import Store
 
@@ -99,12 +99,16 @@ async def create_job(
     """Submit a batch; it runs in the background (202, Location: the job)."""
     limit = state.settings.max_budget
     for position, item in enumerate(batch.items):
-        if item.budget is not None and item.budget > limit:
-            raise Problem(
-                422,
-                f"items[{position}].budget {item.budget:g} s exceeds the server's limit of "
-                f"{limit:g} s",
-            )
+        budgets = {"budget": item.budget}
+        if isinstance(item, CampaignItem):
+            budgets["budget_per_level"] = item.budget_per_level
+        for field, budget in budgets.items():
+            if budget is not None and budget > limit:
+                raise Problem(
+                    422,
+                    f"items[{position}].{field} {budget:g} s exceeds the server's limit of "
+                    f"{limit:g} s",
+                )
 
     def create() -> Response:
         try:

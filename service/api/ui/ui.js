@@ -537,7 +537,8 @@ function campaignView(outcome) {
     ...controllers.map((c) => { const s = level.controllers[c]; const rules = Object.entries(s.rules).map(([r, n]) => `${r} ${n}`).join(", ");
       return h("td", { class: s.failed ? "fail" : "pass" }, `${s.failed}/${s.evaluated}`, rules ? h("div", { class: "muted" }, rules) : null,
         s.collisions ? h("div", { class: "muted" }, `${s.collisions} collisions`) : null, s.goal_misses ? h("div", { class: "muted" }, `${s.goal_misses} goal misses`) : null); })]);
-  const chainRows = outcome.chains.map((c) => [c.ego, String(c.chain + 1), String(c.reached), ...controllers.map((k) => (c.first_failure[k] === null ? "—" : `level ${c.first_failure[k]}`)), c.end || ""]);
+  const chainRows = outcome.chains.map((c) => [c.ego, String(c.chain + 1), String(c.reached), ...controllers.map((k) => (c.first_failure[k] === null ? "—" : `level ${c.first_failure[k]}`)),
+    c.end ? h("span", { title: c.end }, c.end.length > 140 ? `${c.end.slice(0, 140)}…` : c.end) : `reached depth ${plan.depth}`]);
   const cases = [];
   for (const chain of outcome.chains) for (const level of chain.levels) cases.push({ id: level.testcase, label: `${chain.ego} · chain ${chain.chain + 1} · level ${level.level}`, level });
   return [
