@@ -50,7 +50,7 @@ system-tools:
 		>/dev/null; } || echo "make: missing:$$missing (install Debian's packages)"
 
 test: $(STAMP) $(QC_STAMP) system-tools
-	$(BIN)/pytest
+	$(BIN)/pytest -n 2 --dist loadgroup
 
 lint: $(STAMP)
 	$(BIN)/ruff check service tests bench

@@ -99,26 +99,42 @@ def table(outcome: dict[str, Any]) -> list[str]:
     return lines
 
 
+def overview(outcomes: list[tuple[str, dict[str, Any]]]) -> list[str]:
+    """One row per junction and controller: the share failed at each level (%)."""
+    depth = max(len(outcome["levels"]) for _, outcome in outcomes)
+    lines = ["| junction | controller | " + " | ".join(f"L{k}" for k in range(depth)) + " |",
+             "|---|---|" + "---:|" * depth]  # fmt: skip
+    for label, outcome in outcomes:
+        for name in CONTROLLERS:
+            shares = [f"{100 * (lv['controllers'][name]['share'] or 0):.0f}"
+                      for lv in outcome["levels"]]  # fmt: skip
+            lines.append(f"| {label} | {name} | " + " | ".join(shares) + " |")
+    return lines
+
+
 def plot(outcomes: list[tuple[str, dict[str, Any]]], path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    figure, axes = plt.subplots(1, len(outcomes), figsize=(4.2 * len(outcomes), 3.6),
+    figure, axes = plt.subplots(1, len(outcomes), figsize=(4.2 * len(outcomes), 3.9),
                                 sharey=True)  # fmt: skip
+    styles = ["-o", "--s", ":^", "-.v", "-D"]  # drivers that coincide stay visible
     for axis, (label, outcome) in zip(axes, outcomes, strict=True):
-        for name in CONTROLLERS:
-            levels = [lv["level"] for lv in outcome["levels"]]
+        for k, name in enumerate(CONTROLLERS):
+            shift = (k - 2) * 0.05  # a nudge sideways, for the same reason
+            levels = [lv["level"] + shift for lv in outcome["levels"]]
             shares = [100 * (lv["controllers"][name]["share"] or 0) for lv in outcome["levels"]]
-            axis.plot(levels, shares, marker="o", label=name)
+            axis.plot(levels, shares, styles[k], label=name, markersize=5, linewidth=1.6)
         axis.set_title(label, fontsize=10)
         axis.set_xlabel("level (cars added)")
         axis.set_ylim(-5, 105)
         axis.grid(alpha=0.3)
     axes[0].set_ylabel("test-cases failed (%)")
-    axes[-1].legend(fontsize=8, loc="center right")
-    figure.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    figure.legend(handles, labels, loc="lower center", ncol=len(CONTROLLERS), fontsize=9)
+    figure.tight_layout(rect=(0, 0.08, 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=110)
 
@@ -136,6 +152,12 @@ def main() -> None:
         "test-cases at that level, with the rules broken and collisions.",
         "",
         "![failure rate by level](images/campaign-failure-rate.png)",
+        "",
+        "What these figures show, and why, is in the README (`scengen campaign`).",
+        "",
+        "Share of test-cases failed at each level (%), L0 the ego-only test-cases:",
+        "",
+        *overview(outcomes),
         "",
     ]
     for label, outcome in outcomes:
