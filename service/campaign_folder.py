@@ -14,6 +14,7 @@ campaign in the same folder is refused. When it ends, the folder holds:
 
 from __future__ import annotations
 
+import fcntl
 import json
 import sys
 import threading
@@ -32,11 +33,12 @@ from service.jobs import tasks
 from service.jobs.batch import parse_batch
 from service.jobs.runner import run_item
 from service.jobs.store import JobStore
-from service.report import campaign_paths, outcome_of, report_html, store_fetch
+from service.report import campaign_paths, campaign_title, outcome_of, report_html, store_fetch
 from service.settings import Settings
 from service.store import Store
 
 STATE_FILE = "campaign.sqlite3"
+LOCK_FILE = ".campaign.lock"  # held while a run works in the folder
 OWNER = "scengen-campaign"  # the only worker of a folder's store
 
 
@@ -65,6 +67,12 @@ def run_folder_campaign(
     """Run (or resume) the campaign ``spec`` (a campaign item with ``network`` a bundled name
     or a file) in ``folder`` and write its results there; its outcome."""
     folder.mkdir(parents=True, exist_ok=True)
+    lock = (folder / LOCK_FILE).open("w")
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        lock.close()
+        raise InvalidInput(f"another scengen campaign is running in {folder}") from None
     store, settings = open_store(folder)
     try:
         spec = {**spec, "network": network_id(store, spec["network"])}
@@ -77,26 +85,27 @@ def run_folder_campaign(
                 "give a new folder with -o, or the same options to resume it"
             )
         job = existing[0] if existing else jobs.create(batch)[0]
-        if existing:
-            jobs.release(OWNER)  # left running by a run that was killed: resumed here
+        if existing and jobs.reopen(job.id):  # stopped, killed or failed: it goes on here
             say(f"resuming the campaign in {folder}")
         _run(store, settings, job.id, say)
         item = jobs.item(job.id, 0)
         assert item is not None
-        if item.state == "failed":
-            _raise_failure(item.error or "")
+        if item.state != "succeeded":
+            _raise_failure(item.error or f"the campaign's item ended {item.state}")
         return write_results(store, settings, job.id, folder)
     finally:
         store.close()
+        lock.close()  # and with it the lock
 
 
 def _raise_failure(error: str) -> None:
-    """The item's error (``Class: message``) raised again as that error of the core."""
+    """The item's error (``Class: message``) raised again as that error of the core; an
+    internal fault as a plain ScengenError (exit 3), never as the user's bad input."""
     name, _, message = error.partition(": ")
     found = getattr(errors, name, None)
     if isinstance(found, type) and issubclass(found, ScengenError):
-        raise found(f"the campaign stopped: {message}")
-    raise RuntimeError(f"the campaign stopped: {error}")
+        raise found(f"the campaign stopped: {message}; run the same command to resume")
+    raise ScengenError(f"the campaign stopped: {error}; run the same command to resume")
 
 
 def _run(store: Store, settings: Settings, job: str, say: Callable[[str], None]) -> None:
@@ -129,9 +138,7 @@ def report_of(store: Store, settings: Settings, job: str) -> tuple[dict[str, Any
         return tasks.junction_geometry(network, junction, control, settings.cache_dir)
 
     data = campaign_paths(job, outcome, store_fetch(store, shapes))
-    plan = outcome["plan"]
-    title = f"scengen campaign: {plan['network']} junction {plan['junction']}"
-    return outcome, report_html(job, data, title)
+    return outcome, report_html(job, data, campaign_title(outcome))
 
 
 def folder_report(folder: Path) -> str:

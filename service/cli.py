@@ -575,9 +575,7 @@ def _run_report(args: argparse.Namespace) -> int:
         job = args.source
         outcome = client.json("GET", f"/jobs/{job}/campaign")
         data = report.campaign_paths(job, outcome, lambda path: client.json("GET", path))
-        plan = outcome["plan"]
-        title = f"scengen campaign: {plan['network']} junction {plan['junction']}"
-        page = report.report_html(job, data, title)
+        page = report.report_html(job, data, report.campaign_title(outcome))
     args.output.write_text(page)
     print(f"written: {args.output}", file=sys.stderr)
     return EXIT_OK

@@ -14,13 +14,15 @@ from collections.abc import Callable
 from importlib.resources import files
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote, unquote
 
 from service.jobs.campaign_steps import OUTCOME
 from service.jobs.store import JobStore
-from service.store import Store
+from service.store import DRIVE_COLUMNS, Store
 
 UI = files("service.api") / "ui"
 
+URI_COMPONENT_SAFE = "!~*'()"  # what encodeURIComponent leaves as it is (with A-Z a-z 0-9 -_.)
 Fetch = Callable[[str], Any]  # an API path -> its JSON answer
 
 
@@ -54,11 +56,11 @@ def evaluations_path(testcase: str) -> str:
 
 
 def geometry_path(document: dict[str, Any]) -> str:
-    """Where the browser asks for the picture data of a test-case's junction."""
-    return (
-        f"/networks/{document['network']['ref']}/junctions/{document['junction']}"
-        f"/geometry?control={document['control']}"
-    )
+    """Where the browser asks for the picture data of a test-case's junction (quoted as
+    JavaScript's encodeURIComponent quotes: the page looks its answers up by this path)."""
+    network = quote(document["network"]["ref"], safe=URI_COMPONENT_SAFE)
+    junction = quote(document["junction"], safe=URI_COMPONENT_SAFE)
+    return f"/networks/{network}/junctions/{junction}/geometry?control={document['control']}"
 
 
 Shapes = Callable[[Path, str, str], dict[str, Any]]  # network file, junction, control
@@ -75,7 +77,7 @@ def store_fetch(store: Store, shapes: Shapes) -> Fetch:
 
     def fetch(path: str) -> Any:
         where, _, query = path.partition("?")
-        parts = where.strip("/").split("/")
+        parts = [unquote(part) for part in where.strip("/").split("/")]
         asked = dict(pair.split("=", 1) for pair in query.split("&") if pair)
         answer: Any
         if parts[0] == "jobs":
@@ -91,7 +93,8 @@ def store_fetch(store: Store, shapes: Shapes) -> Fetch:
                 "total": found.total,
             }
         elif parts[0] == "evaluations" and parts[2:] == ["drive"]:
-            return {"evaluation": parts[1], "trajectory": store.drive(parts[1]) or []}
+            return {"evaluation": parts[1], "columns": DRIVE_COLUMNS,
+                    "trajectory": store.drive(parts[1]) or []}  # fmt: skip
         else:
             raise KeyError(path)
         return answer.model_dump(mode="json")
@@ -119,6 +122,11 @@ def outcome_of(store: Store, job: str) -> dict[str, Any]:
     raise KeyError(f"job {job} has no campaign outcome yet")
 
 
+def campaign_title(outcome: dict[str, Any]) -> str:
+    plan = outcome["plan"]
+    return f"scengen campaign: {plan['network']} junction {plan['junction']}"
+
+
 def report_html(job: str, data: dict[str, Any], title: str) -> str:
     """The self-contained report: the browser's page with ``data`` inlined, opening on the
     campaign."""
@@ -126,7 +134,7 @@ def report_html(job: str, data: dict[str, Any], title: str) -> str:
     style = (UI / "ui.css").read_text()
     script = (UI / "ui.js").read_text()
     embedded = json.dumps({"start": f"#/jobs/{job}", "answers": data}, separators=(",", ":"))
-    embedded = embedded.replace("</", "<\\/")  # never closes the script element early
+    embedded = embedded.replace("<", "\\u003c")  # no markup inside the script element
     page = page.replace('<link rel="stylesheet" href="/ui/ui.css">', f"<style>\n{style}</style>")
     page = page.replace(
         '<script src="/ui/ui.js"></script>',

@@ -84,6 +84,7 @@ evaluations = sa.Table(
 
 # The ego's drive of an evaluation (its replay), apart from the verdict: rows of
 # [t, x, y, heading, speed, distance], the centre of the ego's footprint
+DRIVE_COLUMNS = ["t", "x", "y", "heading", "speed", "distance"]
 drives = sa.Table(
     "evaluation_drives",
     metadata,

@@ -144,7 +144,8 @@ def run_campaign(
                     tell(f"{ego} chain {chain + 1}: level {level} / {controller}")
                 record["levels"].append(_level(level, parent_id, parent, route, verdicts))
                 publish()
-            publish()
+            if record["end"] is not None:
+                publish()
     outcome = summarize(plan, chains, rules)
     if saved is not None:
         saved(outcome)

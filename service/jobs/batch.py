@@ -119,6 +119,14 @@ class CampaignItem(_Item):
     def _egos_or_all(self) -> CampaignItem:
         if (self.egos is None) == (not self.all_egos):
             raise ValueError("give exactly one of egos (routes) and all_egos: true")
+        if self.egos is not None and len(set(self.egos)) < len(self.egos):
+            raise ValueError("egos names a route twice")
+        certificates = [c for c in self.controllers if c.startswith("certificate:")]
+        if certificates:
+            raise ValueError(
+                f"{', '.join(certificates)} replay a certificate, which the ego-only start of "
+                "a campaign has not: use them with evaluate items"
+            )
         return self
 
 

@@ -126,7 +126,8 @@ class JobCampaign:
                 )
                 found = {"testcase": record.id, "route": result["route"]}
             except CHAIN_ENDS as error:
-                found = {"end": type(error).__name__, "message": error.message}
+                end = next(kind for kind in CHAIN_ENDS if isinstance(error, kind))
+                found = {"end": end.__name__, "message": error.message}  # MemoryExceeded too
             self._remember(key, found)
         if "end" in found:
             raise _ENDS[found["end"]](found["message"])

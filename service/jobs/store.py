@@ -327,6 +327,29 @@ class JobStore:
                 ).rowcount
             )
 
+    def reopen(self, job: str) -> int:
+        """Queue a job's failed, cancelled or abandoned items again, their results and memos
+        kept (``scengen campaign`` run again on its folder: it is the only worker there)."""
+        with self.engine.begin() as connection:
+            count = connection.execute(
+                items.update()
+                .where(items.c.job == job, items.c.state != "succeeded")
+                .values(
+                    state="queued",
+                    owner=None,
+                    lease_until=None,
+                    sent_at=None,
+                    error=None,
+                    attempts=0,
+                    finished_at=None,
+                )
+            ).rowcount
+            if count:
+                connection.execute(
+                    jobs.update().where(jobs.c.id == job).values(state="queued", finished_at=None)
+                )
+        return int(count)
+
     def cancel(self, job: str) -> None:
         """Cancel every unfinished item; running ones stop at their next lease renewal."""
         with self.engine.begin() as connection:

@@ -8,10 +8,12 @@ from typing import Any
 import pytest
 
 from service.core.errors import InvalidInput
-from service.jobs.batch import ChainItem, ExtendItem, dependencies, parse_batch
+from service.jobs.batch import CampaignItem, ChainItem, ExtendItem, dependencies, parse_batch
 from service.submit import read_batch
 
 ROOT = {"testcase_id": "132282f84a7020de"}
+CAMPAIGN = {"kind": "campaign", "network": "4way-stop", "egos": ["S2C_0:C2N_0"], "depth": 2,
+            "chains": 1, "controllers": ["sumo"]}  # fmt: skip
 
 
 def test_a_batch_with_every_kind_of_item() -> None:
@@ -47,6 +49,13 @@ def test_the_fingerprint_ignores_formatting_not_content() -> None:
     assert one.fingerprint() == same.fingerprint() != other.fingerprint()
 
 
+def test_a_campaign_item_reads_its_defaults() -> None:
+    item = parse_batch({"items": [CAMPAIGN]}).items[0]
+    assert isinstance(item, CampaignItem)
+    assert (item.seed, item.duration, item.junction, item.all_egos) == (0, 20.0, None, False)
+    assert dependencies(item) == []
+
+
 @pytest.mark.parametrize(
     ("items", "message"),
     [
@@ -77,6 +86,11 @@ def test_the_fingerprint_ignores_formatting_not_content() -> None:
             "items.0.extend.start_distance: a start distance must be a finite number >= 0 m",
         ),
         ([{"kind": "extend", **ROOT, "routes": ["a:b"], "start_distance": [True]}], "True"),
+        ([{**CAMPAIGN, "all_egos": True}], "exactly one of egos (routes) and all_egos"),
+        ([{**CAMPAIGN, "egos": ["a:b", "a:b"]}], "egos names a route twice"),
+        ([{**CAMPAIGN, "controllers": ["sumo", "certificate:complexity"]}],
+         "certificate:complexity replay a certificate"),
+        ([{**CAMPAIGN, "depth": 0}], "depth"),
     ],
 )  # fmt: skip
 def test_bad_batches_are_named(items: list[dict[str, Any]], message: str) -> None:

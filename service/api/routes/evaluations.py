@@ -25,7 +25,7 @@ from service.api.state import State, Token, json_answer
 from service.core.controllers import BUILT_IN, controller_names
 from service.core.verdict import Verdict
 from service.jobs import tasks
-from service.store import EvaluationRecord, TestCaseRecord
+from service.store import DRIVE_COLUMNS, EvaluationRecord, TestCaseRecord
 
 router = APIRouter(tags=["evaluations"], route_class=OffLoopValidation)
 VerdictFormat = Annotated[str | None, Query(description="json or junit (default: by Accept)")]
@@ -174,7 +174,6 @@ async def get_evaluation_drive(state: State, evaluation: str) -> dict[str, Any]:
         if state.store.evaluation(evaluation) is None:
             raise Problem(404, f"no evaluation {evaluation!r}; GET /evaluations lists them")
         trajectory = state.store.drive(evaluation) or []
-        columns = ["t", "x", "y", "heading", "speed", "distance"]
-        return {"evaluation": evaluation, "columns": columns, "trajectory": trajectory}
+        return {"evaluation": evaluation, "columns": DRIVE_COLUMNS, "trajectory": trajectory}
 
     return await asyncio.to_thread(found)

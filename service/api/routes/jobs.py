@@ -247,7 +247,7 @@ async def get_job_campaign_junit(state: State, job: str) -> Response:
 )
 async def get_job_campaign_report(state: State, job: str) -> Response:
     """The campaign's self-contained HTML report (`scengen report`), to save and publish."""
-    from service.report import campaign_paths, report_html, store_fetch
+    from service.report import campaign_paths, campaign_title, report_html, store_fetch
 
     outcome = await asyncio.to_thread(_campaign_or_404, state, job)
     plan = outcome["plan"]
@@ -258,8 +258,11 @@ async def get_job_campaign_report(state: State, job: str) -> Response:
     )  # fmt: skip
 
     def build() -> str:
-        data = campaign_paths(job, outcome, store_fetch(state.store, lambda *_: geometry))
-        return report_html(job, data, f"scengen campaign: {plan['network']} {plan['junction']}")
+        try:
+            data = campaign_paths(job, outcome, store_fetch(state.store, lambda *_: geometry))
+        except KeyError as missing:  # a test-case of the campaign was deleted since
+            raise Problem(404, f"the campaign's report needs what is gone: {missing}") from None
+        return report_html(job, data, campaign_title(outcome))
 
     return Response(await asyncio.to_thread(build), media_type="text/html")
 

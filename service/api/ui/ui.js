@@ -355,7 +355,7 @@ function timeDistance(tracks, duration) {
   return plot;
 }
 
-function eventsTable(testcase, tracks) {
+function eventsTable(testcase) {
   const found = [];
   for (const car of testcase.nonegos) for (const e of car.events) found.push([e.t, car.id, e.kind, e.lane]);
   found.sort((a, b) => a[0] - b[0]);
@@ -417,7 +417,7 @@ async function testcasePage(id) {
     h("h2", {}, "Evaluations"), evaluations.items.length
       ? table(["controller", "verdict", "replay"], evaluations.items.map((e) => [e.controller, verdictCell(e.verdict), link("replay", `#/replay/${e.id}`)]))
       : h("p", { class: "muted" }, "none yet"),
-    h("details", {}, h("summary", {}, h("strong", {}, "Events"), ` (${testcase.nonegos.reduce((n, car) => n + car.events.length, 0)}: each car's arrivals, stops and lane entries and exits)`), eventsTable(testcase, tracks)),
+    h("details", {}, h("summary", {}, h("strong", {}, "Events"), ` (${testcase.nonegos.reduce((n, car) => n + car.events.length, 0)}: each car's arrivals, stops and lane entries and exits)`), eventsTable(testcase)),
     REPORT ? null : h("p", {}, link("lineage: every test-case of this tree", `#/testcases?network=${encodeURIComponent(testcase.network.ref)}&junction=${encodeURIComponent(testcase.junction)}`)),
   );
   player.seek(0);
@@ -491,7 +491,7 @@ function matrix(testcases, controllers, lookup) {
       const e = lookup(t.id, c);
       if (!e) return h("td", { class: "muted" }, "—");
       const passed = e.passed;
-      const text = passed ? "pass" : (e.rules && e.rules.length ? e.rules.join(", ") : (e.verdict ? failureOf(e.verdict) : e.reasons && e.reasons.length ? "failed" : "failed"));
+      const text = passed ? "pass" : (e.rules && e.rules.length ? e.rules.join(", ") : (e.verdict ? failureOf(e.verdict) : "failed"));
       return h("td", { class: `cell ${passed ? "pass" : "fail"}` }, h("a", { href: `#/replay/${e.evaluation || e.id}`, "data-evaluation": e.evaluation || e.id, "data-testcase": t.id, "data-controller": c }, text));
     }))));
 }
