@@ -8,11 +8,11 @@ QC_STAMP := $(QC_VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled
 
 .PHONY: help install system-tools test lint format nets run demo openapi bench bench-api bench-jobs \
-	bench-generator bench-reliability \
+	bench-generator bench-reliability campaign-curve \
 	coverage clean
 
 help:
-	@echo "make run      serve the HTTP API on http://127.0.0.1:8000 (UI at /docs)"
+	@echo "make run      serve the HTTP API on http://127.0.0.1:8000 (/docs, results at /ui/)"
 	@echo "make test     install into .venv (Chromium and jq too, as root) and run every test"
 	@echo "make openapi  regenerate openapi/openapi.json from the app"
 	@echo "make lint     ruff and mypy --strict"
@@ -23,6 +23,7 @@ help:
 	@echo "make bench-reliability   hostile requests against a server (docs/reliability.md)"
 	@echo "make demo     describe the 4-way stop, write a test-case, drive and judge an ego"
 	@echo "make coverage extend every conflicting route pair of the bundled intersections"
+	@echo "make campaign-curve  failure rate by level of five controllers (docs/campaigns.md)"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
