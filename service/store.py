@@ -132,6 +132,18 @@ class NetworkRecord:
     bundled: bool
     source: dict[str, str] | None = None  # imported: format, filename, sha256 of the original
 
+    def junction_and_control(
+        self, junction: str | None, control: str | None
+    ) -> tuple[str | None, str | None]:
+        """The junction and control type a request means: a stored override of the named
+        junction, or the only overridden junction when none is named (None: let the
+        loader decide, or name the choices)."""
+        if control is None and junction is not None:
+            control = self.controls.get(junction)
+        if control is None and junction is None and len(self.controls) == 1:
+            junction, control = next(iter(self.controls.items()))
+        return junction, control
+
 
 @dataclass(frozen=True)
 class TestCaseRecord:

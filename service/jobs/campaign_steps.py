@@ -9,11 +9,12 @@ again and every step done before answers from memory, so it goes on where it sto
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from service.core.campaign import CHAIN_ENDS, CampaignPlan, run_campaign
 from service.core.errors import InvalidInput, ScengenError, UnknownNetwork, choices
-from service.core.testcase import NetworkRef, TestCase, parse_testcase
+from service.core.testcase import NetworkRef, TestCase, dump_testcase, parse_testcase
 from service.jobs import tasks
 from service.jobs.batch import CampaignItem
 
@@ -41,9 +42,12 @@ class JobCampaign:
         self.network = network
         self.network_file = work.store.network_file(network.id)
         self.ref = NetworkRef(ref=network.id, sha256=network.sha256)
+        self.budget_per_level = spec.budget_per_level or work.settings.extend_budget
+        self.progress = "starting"
 
     def run(self) -> dict[str, Any]:
-        junction, control = self._junction()
+        junction, control = self.network.junction_and_control(self.spec.junction,
+                                                              self.spec.control)  # fmt: skip
         description = self._remembered(
             f"junction/{junction}/{control}",
             lambda: self.work.call(
@@ -75,20 +79,11 @@ class JobCampaign:
             chains=self.spec.chains,
             controllers=tuple(self.spec.controllers),
             seed=self.spec.seed,
-            budget_per_level=self.spec.budget_per_level or self.work.settings.extend_budget,
+            budget_per_level=self.budget_per_level,
         )
         return run_campaign(
             plan, self, [(rule, law) for rule, law in laws], self._progress, self._save
         )
-
-    def _junction(self) -> tuple[str | None, str | None]:
-        junction: str | None = self.spec.junction
-        control: str | None = self.spec.control
-        if control is None and junction is not None:
-            control = self.network.controls.get(junction)
-        if control is None and junction is None and len(self.network.controls) == 1:
-            junction, control = next(iter(self.network.controls.items()))
-        return junction, control
 
     # CampaignSteps
 
@@ -110,25 +105,20 @@ class JobCampaign:
     def grow(
         self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...]
     ) -> tuple[str, TestCase, str]:
-        key = f"grow/{parent}/{seed}/" + hashlib.sha256(",".join(last).encode()).hexdigest()[:16]
-        found = self.work.jobs.memo(self.item.job, self.item.position, key)
-        if found is None:
-            budget = self.spec.budget_per_level or self.work.settings.extend_budget
-            args = (
-                self.work.store.testcase(parent).document,  # type: ignore[union-attr]
-                self.network_file, self.work.settings.cache_dir, seed, budget, last,
-            )  # fmt: skip
+        def compute() -> dict[str, str]:
+            args = (dump_testcase(testcase), self.network_file, self.work.settings.cache_dir,
+                    seed, self.budget_per_level, last)  # fmt: skip
             try:
-                result = self.work.call(tasks.extend_any, args, budget + 5.0,
-                                         f"growing a level on {parent}")  # fmt: skip
-                record = self.work.store.add_testcase(
-                    parse_testcase(result["document"]), parent=parent
-                )
-                found = {"testcase": record.id, "route": result["route"]}
-            except CHAIN_ENDS as error:
+                result = self.work.call(tasks.extend_any, args, self.budget_per_level + 5.0,
+                                        f"growing a level on {parent}")  # fmt: skip
+            except CHAIN_ENDS as error:  # remembered by its kind (MemoryExceeded too)
                 end = next(kind for kind in CHAIN_ENDS if isinstance(error, kind))
-                found = {"end": end.__name__, "message": error.message}  # MemoryExceeded too
-            self._remember(key, found)
+                return {"end": end.__name__, "message": error.message}
+            record = self.work.store.add_testcase(parse_testcase(result["document"]), parent)
+            return {"testcase": record.id, "route": result["route"]}
+
+        held_back = hashlib.sha256(",".join(last).encode()).hexdigest()[:16]
+        found = self._remembered(f"grow/{parent}/{seed}/{held_back}", compute)
         if "end" in found:
             raise _ENDS[found["end"]](found["message"])
         self._made(found["testcase"])
@@ -141,12 +131,10 @@ class JobCampaign:
         stored = self.work.store.evaluation(key)
         if stored is None:
             budget = self.spec.budget or self.work.settings.evaluate_budget
-            record = self.work.store.testcase(ident)
-            assert record is not None
             result = self.work.call(
                 tasks.evaluate_controller,
-                (record.document, self.network_file, self.work.settings.cache_dir, controller,
-                 budget),
+                (dump_testcase(testcase), self.network_file, self.work.settings.cache_dir,
+                 controller, budget),
                 budget + self.work.settings.work_budget, f"evaluating {controller} on {ident}",
             )  # fmt: skip
             stored = self.work.store.add_evaluation(
@@ -170,7 +158,7 @@ class JobCampaign:
             self.made.append(ident)
             self._record(None)
 
-    def _remembered(self, key: str, compute: Any) -> Any:
+    def _remembered(self, key: str, compute: Callable[[], Any]) -> Any:
         found = self.work.jobs.memo(self.item.job, self.item.position, key)
         if found is None:
             found = compute()
@@ -185,8 +173,6 @@ class JobCampaign:
             self.item.job, self.item.position, self.work.owner,
             progress if progress is not None else self.progress, self.made, self.evaluated,
         )  # fmt: skip
-
-    progress = "starting"
 
     def _progress(self, message: str, done: int, total: int) -> None:
         self.progress = f"{done}/{total}: {message}"

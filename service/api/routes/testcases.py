@@ -78,12 +78,9 @@ async def create_testcase(state: State, body: TestCaseCreate) -> Response:
     """Create an ego-only test-case on a network."""
     check_samples(body.duration, body.timestep, state.settings.max_samples)
     network = state.network_named_in_body(body.network)
-    junction = body.junction
-    control = body.control.value if body.control else None
-    if control is None and junction is not None:
-        control = network.controls.get(junction)
-    if control is None and junction is None and len(network.controls) == 1:
-        junction, control = next(iter(network.controls.items()))
+    junction, control = network.junction_and_control(
+        body.junction, body.control.value if body.control else None
+    )
     request = body.model_dump(exclude={"network", "junction", "control", "params"})
     request["params"] = None if body.params is None else body.params.model_dump()
     request.update(junction=junction, control=control)
