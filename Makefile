@@ -51,7 +51,7 @@ system-tools:
 		>/dev/null; } || echo "make: missing:$$missing (install Debian's packages)"
 
 test: $(STAMP) $(QC_STAMP) system-tools
-	$(BIN)/pytest -n 2 --dist loadgroup
+	$(BIN)/pytest -n 2
 
 lint: $(STAMP)
 	$(BIN)/ruff check service tests bench

@@ -43,11 +43,3 @@ def town07_y(cache_dir: Path) -> Intersection:
 def town05_allway(cache_dir: Path) -> Intersection:
     """Town05's four-arm junction 396 (plain priority in CARLA) made an all-way stop."""
     return load_intersection(TOWN05, "396", "allway_stop", cache_dir)
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Under pytest-xdist (`make test` runs two workers), the tests that share the machine's
-    Redis database and Celery queue run on one worker, one after another."""
-    for item in items:
-        if "celery_settings" in getattr(item, "fixturenames", ()):
-            item.add_marker(pytest.mark.xdist_group("celery"))

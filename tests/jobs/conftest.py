@@ -27,9 +27,15 @@ def postgres_url() -> Iterator[str]:
         admin.execute(f"DROP DATABASE IF EXISTS {name} WITH (FORCE)")
 
 
+def redis_database(worker_id: str) -> int:
+    """Redis database 7 for a serial run, 7 + n for pytest-xdist's worker gw<n>: two workers
+    never share (or flush) each other's Celery queue."""
+    return 7 if worker_id == "master" else 7 + int(worker_id.removeprefix("gw"))
+
+
 @pytest.fixture
-def celery_settings(postgres_url: str, tmp_path: Path) -> Iterator[dict[str, str]]:
-    broker = "redis://127.0.0.1:6379/7"
+def celery_settings(postgres_url: str, tmp_path: Path, worker_id: str) -> Iterator[dict[str, str]]:
+    broker = f"redis://127.0.0.1:6379/{redis_database(worker_id)}"
     redis.Redis.from_url(broker).flushdb()
     yield {
         "executor": "celery",
