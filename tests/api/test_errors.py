@@ -138,7 +138,10 @@ def test_invalid_extend_bodies_are_named(
 
 def test_unknown_ids_in_the_path_are_404_in_a_body_422(client: TestClient) -> None:
     for path in ("/testcases/nope", "/testcases/nope/bundle", "/evaluations/nope",
-                 "/networks/nope", "/networks/nope/junctions", "/nothing-here"):  # fmt: skip
+                 "/networks/nope", "/networks/nope/junctions",
+                 "/networks/nope/junctions/C/geometry",
+                 "/jobs/nope/campaign", "/jobs/nope/campaign/report",
+                 "/nothing-here"):  # fmt: skip
         assert_problem(client.get(path), 404, "not-found", "nope" if "nope" in path else "/docs")
     for path in ("/extend", "/evaluations"):
         body = {"testcase_id": "nope", "routes": ["a:b"]} if path == "/extend" else {
@@ -225,6 +228,24 @@ def test_picture_formats(client: TestClient) -> None:
     reply = client.get("/networks/4way-stop/junctions/C/plot", params={"route": "X:Y"})
     assert_problem(reply, 422, "unknown-lane", "'X'")
     assert_problem(client.get("/networks/4way-stop/junctions/Z"), 422, "unknown-junction", "'Z'")
+
+
+def test_junction_geometry_names_a_bad_control_and_answers_the_same_twice(
+    client: TestClient,
+) -> None:
+    reply = client.get("/networks/4way-stop/junctions/C/geometry", params={"control": "x"})
+    assert_problem(reply, 422, "invalid-request", "allway_stop")
+    first = client.get("/networks/4way-stop/junctions/C/geometry")
+    assert first.status_code == 200, first.text
+    shapes = first.json()
+    stop_lines = shapes["stop_lines"]
+    assert stop_lines and all(line["stop_sign"] for line in stop_lines)
+    assert client.get("/networks/4way-stop/junctions/C/geometry").json() == shapes
+    uncontrolled = client.get(
+        "/networks/4way-stop/junctions/C/geometry", params={"control": "right_before_left"}
+    ).json()
+    assert not any(s["stop_sign"] for s in uncontrolled["stop_lines"])
+    assert uncontrolled["roads"] == shapes["roads"]
 
 
 BOMB = b"""<?xml version="1.0"?>
@@ -411,7 +432,7 @@ def test_an_inline_testcase_has_the_caps_of_a_created_one(client: TestClient) ->
 
 
 @pytest.mark.parametrize("junction", ["a%00b", "x" * 10_000, "a%0Ab"])
-@pytest.mark.parametrize("suffix", ["", "/plot"])
+@pytest.mark.parametrize("suffix", ["", "/plot", "/geometry"])
 def test_a_junction_id_never_becomes_a_path(client: TestClient, junction: str, suffix: str) -> None:
     """A NUL or a 10,000-character id was a 500 (ValueError, ENAMETOOLONG): the id was the
     name of a folder of the artifact cache. Now a 422 naming the listing, at once."""

@@ -12,6 +12,7 @@ from fastapi.responses import Response as PlainResponse
 
 from service.api.bodies import OffLoopValidation
 from service.api.problems import WORK_PROBLEMS, Problem, documented
+from service.api.routes.networks import junction_geometry
 from service.api.schemas import MAX_OFFSET, JobItemPublic, JobPage, JobPublic, Links
 from service.api.state import AppState, State, Token, json_answer
 from service.core.campaign import campaign_junit
@@ -251,11 +252,8 @@ async def get_job_campaign_report(state: State, job: str) -> Response:
 
     outcome = await asyncio.to_thread(_campaign_or_404, state, job)
     plan = outcome["plan"]
-    path = await asyncio.to_thread(state.store.network_file, plan["network"])
-    geometry = await state.run(
-        "junction", tasks.junction_geometry, (path, plan["junction"], plan["control"],
-        state.cache_dir), state.settings.work_budget, time.monotonic(),
-    )  # fmt: skip
+    record = await asyncio.to_thread(state.network_or_404, plan["network"])
+    geometry = await junction_geometry(state, record, plan["junction"], plan["control"])
 
     def build() -> str:
         try:

@@ -283,12 +283,19 @@ async def get_junction_geometry(
     """The junction's shapes for drawing: roads, area, paths through it, stop lines (m)."""
     record = state.network_or_404(network)
     chosen = control.value if control else record.controls.get(junction)
-    path = state.store.network_file(network)
-    geometry = await _junction_work(
-        state, record, junction, f"geometry-{chosen or 'own'}.json", tasks.junction_geometry,
-        (path, junction, chosen, state.cache_dir),
+    return JSONResponse(await junction_geometry(state, record, junction, chosen))
+
+
+async def junction_geometry(
+    state: AppState, record: NetworkRecord, junction: str, control: str | None
+) -> Any:
+    """The junction's shapes under ``control`` (None: the map's own), computed once per
+    network, junction and control, then answered from the cache."""
+    path = state.store.network_file(record.id)
+    return await _junction_work(
+        state, record, junction, f"geometry-{control or 'own'}.json", tasks.junction_geometry,
+        (path, junction, control, state.cache_dir),
     )  # fmt: skip
-    return JSONResponse(geometry)
 
 
 async def _junction_work(
