@@ -17,6 +17,7 @@ import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 from service.core.check import check_testcase
 from service.core.controllers import CertificateDriver, controller_names, resolve_driver
@@ -361,12 +362,12 @@ def _parser() -> argparse.ArgumentParser:
         help="how long each test-case lasts (default 20 s; deep chains need room: try 45)",
     )  # fmt: skip
     campaign.add_argument(
-        "--budget-per-level", type=float, default=60.0, metavar="SECONDS",
-        help="budget of growing one level (default 60 s)",
+        "--budget-per-level", type=float, metavar="SECONDS",
+        help="budget of growing one level (default: SCENGEN_EXTEND_BUDGET, 60 s)",
     )  # fmt: skip
     campaign.add_argument(
-        "--budget", type=float, default=60.0, metavar="SECONDS",
-        help="budget of each replay (default 60 s)",
+        "--budget", type=float, metavar="SECONDS",
+        help="budget of each replay (default: SCENGEN_EVALUATE_BUDGET, 60 s)",
     )  # fmt: skip
     campaign.add_argument("-o", "--output", type=Path, required=True, metavar="DIR")
     campaign.set_defaults(run=_run_campaign)
@@ -562,20 +563,16 @@ def _run_campaign(args: argparse.Namespace) -> int:
 
 
 def _run_report(args: argparse.Namespace) -> int:
-    from service import report
-
     if args.server is None:
         from service.campaign_folder import folder_report
 
         page = folder_report(Path(args.source))
-    else:
+    else:  # the server writes it (GET /jobs/{id}/campaign/report)
         from service import submit
 
         client = submit.Client(args.server, args.token or os.environ.get("SCENGEN_TOKEN"))
-        job = args.source
-        outcome = client.json("GET", f"/jobs/{job}/campaign")
-        data = report.campaign_paths(job, outcome, lambda path: client.json("GET", path))
-        page = report.report_html(job, data, report.campaign_title(outcome))
+        path = f"/jobs/{quote(args.source, safe='')}/campaign/report"
+        page = client.call("GET", path)[2].decode()
     args.output.write_text(page)
     print(f"written: {args.output}", file=sys.stderr)
     return EXIT_OK

@@ -142,7 +142,7 @@ class JobCampaign:
             )
         if key not in self.evaluated:
             self.evaluated.append(key)
-            self._record(None)
+            self._record()
         return {**stored.verdict, "evaluation": key}
 
     # memory
@@ -156,7 +156,7 @@ class JobCampaign:
     def _made(self, ident: str) -> None:
         if ident not in self.made:
             self.made.append(ident)
-            self._record(None)
+            self._record()
 
     def _remembered(self, key: str, compute: Callable[[], Any]) -> Any:
         found = self.work.jobs.memo(self.item.job, self.item.position, key)
@@ -168,15 +168,15 @@ class JobCampaign:
     def _remember(self, key: str, value: Any) -> None:
         self.work.jobs.remember(self.item.job, self.item.position, self.work.owner, key, value)
 
-    def _record(self, progress: str | None) -> None:
+    def _record(self) -> None:
         self.work.jobs.record(
-            self.item.job, self.item.position, self.work.owner,
-            progress if progress is not None else self.progress, self.made, self.evaluated,
+            self.item.job, self.item.position, self.work.owner, self.progress, self.made,
+            self.evaluated,
         )  # fmt: skip
 
     def _progress(self, message: str, done: int, total: int) -> None:
         self.progress = f"{done}/{total}: {message}"
-        self._record(self.progress)
+        self._record()
 
     def _save(self, outcome: dict[str, Any]) -> None:
         self._remember(OUTCOME, outcome)

@@ -3,11 +3,14 @@ small campaign run as a job (the server has an API token: pages read without it)
 every page: networks with their pictures, the lineage tree and its filter, a test-case's
 animation (the cars move: frames differ when played, scrubbed or with the certificates
 off), the campaign with its failure-rate plot, and the verdict matrix whose cells open the
-replay of that very evaluation. The report the server writes works from a file, offline.
+replay of that very evaluation. The report `scengen report JOB --server` writes works from
+a file, offline.
 Screenshots go to build/screenshots/ui-*.png (look at them)."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -177,7 +180,12 @@ def test_the_report_works_from_a_file_offline(
     server, job, outcome = served
     page, _ = browser_page
     report = tmp_path / "report.html"
-    report.write_text(server.client.get(f"/jobs/{job}/campaign/report").text)
+    written = subprocess.run(
+        [sys.executable, "-m", "service", "report", job, "--server", server.url, "-o", str(report)],
+        capture_output=True, text=True, check=False,
+    )  # fmt: skip
+    assert written.returncode == 0, written.stderr
+    assert report.read_text() == server.client.get(f"/jobs/{job}/campaign/report").text
     loaded: list[str] = []
     page.on("request", lambda request: loaded.append(request.url))
     page.goto(report.as_uri())
