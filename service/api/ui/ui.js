@@ -155,10 +155,10 @@ async function networkPage(network) {
 
 // ---------- test-cases and their lineage ----------
 
-async function allTestcases() {
+async function listAll(path) { // every page of a listing, up to 2000 items
   const found = [];
   for (let offset = 0; offset < 2000; offset += 200) {
-    const page = await get(`/testcases?limit=200&offset=${offset}`);
+    const page = await get(`${path}?limit=200&offset=${offset}`);
     found.push(...page.items);
     if (!page.next) break;
   }
@@ -167,7 +167,7 @@ async function allTestcases() {
 
 async function testcasesPage(query) {
   const filters = new URLSearchParams(query || "");
-  const found = await allTestcases();
+  const found = await listAll("/testcases");
   const byId = Object.fromEntries(found.map((t) => [t.id, t]));
   const children = {};
   for (const t of found) if (t.parent && byId[t.parent]) (children[t.parent] = children[t.parent] || []).push(t);
@@ -204,7 +204,7 @@ async function testcasesPage(query) {
     h("span", { class: "badge" }, `level ${level[t.id]}`), " ", h("span", { class: "muted" }, `${t.nonegos} other cars · ${short(t.id)}`),
     children[t.id] ? h("ul", { class: "tree" }, children[t.id].map(item)) : null);
   const shown = roots.filter(keep);
-  main.append(h("p", { class: "muted" }, `${shown.length} roots (ego-only or uploaded test-cases); their extensions below them, siblings side by side.`),
+  main.append(h("p", { class: "muted" }, `${shown.length} ${shown.length === 1 ? "root" : "roots"} (ego-only or uploaded test-cases); their extensions below them, siblings side by side.`),
     shown.length ? h("ul", { class: "tree", id: "lineage" }, shown.map((root) => h("li", {}, h("strong", {}, `${root.network} · junction ${root.junction} · ego ${egos[root.id]}`), h("ul", { class: "tree" }, item(root))))) : h("p", {}, "No test-case matches."));
 }
 
@@ -468,12 +468,7 @@ async function replayPage(id) {
 // ---------- evaluations matrix ----------
 
 async function evaluationsPage() {
-  const found = [];
-  for (let offset = 0; offset < 2000; offset += 200) {
-    const page = await get(`/evaluations?limit=200&offset=${offset}`);
-    found.push(...page.items);
-    if (!page.next) break;
-  }
+  const found = await listAll("/evaluations");
   const controllers = [...new Set(found.map((e) => e.controller))].sort();
   const testcases = [...new Set(found.map((e) => e.testcase))];
   const cell = {};
