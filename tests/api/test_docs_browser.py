@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -35,17 +36,28 @@ def chromium() -> str:
     return found
 
 
-@pytest.fixture(scope="module")
-def page(server: Server) -> Iterator[tuple[Page, list[str]]]:
+@contextmanager
+def opened_page() -> Iterator[tuple[Page, list[str], list[str]]]:
+    """A page in headless Chromium, the URLs it requested and its script errors so far."""
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     requested: list[str] = []
+    errors: list[str] = []
     with sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=chromium(), args=CHROMIUM_FLAGS)
         context = browser.new_context(viewport={"width": 1400, "height": 1000})
         opened = context.new_page()
         opened.on("request", lambda request: requested.append(request.url))
+        opened.on("pageerror", lambda error: errors.append(str(error)))
+        try:
+            yield opened, requested, errors
+        finally:
+            browser.close()
+
+
+@pytest.fixture(scope="module")
+def page(server: Server) -> Iterator[tuple[Page, list[str]]]:
+    with opened_page() as (opened, requested, _):
         yield opened, requested
-        browser.close()
 
 
 def external(server: Server, requested: list[str]) -> list[str]:

@@ -16,9 +16,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from playwright.sync_api import Page, sync_playwright
+from playwright.sync_api import Page
 
-from tests.api.test_docs_browser import CHROMIUM_FLAGS, SCREENSHOTS, chromium, external
+from tests.api.test_docs_browser import SCREENSHOTS, external, opened_page
 from tests.servers import Server
 
 pytestmark = pytest.mark.slow
@@ -56,17 +56,8 @@ def served(
 
 @pytest.fixture(scope="module")
 def browser_page(served: tuple[Server, str, dict[str, Any]]) -> Iterator[tuple[Page, list[str]]]:
-    SCREENSHOTS.mkdir(parents=True, exist_ok=True)
-    requested: list[str] = []
-    errors: list[str] = []
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=chromium(), args=CHROMIUM_FLAGS)
-        context = browser.new_context(viewport={"width": 1400, "height": 1000})
-        opened = context.new_page()
-        opened.on("request", lambda request: requested.append(request.url))
-        opened.on("pageerror", lambda error: errors.append(str(error)))
+    with opened_page() as (opened, requested, errors):
         yield opened, requested
-        browser.close()
     assert errors == []  # no script error on any page
 
 
