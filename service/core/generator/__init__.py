@@ -1,0 +1,3 @@
+"""Test-cases of increasing complexity: Step 2 (``ordering``, with ``following`` and
+``merging``), Step 3 (``timing`` over ``linear`` programs), the verified extension
+(``extension``) and chains of extensions on routes it chooses (``chain``)."""
