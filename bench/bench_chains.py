@@ -1,7 +1,7 @@
 """Benchmark: chains grown the way a user grows them, one new car per level.
 
 Each level adds one car on a route that conflicts with the ego's, from a fork no car uses
-yet (service.core.chain.grow), with a budget of 30 s per level, until no route is left or
+yet (service.core.generator.chain.grow), with a budget of 30 s per level, until no route is left or
 none gives an extension. On every bundled junction, on CARLA's Town05 junction 396 made an
 all-way stop (the paper's junction), on a Town05 T-junction made `priority_stop`, on
 Town07 358 as `right_before_left`, and on the two junctions of the test data that no
@@ -24,8 +24,8 @@ from dataclasses import dataclass
 from datetime import date
 from pathlib import Path
 
-from service.core.chain import candidate_routes, grow
 from service.core.errors import NoMoreComplexTestCase, ScengenError
+from service.core.generator.chain import candidate_routes, grow
 from service.core.network import Intersection, load_intersection
 from service.core.testcase import TestCase, new_testcase
 

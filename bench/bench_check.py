@@ -13,10 +13,10 @@ import time
 from collections.abc import Callable
 from datetime import date
 
-from service.core.check import check_testcase
-from service.core.events import compute_events
+from service.core.checker.check import check_testcase
+from service.core.motion.events import compute_events
+from service.core.motion.poses import generate_poses
 from service.core.network import load_intersection
-from service.core.poses import generate_poses
 from service.core.testcase import new_testcase
 from tests.helpers import drive_with_stops, retime, with_nonegos
 

@@ -31,11 +31,11 @@ from datetime import date
 from bench.cpu import cpu_seconds
 from bench.paper_timing import solve_paper
 from bench.random_search import extensions_per_cpu_second
+from service.cli.examples import EXAMPLES, run_example
 from service.core.errors import ScengenError
-from service.core.generate import Extension, extend_testcase
+from service.core.generator.extension import Extension, extend_testcase
+from service.core.generator.timing import TimingProblem, solve_timing
 from service.core.testcase import TestCase, new_testcase
-from service.core.timing import TimingProblem, solve_timing
-from service.examples import EXAMPLES, run_example
 
 BUDGET = 20.0
 PAPER_BUDGET = 10.0

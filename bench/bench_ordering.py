@@ -2,7 +2,7 @@
 OrderingSearch) against clingo-lpx (bench/time_lpx.lp) on the same Step 2 problems.
 
 Run with `.venv/bin/python -m bench.bench_ordering` (needs `pip install clingo-lpx`;
---help for the options). The problems are built as service.core.generate.extend_testcase
+--help for the options). The problems are built as service.core.generator.extension.extend_testcase
 builds them (Step 1 poses in SUMO, events, the cars of Step 2, the first share of the
 bounds it searches with); the chain of the four-way stop is grown with extend_testcase
 itself. For each problem and theory: building the search (facts, parsing, grounding), the
@@ -36,8 +36,7 @@ import clingo
 import clingo.ast
 from clingolpx import ClingoLPXTheory
 
-from service.core.following import QueueBounds
-from service.core.generate import (
+from service.core.generator.extension import (
     SEARCH_SHARES,
     STEP1_SPEED,
     _limits,
@@ -49,8 +48,8 @@ from service.core.generate import (
     checked_judge,
     extend_testcase,
 )
-from service.core.network import Intersection
-from service.core.ordering import (
+from service.core.generator.following import QueueBounds
+from service.core.generator.ordering import (
     Limits,
     Ordering,
     OrderingCar,
@@ -59,7 +58,8 @@ from service.core.ordering import (
     ordering_facts,
     stop_symbol,
 )
-from service.core.poses import generate_poses
+from service.core.motion.poses import generate_poses
+from service.core.network import Intersection
 from service.core.testcase import (
     TestCase,
     dump_testcase,

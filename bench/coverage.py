@@ -17,7 +17,7 @@ from concurrent.futures import ProcessPoolExecutor
 from datetime import date
 
 from service.core.errors import NoMoreComplexTestCase, NoneFound, ScengenError
-from service.core.generate import extend_testcase
+from service.core.generator.extension import extend_testcase
 from service.core.network import load_intersection
 from service.core.testcase import new_testcase
 

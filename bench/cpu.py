@@ -1,7 +1,7 @@
 """CPU seconds of this process and of every child it has or had (the warm SUMO process too).
 
 ``resource.RUSAGE_CHILDREN`` counts only children that have ended; the warm worker that
-runs Step 1 (service.core.poses.DRIVER) lives as long as this process, so its CPU time is
+runs Step 1 (service.core.motion.poses.DRIVER) lives as long as this process, so its CPU time is
 read from /proc while it runs. Both the generator and the random baseline are charged the
 same way.
 """
@@ -13,7 +13,7 @@ import resource
 import time
 from pathlib import Path
 
-from service.core.poses import DRIVER
+from service.core.motion.poses import DRIVER
 
 TICKS = os.sysconf("SC_CLK_TCK")
 

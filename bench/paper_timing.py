@@ -17,8 +17,8 @@ import z3
 
 from service.core.budget import run_with_budget
 from service.core.errors import BudgetExceeded
-from service.core.kinematics import DWELL, SAME
-from service.core.timing import CarPlan, Curve, TimingProblem
+from service.core.generator.timing import CarPlan, Curve, TimingProblem
+from service.core.motion.kinematics import DWELL, SAME
 
 WORK = 50_000_000  # z3 rlimit of the whole problem
 

@@ -6,7 +6,7 @@ and nothing more:
 
 - Step 1 once per (route, start): the poses of the ego's route (from the ego's start) and
   of the new car's route (from the same start distance, as the generator does) at a
-  constant cruise speed, with ``service.core.poses.generate_poses``. The lane events of
+  constant cruise speed, with ``service.core.motion.poses.generate_poses``. The lane events of
   these constant-speed drives (``compute_events``) give the distances of the arrival, the
   entry into the junction and the exit from it along each route.
 - A speed profile is piecewise-constant acceleration over pieces of 0.5-3 s (whole time
@@ -28,7 +28,7 @@ and nothing more:
   time step from 0 to the duration; distances stop at the end of the poses.
 - One trial samples three profiles independently (new car, solvability ego, complexity
   ego), builds the candidate document as the generator does and asks
-  ``service.core.generate.verify_extension``; only None counts as a success. Cheap
+  ``service.core.generator.extension.verify_extension``; only None counts as a success. Cheap
   rejections come first, each one a rejection the judge itself would make: a certificate
   whose last sample is still short of the junction's exit cannot reach its goal, and the
   judge's own collision test (``first_collision``, on the very samples it will see)
@@ -54,11 +54,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.cpu import cpu_seconds
-from service.core.collisions import Motion, first_collision
-from service.core.events import EventKind, compute_events
-from service.core.generate import verify_extension
+from service.core.generator.extension import verify_extension
+from service.core.motion.collisions import Motion, first_collision
+from service.core.motion.events import EventKind, compute_events
+from service.core.motion.poses import PoseSample, PoseTrack, generate_poses
 from service.core.network import Intersection, Route
-from service.core.poses import PoseSample, PoseTrack, generate_poses
 from service.core.testcase import (
     Params,
     TestCase,

@@ -8,9 +8,10 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 
-from service.core.chain import candidate_routes
-from service.core.generate import extend_testcase
-from service.core.poses import PoseSample, PoseTrack
+from service.cli.examples import EXAMPLES, run_example
+from service.core.generator.chain import candidate_routes
+from service.core.generator.extension import extend_testcase
+from service.core.motion.poses import PoseSample, PoseTrack
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -18,7 +19,6 @@ from service.core.testcase import (
     new_testcase,
     parse_testcase,
 )
-from service.examples import EXAMPLES, run_example
 
 
 def retime(
@@ -135,7 +135,7 @@ def with_nonegos(
 def car_ahead_of_ego() -> TestCase:
     """The README's queue: on the four-way stop the ego (E2C_0:C2N_0, 30 m out) turns
     right, and the generator adds a car ahead of it on its fork that goes straight on."""
-    from service.core.generate import extend_testcase
+    from service.core.generator.extension import extend_testcase
     from service.core.testcase import new_testcase
 
     old = new_testcase("4way-stop", "E2C_0:C2N_0", duration=45.0, name="queue")

@@ -14,9 +14,9 @@ FORBIDDEN = (
 
 def test_core_imports_no_adapter_libraries() -> None:
     code = (
-        "import sys, service.core.network, service.core.poses, service.core.events, "
-        "service.core.testcase, service.core.budget, service.core.generate, "
-        "service.core.replay, service.core.export, service.core.check; "
+        "import sys, service.core.network, service.core.motion.poses, service.core.motion.events, "
+        "service.core.testcase, service.core.budget, service.core.generator.extension, "
+        "service.core.sim.replay, service.core.export.bundle, service.core.checker.check; "
         f"print([m for m in {FORBIDDEN!r} if m in sys.modules])"
     )
     result = subprocess.run(
@@ -38,7 +38,10 @@ def test_worker_tasks_import_no_web_code() -> None:
 
 
 def test_core_does_not_import_libsumo_outside_a_drive() -> None:
-    code = "import sys, service.core.poses, service.core.events; print('libsumo' in sys.modules)"
+    code = (
+        "import sys, service.core.motion.poses, service.core.motion.events; "
+        "print('libsumo' in sys.modules)"
+    )
     result = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True
     )

@@ -41,6 +41,7 @@ from service.api.state import AppState, Metrics, get_state, token_matches
 from service.core.budget import MEMORY_VARIABLE
 from service.jobs.dispatch import make_dispatcher
 from service.jobs.executor import LocalExecutor
+from service.pictures.report import UI
 from service.settings import Settings, get_settings
 from service.store import Store, testcase_id
 
@@ -234,13 +235,10 @@ async def _no_body() -> dict[str, Any]:
     return {"type": "http.request", "body": b"", "more_body": False}
 
 
-UI_ASSETS = Path(__file__).parent / "ui"
-
-
 def _serve_ui(app: FastAPI) -> None:
-    """The results browser at /ui: static pages that read the API (service/api/ui)."""
+    """The results browser at /ui: static pages that read the API (service/pictures/ui)."""
 
-    app.mount("/ui", StaticFiles(directory=UI_ASSETS, html=True), name="ui")
+    app.mount("/ui", StaticFiles(directory=UI, html=True), name="ui")
 
 
 def _serve_docs(app: FastAPI) -> None:

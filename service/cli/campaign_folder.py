@@ -33,7 +33,13 @@ from service.jobs import tasks
 from service.jobs.batch import parse_batch
 from service.jobs.runner import run_item
 from service.jobs.store import JobStore
-from service.report import campaign_paths, campaign_title, outcome_of, report_html, store_fetch
+from service.pictures.report import (
+    campaign_paths,
+    campaign_title,
+    outcome_of,
+    report_html,
+    store_fetch,
+)
 from service.settings import Settings
 from service.store import Store
 

@@ -19,21 +19,25 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from service.core.check import check_testcase
-from service.core.controllers import CertificateDriver, controller_names, resolve_driver
+from service.cli.examples import EXAMPLES, run_example, write_testcase
+from service.core.checker.check import check_testcase
+from service.core.checker.verdict import Verdict, junit_report
 from service.core.errors import (
     InvalidInput,
     ScengenError,
     UnknownNetwork,
     UnsupportedIntersection,
 )
-from service.core.events import compute_events
-from service.core.export import FLAVOURS, export_bundle
-from service.core.generate import StartDistances, extend_testcase
+from service.core.export import FLAVOURS
+from service.core.export.bundle import export_bundle
+from service.core.generator.extension import StartDistances, extend_testcase
+from service.core.motion.events import compute_events
+from service.core.motion.poses import PoseSample, generate_poses
+from service.core.motion.trajectory import read_trajectory
 from service.core.network import ControlType, Intersection, bundled_networks, load_intersection
 from service.core.network.describe import describe_intersection
-from service.core.poses import PoseSample, generate_poses
-from service.core.replay import evaluate as evaluate_controller
+from service.core.sim.controllers import CertificateDriver, controller_names, resolve_driver
+from service.core.sim.replay import evaluate as evaluate_controller
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -44,9 +48,6 @@ from service.core.testcase import (
     readable_name,
     renamed,
 )
-from service.core.trajectory import read_trajectory
-from service.core.verdict import Verdict, junit_report
-from service.examples import EXAMPLES, run_example, write_testcase
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
 CONTROLS = [c.value for c in ControlType]
@@ -491,7 +492,7 @@ def _run_worker(args: argparse.Namespace) -> int:
 
 
 def _run_submit(args: argparse.Namespace) -> int:
-    from service import submit
+    from service.cli import submit
 
     batch = submit.read_batch(args.batch)
     client = submit.Client(args.server, args.token or os.environ.get("SCENGEN_TOKEN"))
@@ -517,7 +518,7 @@ def _run_submit(args: argparse.Namespace) -> int:
 
 
 def _run_campaign(args: argparse.Namespace) -> int:
-    from service.campaign_folder import elapsed_printer, run_folder_campaign
+    from service.cli.campaign_folder import elapsed_printer, run_folder_campaign
     from service.core.campaign import failure_table
 
     for name in args.controller:
@@ -564,11 +565,11 @@ def _run_campaign(args: argparse.Namespace) -> int:
 
 def _run_report(args: argparse.Namespace) -> int:
     if args.server is None:
-        from service.campaign_folder import folder_report
+        from service.cli.campaign_folder import folder_report
 
         page = folder_report(Path(args.source))
     else:  # the server writes it (GET /jobs/{id}/campaign/report)
-        from service import submit
+        from service.cli import submit
 
         client = submit.Client(args.server, args.token or os.environ.get("SCENGEN_TOKEN"))
         path = f"/jobs/{quote(args.source, safe='')}/campaign/report"
@@ -588,7 +589,7 @@ def _run_intersection(args: argparse.Namespace) -> int:
     intersection = load_intersection(args.network, args.junction, args.control)
     description = describe_intersection(intersection)
     if args.plot:
-        from service.plot import plot_intersection
+        from service.pictures.plot import plot_intersection
 
         plot_intersection(intersection, args.plot)
     if args.json:
@@ -681,7 +682,7 @@ def _run_drive(args: argparse.Namespace) -> int:
         testcase.params.v_stop,
     )
     if args.plot:
-        from service.plot import plot_intersection
+        from service.pictures.plot import plot_intersection
 
         plot_intersection(intersection, args.plot, [route.id], track.samples)
     if args.json:
@@ -953,7 +954,9 @@ class StepProgress:
 def _run_export(args: argparse.Namespace) -> int:
     testcase = read_testcase(args.testcase)
     if args.format == "openscenario":
-        from service.core.openscenario import export_openscenario  # scenariogeneration: 0.5 s
+        from service.core.export.openscenario import (
+            export_openscenario,  # scenariogeneration: 0.5 s
+        )
 
         for path in export_openscenario(
             testcase, args.output, _intersection(testcase, args), args.flavour
@@ -981,7 +984,10 @@ def _run_plot(args: argparse.Namespace) -> int:
         raise InvalidInput(
             f"plot file must end in {' or '.join(suffixes)}, got {args.output.name!r}"
         )
-    from service.plot import animate_testcase, plot_testcase  # matplotlib only when drawing
+    from service.pictures.plot import (  # matplotlib only when drawing
+        animate_testcase,
+        plot_testcase,
+    )
 
     testcase = read_testcase(args.testcase)
     junction = _intersection(testcase, args)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from service.core.errors import ScengenError
-from service.core.generate import extend_testcase
+from service.core.generator.extension import extend_testcase
 from service.core.testcase import TestCase, dump_testcase, new_testcase
 
 

@@ -1,7 +1,7 @@
 """Campaigns: where does a controller start to fail as test-cases grow more complex?
 
 A campaign grows ``chains`` chains per ego route, each to ``depth`` levels (one new car per
-level, chosen the way ``service.core.chain.grow`` chooses), and judges every level, the
+level, chosen the way ``service.core.generator.chain.grow`` chooses), and judges every level, the
 ego-only root included, with every controller. ``run_campaign`` is the loop; the work it
 asks for (a root, a level, a verdict) is done by a ``CampaignSteps`` that remembers what it
 did, so that a campaign run again after a crash continues where it stopped: the loop is

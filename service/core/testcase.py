@@ -23,7 +23,8 @@ from pydantic import (
 )
 
 from service.core.errors import InvalidTestCase, UnknownNetwork
-from service.core.events import EventKind
+from service.core.motion.events import EventKind
+from service.core.motion.poses import plan_drive
 from service.core.network import (
     Intersection,
     bundled_networks,
@@ -32,7 +33,6 @@ from service.core.network import (
     resolve_network,
 )
 from service.core.network.convert import source_format
-from service.core.poses import plan_drive
 
 SCHEMA = "scengen/testcase/1"
 RESERVED_IDS = frozenset({"ego", "illegal"})

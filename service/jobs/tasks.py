@@ -90,8 +90,8 @@ def junction_geometry(
 
 def rule_set_laws(control: str) -> list[tuple[str, str]]:
     """The rules of a control type's rule set with their CVC sections, sorted."""
+    from service.core.checker.rules import solve_rules
     from service.core.network import ControlType
-    from service.core.rules import solve_rules
 
     atoms = solve_rules(ControlType(control), [], shown=[("law", 2)])
     return sorted((str(atom.arguments[0]), atom.arguments[1].string) for atom in atoms)
@@ -106,7 +106,7 @@ def plot_junction(
     suffix: str,
 ) -> bytes:
     """The junction's picture (PNG or SVG) with the given routes highlighted."""
-    from service.plot import plot_intersection
+    from service.pictures.plot import plot_intersection
 
     intersection = load_intersection(network_file, junction, control, cache_dir)
     for route in routes:
@@ -147,7 +147,7 @@ def extend(
     """The extension of a test-case: the new document, the attempts and the step timings.
     ``start_distance`` is one for all new cars, one (or None) per route, or None: automatic.
     With ``deadline`` (a Unix time), the generator gets only what is left of ``budget``."""
-    from service.core.generate import extend_testcase
+    from service.core.generator.extension import extend_testcase
 
     old = parse_testcase(document)
     intersection = load_testcase_intersection(old, cache_dir, network_file)
@@ -173,7 +173,7 @@ def evaluate_controller(
 ) -> dict[str, Any]:
     """A controller's verdict on a test-case (``Verdict.to_dict``), the seconds it took and
     the ego's drive (rows of t, x, y, heading, speed, distance)."""
-    from service.core.replay import evaluate
+    from service.core.sim.replay import evaluate
 
     testcase = parse_testcase(document)
     intersection = load_testcase_intersection(testcase, cache_dir, network_file)
@@ -192,7 +192,7 @@ def evaluate_controller(
 
 def bundle(document: str, network_file: Path, cache_dir: Path) -> bytes:
     """The SUMO export of a test-case as a zip archive (one folder named after it)."""
-    from service.core.export import export_bundle
+    from service.core.export.bundle import export_bundle
 
     testcase = parse_testcase(document)
     intersection = load_testcase_intersection(testcase, cache_dir, network_file)
@@ -208,7 +208,7 @@ def bundle(document: str, network_file: Path, cache_dir: Path) -> bytes:
 def openscenario(document: str, network_file: Path, cache_dir: Path, flavour: str) -> bytes:
     """The OpenSCENARIO export of a test-case as a zip archive: the .xodr, the .xosc files
     and the verdict rules."""
-    from service.core.openscenario import export_openscenario
+    from service.core.export.openscenario import export_openscenario
 
     testcase = parse_testcase(document)
     intersection = load_testcase_intersection(testcase, cache_dir, network_file)
@@ -230,8 +230,8 @@ def plot_testcase(
     budget: float,
 ) -> bytes:
     """The test-case's picture; with a controller, that controller's replay and verdict."""
-    from service.core.replay import evaluate
-    from service.plot import plot_testcase as draw
+    from service.core.sim.replay import evaluate
+    from service.pictures.plot import plot_testcase as draw
 
     testcase = parse_testcase(document)
     intersection = load_testcase_intersection(testcase, cache_dir, network_file)
@@ -260,11 +260,11 @@ def extend_any(
     budget: float,
     last: tuple[str, ...] = (),
 ) -> dict[str, Any]:
-    """An extension by one car on a route the service chooses (service.core.chain.grow):
+    """An extension by one car on a route the service chooses (service.core.generator.chain.grow):
     the routes that conflict with the ego's or start ahead of it, from forks no car uses
     first, then from forks in use (the new car joins the queue), in an order drawn from
     ``seed`` (routes in ``last`` after the others); the budget only stops the call."""
-    from service.core.chain import grow
+    from service.core.generator.chain import grow
 
     old = parse_testcase(document)
     intersection = load_testcase_intersection(old, cache_dir, network_file)

@@ -17,13 +17,13 @@ from matplotlib.figure import Figure
 from matplotlib.text import Annotation
 from shapely.geometry import Polygon
 
-from service.core.check import EGO, Judge
-from service.core.events import rectangles
+from service.core.checker.check import EGO, Judge
+from service.core.checker.verdict import Verdict
+from service.core.motion.events import rectangles
+from service.core.motion.poses import PoseSample
+from service.core.motion.queues import QueueCar, follows
 from service.core.network import Intersection
-from service.core.poses import PoseSample
-from service.core.queues import QueueCar, follows
 from service.core.testcase import TestCase
-from service.core.verdict import Verdict
 
 TURN_COLOURS = {"left": "tab:red", "right": "tab:green", "straight": "tab:blue"}
 
@@ -161,7 +161,7 @@ DrawnPath = tuple[str, str, str, Sequence[PoseSample], float, float]  # car, lab
 def queue_leaders(testcase: TestCase, intersection: Intersection) -> dict[str, str | None]:
     """Every car (the ego included) that starts on a fork it shares with another car: the
     id of the car right ahead of it at the start, or None for the first car of its fork
-    (who is ahead of whom as service.core.queues has it; the ego by its start)."""
+    (who is ahead of whom as service.core.motion.queues has it; the ego by its start)."""
     route = intersection.route(testcase.ego.route.id)
     ego = testcase.ego
     cars = [car.in_queue for car in Judge(testcase, intersection).nonegos]

@@ -11,7 +11,6 @@ from __future__ import annotations
 import html
 import json
 from collections.abc import Callable
-from importlib.resources import files
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote, unquote
@@ -20,7 +19,7 @@ from service.jobs.campaign_steps import OUTCOME
 from service.jobs.store import JobStore
 from service.store import DRIVE_COLUMNS, Store
 
-UI = files("service.api") / "ui"
+UI = Path(__file__).resolve().parent / "ui"  # the results browser's pages
 
 URI_COMPONENT_SAFE = "!~*'()"  # what encodeURIComponent leaves as it is (with A-Z a-z 0-9 -_.)
 Fetch = Callable[[str], Any]  # an API path -> its JSON answer

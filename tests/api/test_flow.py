@@ -19,10 +19,10 @@ from typing import Any
 import httpx2 as httpx
 import pytest
 
-from service.core.check import check_testcase
+from service.core.checker.check import check_testcase
+from service.core.motion.poses import PoseSample
 from service.core.network import load_intersection
-from service.core.poses import PoseSample
-from service.core.sumo_binaries import sumo_binary
+from service.core.sumo.binaries import sumo_binary
 from service.core.testcase import TestCase, dump_testcase, new_testcase, parse_testcase
 from tests.conftest import TOWN05
 
@@ -168,8 +168,8 @@ def test_opendrive_and_openstreetmap_uploads_are_converted_and_extended(
 ) -> None:
     """An .xodr (the export of the bundled four-way stop) and an .osm extract: each stored
     with its original, described, and extended; the extension re-checked here."""
+    from service.core.export.openscenario import opendrive_text
     from service.core.network import bundled_networks
-    from service.core.openscenario import opendrive_text
 
     xodr = opendrive_text(load_intersection(bundled_networks()["4way-stop"], "C")).encode()
     osm = (Path(__file__).parents[1] / "data" / "maps" / "crossing.osm").read_bytes()

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from bench.random_search import random_extension
-from service.core.generate import verify_extension
+from service.core.generator.extension import verify_extension
 from service.core.testcase import dump_testcase, load_testcase_intersection, new_testcase
 
 ROUTE = "SW2C_0:C2N_0"

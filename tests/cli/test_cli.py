@@ -10,13 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from service import cli
-from service import submit as _submit  # noqa: F401 (its errors join the tree: collected always)
+from service.cli import commands as cli
+from service.cli import submit as _submit  # noqa: F401 (its errors join the tree: collected always)
+from service.cli.examples import EXAMPLES
 from service.core import errors
-from service.core.check import Judge
+from service.core.checker.check import Judge
 from service.core.network import load_intersection
 from service.core.testcase import read_testcase
-from service.examples import EXAMPLES
 from tests.conftest import TOWN05, TOWN07
 
 

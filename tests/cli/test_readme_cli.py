@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).parents[1]
+ROOT = Path(__file__).parents[2]
 README = ROOT / "README.md"
 MARKERS = ("<!-- readme: not run", "<!-- readme: server", "<!-- curl-example")
 TIMINGS = [

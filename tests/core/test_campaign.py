@@ -8,8 +8,8 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from service.core.campaign import CampaignPlan, campaign_junit, failure_table, run_campaign
-from service.core.chain import candidate_routes, grow
 from service.core.errors import NoMoreComplexTestCase
+from service.core.generator.chain import candidate_routes, grow
 from service.core.network import Intersection
 from service.core.testcase import TestCase, new_testcase
 

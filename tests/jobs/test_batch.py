@@ -7,9 +7,9 @@ from typing import Any
 
 import pytest
 
+from service.cli.submit import read_batch
 from service.core.errors import InvalidInput
 from service.jobs.batch import CampaignItem, ChainItem, ExtendItem, dependencies, parse_batch
-from service.submit import read_batch
 
 ROOT = {"testcase_id": "132282f84a7020de"}
 CAMPAIGN = {"kind": "campaign", "network": "4way-stop", "egos": ["S2C_0:C2N_0"], "depth": 2,

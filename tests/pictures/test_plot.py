@@ -7,11 +7,17 @@ from pathlib import Path
 import matplotlib
 import pytest
 
-from service.core.generate import extend_testcase
+from service.core.generator.extension import extend_testcase
+from service.core.motion.poses import PoseSample, generate_poses
 from service.core.network import load_intersection
-from service.core.poses import PoseSample, generate_poses
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
-from service.plot import plot_intersection, plot_testcase, queue_leaders, start_label, time_labels
+from service.pictures.plot import (
+    plot_intersection,
+    plot_testcase,
+    queue_leaders,
+    start_label,
+    time_labels,
+)
 from tests.conftest import TOWN05
 from tests.helpers import car_ahead_of_ego, retime, with_nonegos
 

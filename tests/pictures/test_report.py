@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import re
 
-from service.report import geometry_path, report_html
+from service.pictures.report import geometry_path, report_html
 
 
 def test_embedded_answers_cannot_end_the_script_or_open_markup() -> None:

@@ -22,8 +22,8 @@ from service.api.schemas import (
     Links,
 )
 from service.api.state import State, Token, json_answer
-from service.core.controllers import BUILT_IN, controller_names
-from service.core.verdict import Verdict
+from service.core.checker.verdict import Verdict
+from service.core.sim.controllers import BUILT_IN, controller_names
 from service.jobs import tasks
 from service.store import DRIVE_COLUMNS, EvaluationRecord, TestCaseRecord
 

@@ -16,8 +16,8 @@ from service.api.routes.networks import junction_geometry
 from service.api.schemas import MAX_OFFSET, JobItemPublic, JobPage, JobPublic, Links
 from service.api.state import AppState, State, Token, json_answer
 from service.core.campaign import campaign_junit
+from service.core.checker.verdict import Verdict, junit_report
 from service.core.export import Flavour
-from service.core.verdict import Verdict, junit_report
 from service.jobs import tasks
 from service.jobs.batch import Batch, CampaignItem
 from service.jobs.store import FINISHED, IdempotencyConflict, JobRecord, JobStore
@@ -208,7 +208,7 @@ async def get_job_junit(state: State, job: str) -> Response:
 
 
 def _campaign_or_404(state: AppState, job: str) -> dict[str, Any]:
-    from service.report import outcome_of
+    from service.pictures.report import outcome_of
 
     _job_or_404(state, job)
     try:
@@ -248,7 +248,7 @@ async def get_job_campaign_junit(state: State, job: str) -> Response:
 )
 async def get_job_campaign_report(state: State, job: str) -> Response:
     """The campaign's self-contained HTML report (`scengen report`), to save and publish."""
-    from service.report import campaign_paths, campaign_title, report_html, store_fetch
+    from service.pictures.report import campaign_paths, campaign_title, report_html, store_fetch
 
     outcome = await asyncio.to_thread(_campaign_or_404, state, job)
     plan = outcome["plan"]

@@ -24,9 +24,9 @@ from service.api.schemas import (
     TestCaseSummary,
 )
 from service.api.state import State, Token, json_answer
-from service.core.controllers import controller_names
 from service.core.errors import InvalidInput, choices
 from service.core.export import Flavour
+from service.core.sim.controllers import controller_names
 from service.core.testcase import NetworkRef, check_samples, parse_testcase
 from service.jobs import tasks
 from service.store import TestCaseRecord

@@ -3,8 +3,8 @@
 The ego passes when it reaches its exit lane, fully out of the junction, within the
 duration; collides with no non-ego; and violates no traffic rule and no non-ego's
 right-of-way under the rule set of the junction's control type. Events of every car are
-computed from its trajectory (service.core.events), their perceptible order from the numbers
-with one m (service.core.rules), and the rules decide. With all orders given, the rule
+computed from its trajectory (service.core.motion.events), their perceptible order from the numbers
+with one m (service.core.checker.rules), and the rules decide. With all orders given, the rule
 program is stratified, so the check is bounded: it runs in the caller's process.
 """
 
@@ -17,13 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from shapely.geometry import Point
 
-from service.core.collisions import Motion, first_collision
-from service.core.errors import InvalidTrajectory
-from service.core.events import EventKind, LaneEvent, compute_events
-from service.core.network import Intersection
-from service.core.poses import PoseSample, centre_to_front, start_front
-from service.core.queues import QueueCar, follows, line_distance
-from service.core.rules import (
+from service.core.checker.rules import (
     REQUESTED_LANE,
     TimedEvent,
     event_facts,
@@ -32,8 +26,21 @@ from service.core.rules import (
     solve_rules,
     time_symbol,
 )
+from service.core.checker.verdict import (
+    CROSSING,
+    REAR_END,
+    CollisionRecord,
+    EventRef,
+    Verdict,
+    Violation,
+)
+from service.core.errors import InvalidTrajectory
+from service.core.motion.collisions import Motion, first_collision
+from service.core.motion.events import EventKind, LaneEvent, compute_events
+from service.core.motion.poses import PoseSample, centre_to_front, start_front
+from service.core.motion.queues import QueueCar, follows, line_distance
+from service.core.network import Intersection
 from service.core.testcase import NonEgo, TestCase, load_testcase_intersection
-from service.core.verdict import CROSSING, REAR_END, CollisionRecord, EventRef, Verdict, Violation
 
 EGO = "ego"
 START_TOLERANCE = 2.0  # metres between the trajectory's first front bumper and the start
@@ -98,7 +105,7 @@ class Judge:
 
     def _in_queues(self, cars: Sequence[Car]) -> list[Car]:
         """The cars with the arrivals of those in a queue: a car behind another on its fork
-        arrives no earlier than the last car ahead of it entered (service.core.queues)."""
+        arrives no earlier than the last car ahead of it entered (service.core.motion.queues)."""
         entries = {
             car.id: next((e.time for e in car.events if e.kind is EventKind.ENTERED), math.inf)
             for car in cars

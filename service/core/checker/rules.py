@@ -16,7 +16,7 @@ from pathlib import Path
 import clingo
 
 from service.core.errors import ScengenError
-from service.core.events import EventKind, LaneEvent
+from service.core.motion.events import EventKind, LaneEvent
 from service.core.network import ControlType, Intersection
 
 Fact = clingo.Symbol
@@ -25,7 +25,7 @@ EPSILON = 1e-9  # seconds: float noise below this never flips a perceptible orde
 
 def asp_dir() -> Path:
     """``asp/``: inside the installed package, or beside it in a source checkout."""
-    package = Path(__file__).resolve().parents[1]
+    package = Path(__file__).resolve().parents[2]
     for candidate in (package / "asp", package.parent / "asp"):
         if (candidate / "rules").is_dir():
             return candidate

@@ -3,7 +3,7 @@
 The folder holds the network, the test-case JSON, a README with the commands, and two ways
 to run it:
 
-- ``run.py`` (service.core.sumo_run, copied) with its plan ``testcase.run.json``, vehicle
+- ``run.py`` (service.core.sumo.run, copied) with its plan ``testcase.run.json``, vehicle
   types and every car's route and departure: the replay of ``scengen evaluate``, the same
   code on the same files, so it gives the same ego trajectory and verdict;
 - ``testcase.sumocfg`` for the plain ``sumo`` binary: the ego's route file and the
@@ -16,14 +16,12 @@ from __future__ import annotations
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal, get_args
 from xml.sax.saxutils import quoteattr
 
-from service.core import sumo_run
-from service.core.controllers import BUILT_IN
+from service.core.motion.poses import centre_to_front
 from service.core.network import Intersection, bundled_networks
-from service.core.poses import centre_to_front
-from service.core.replay import (
+from service.core.sim.controllers import BUILT_IN
+from service.core.sim.replay import (
     ROUTES_FILE,
     TYPES_FILE,
     Departure,
@@ -32,6 +30,7 @@ from service.core.replay import (
     write_run_files,
     xml_file,
 )
+from service.core.sumo import run as sumo_run
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -40,10 +39,6 @@ from service.core.testcase import (
 )
 
 NAME = "testcase"
-# The flavours of the OpenSCENARIO export (service.core.openscenario, which imports the
-# scenariogeneration library: named here so that the command line and the API need not)
-Flavour = Literal["asam", "carla"]
-FLAVOURS: tuple[Flavour, ...] = get_args(Flavour)
 
 
 def fcd_text(testcase: TestCase, nonegos: Sequence[Departure]) -> str:

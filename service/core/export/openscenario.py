@@ -42,13 +42,13 @@ from pathlib import Path
 from scenariogeneration import xosc
 from shapely.geometry import LineString
 
+from service.core.checker.rules import rule_set_file, solve_rules
 from service.core.errors import InvalidInput, NetworkBuildFailed
 from service.core.export import FLAVOURS
+from service.core.motion.poses import _cached_network, interpolate_heading, start_front
 from service.core.network import ControlType, Intersection
 from service.core.network.override import run_netconvert
-from service.core.poses import _cached_network, interpolate_heading, start_front
-from service.core.rules import rule_set_file, solve_rules
-from service.core.sumo_run import front_to_centre
+from service.core.sumo.run import front_to_centre
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
 
 NAME = "testcase"

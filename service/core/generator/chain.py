@@ -3,7 +3,7 @@
 Each level adds one new car on a route that conflicts with the ego's or starts ahead of
 the ego on its fork, trying such routes in an order drawn from the seed: those from forks
 no car uses first; only when none of them gives an extension, those that join a queue
-(service.core.queues). Every choice depends only on the test-case and the seed: in each
+(service.core.motion.queues). Every choice depends only on the test-case and the seed: in each
 group, first every route gets up to ROUTE_ORDERS answer sets (a count, not a clock), in
 that order; when none of them gave an extension, those whose search was cut short get the
 generator's full MAX_ORDERS (starting over: the search is deterministic, so the first
@@ -17,9 +17,9 @@ import time
 from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 
-from service.core.check import Judge
+from service.core.checker.check import Judge
 from service.core.errors import InvalidInput, NoMoreComplexTestCase, NoneFound
-from service.core.generate import (
+from service.core.generator.extension import (
     MAX_ORDERS,
     Extension,
     Progress,

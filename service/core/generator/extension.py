@@ -23,8 +23,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from service.core.check import Car, Judge, check_testcase
-from service.core.collisions import Motion, first_collision
+from service.core.checker.check import Car, Judge, check_testcase
+from service.core.checker.verdict import REAR_END, Verdict
 from service.core.errors import (
     BudgetExceeded,
     InvalidInput,
@@ -32,14 +32,10 @@ from service.core.errors import (
     NoMoreComplexTestCase,
     NoneFound,
 )
-from service.core.events import EventKind, LaneEvent, compute_events
-from service.core.following import CERTIFICATES, QueueBounds, QueueMember, queue_bounds
-from service.core.invariants import ROUNDING, motion_fault
-from service.core.kinematics import Bounds
-from service.core.linear import GRID
-from service.core.merging import exit_followings
-from service.core.network import Intersection, Route
-from service.core.ordering import (
+from service.core.generator.following import CERTIFICATES, QueueBounds, QueueMember, queue_bounds
+from service.core.generator.linear import GRID
+from service.core.generator.merging import exit_followings
+from service.core.generator.ordering import (
     CarKind,
     Limits,
     Ordering,
@@ -51,23 +47,7 @@ from service.core.ordering import (
     stop_symbol,
     timed_events,
 )
-from service.core.poses import DRIVE_BUDGET, PoseSample, PoseTrack, generate_poses
-from service.core.queues import (
-    Follow,
-    Places,
-    QueueCar,
-    follows,
-    gap_fault,
-    line_distance,
-    needed_gap,
-)
-from service.core.testcase import (
-    TestCase,
-    dump_testcase,
-    load_testcase_intersection,
-    parse_testcase,
-)
-from service.core.timing import (
+from service.core.generator.timing import (
     TICK,
     CarPlan,
     Following,
@@ -77,7 +57,27 @@ from service.core.timing import (
     TimingSolution,
     solve_timing,
 )
-from service.core.verdict import REAR_END, Verdict
+from service.core.motion.collisions import Motion, first_collision
+from service.core.motion.events import EventKind, LaneEvent, compute_events
+from service.core.motion.invariants import ROUNDING, motion_fault
+from service.core.motion.kinematics import Bounds
+from service.core.motion.poses import DRIVE_BUDGET, PoseSample, PoseTrack, generate_poses
+from service.core.motion.queues import (
+    Follow,
+    Places,
+    QueueCar,
+    follows,
+    gap_fault,
+    line_distance,
+    needed_gap,
+)
+from service.core.network import Intersection, Route
+from service.core.testcase import (
+    TestCase,
+    dump_testcase,
+    load_testcase_intersection,
+    parse_testcase,
+)
 
 STEP1_SPEED = 8.0  # m/s: Step 1 drives at this speed; it sets only how dense the poses are
 QUEUE_SPACING = 5.0  # metres a new car starts behind the room it needs on a fork in use

@@ -1,6 +1,6 @@
 """What following in a queue asks of the symbolic cars' event times (Steps 2 and 3).
 
-For every pair of cars on one fork (service.core.queues) in which at least one car is
+For every pair of cars on one fork (service.core.motion.queues) in which at least one car is
 symbolic (a new car or a certificate ego), two kinds of condition, both necessary for any
 curves that keep the gap:
 
@@ -26,9 +26,7 @@ from dataclasses import dataclass
 
 import clingo
 
-from service.core.events import EventKind
-from service.core.kinematics import DWELL, Bounds, fastest
-from service.core.ordering import (
+from service.core.generator.ordering import (
     START,
     CarKind,
     OrderingCar,
@@ -36,7 +34,9 @@ from service.core.ordering import (
     stop_symbol,
     timed_events,
 )
-from service.core.queues import Follow, Places
+from service.core.motion.events import EventKind
+from service.core.motion.kinematics import DWELL, Bounds, fastest
+from service.core.motion.queues import Follow, Places
 
 CERTIFICATES = ("ego", "illegal")
 

@@ -20,10 +20,10 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
-from service.core.events import EventKind
+from service.core.generator.ordering import CarKind, Ordering, OrderingCar, timed_events
+from service.core.generator.timing import Following
+from service.core.motion.events import EventKind
 from service.core.network import Intersection
-from service.core.ordering import CarKind, Ordering, OrderingCar, timed_events
-from service.core.timing import Following
 
 Rows = tuple[tuple[float, float, float], ...]  # an old car's samples: (t, distance, speed)
 

@@ -5,7 +5,7 @@ and the two certificate egos get time symbols, and clingo chooses the perceptibl
 every pair of their events that matters to a rule or to the no-collision requirement, and
 whether each stops at a stop sign. Every time symbol is also an integer time in ms under
 difference constraints (clingo-dl): old cars' numbers, each symbolic car's least travel
-times between its events (service.core.kinematics), the duration, and every chosen relation
+times between its events (service.core.motion.kinematics), the duration, and every chosen relation
 with its safety margin. So each answer set comes with event times that meet the necessary
 conditions of a speed profile, and an order whose times are inconsistent is never proposed.
 Answer sets are drawn lazily, one at a time; search is limited by counts, never by a clock.
@@ -26,10 +26,7 @@ import clingo
 import clingo.ast
 from clingodl import ClingoDLTheory
 
-from service.core.events import EventKind, LaneEvent
-from service.core.kinematics import Bounds, least_gaps, lingering, stand_before
-from service.core.network import Intersection
-from service.core.rules import (
+from service.core.checker.rules import (
     REAL_LTE,
     REQUESTED_LANE,
     TIME,
@@ -43,9 +40,12 @@ from service.core.rules import (
     rule_set_file,
     time_symbol,
 )
+from service.core.motion.events import EventKind, LaneEvent
+from service.core.motion.kinematics import Bounds, least_gaps, lingering, stand_before
+from service.core.network import Intersection
 
 if TYPE_CHECKING:
-    from service.core.following import QueueBounds
+    from service.core.generator.following import QueueBounds
 
 OLD = Predicate("old", 1)
 NEW = Predicate("new", 1)
@@ -300,7 +300,7 @@ def ordering_facts(
     queue: QueueBounds | None = None,
 ) -> tuple[list[clingo.Symbol], dict[clingo.Symbol, TimedEvent]]:
     """Facts of Step 2 and the events behind every time symbol; ``queue``: what the
-    queues ask of the symbolic cars (service.core.following)."""
+    queues ask of the symbolic cars (service.core.generator.following)."""
     facts = geometry_facts(intersection)
     symbols: dict[clingo.Symbol, TimedEvent] = {}
     old_timed: list[TimedEvent] = []

@@ -7,11 +7,11 @@ lane), a stand-still pair where it stops at its sign, and the duration. Between 
 the curve has free knots at most ``PIECE`` seconds apart, so one segment can brake, stand
 and go again wherever the order needs it.
 
-Two kinds of linear program (service.core.linear: optima by HiGHS's simplex, Boolean
+Two kinds of linear program (service.core.generator.linear: optima by HiGHS's simplex, Boolean
 choices and unsatisfiable cores by z3 over the rationals):
 
 1. the plan: the knot times of every car at once, keeping every order relation with its
-   margin, the headways, and the necessary kinematic conditions of service.core.kinematics
+   margin, the headways, and the necessary kinematic conditions of service.core.motion.kinematics
    with a share of the bounds in reserve (``SHARES``: the curves then have room), smoothest
    first (the pace changes least from knot to knot);
 2. the curves, one car at a time with the plan's knot times fixed: every piece's end
@@ -40,8 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from service.core.kinematics import SAME, Bounds, duration_range, least_gaps, speed_caps
-from service.core.linear import (
+from service.core.generator.linear import (
     Linear,
     LinearProgram,
     combine,
@@ -49,6 +48,7 @@ from service.core.linear import (
     value_of,
     values,
 )
+from service.core.motion.kinematics import SAME, Bounds, duration_range, least_gaps, speed_caps
 
 PIECE = 2.0  # seconds: the longest piece of a curve (free knots between events)
 SHARES = (0.7, 0.85)  # shares of the bounds a plan may use (the curves keep the rest)
@@ -85,8 +85,8 @@ class CarPlan:
 
 @dataclass(frozen=True)
 class Following:
-    """``follower`` keeps behind ``leader`` on their fork (service.core.queues) or on their
-    exit lane (``joined``, service.core.merging): while the leader's rear is before
+    """``follower`` keeps behind ``leader`` on their fork (service.core.motion.queues) or on their
+    exit lane (``joined``, service.core.generator.merging): while the leader's rear is before
     ``parting``, the follower's front stays ``gap + headway x its speed`` behind it. Places
     are distances minus each car's ``line``. A ``joined`` pair keeps the gap only once the
     leader's rear (or, behind a symbolic leader, the old follower's front) has reached

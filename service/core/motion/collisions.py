@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import shapely
 
-from service.core.events import rectangles
-from service.core.poses import PoseSample
+from service.core.motion.events import rectangles
+from service.core.motion.poses import PoseSample
 
 RESOLUTION = 0.2  # metres of travel between two overlap checks
 

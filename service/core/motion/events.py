@@ -5,7 +5,7 @@ Events (design section 1), each with a time and a distance travelled:
 - ``arrived``: the front bumper comes within the arrival distance of the fork's stop line
   (measured along the fork's approach heading), with no car ahead of it on its fork that
   has not entered the junction yet (a car still behind another has not arrived: the
-  caller says when the last car ahead entered, service.core.queues);
+  caller says when the last car ahead entered, service.core.motion.queues);
 - ``stopped``: the speed first falls to ``v_stop`` or below between arriving and entering;
 - ``entered``: the rectangle first overlaps the junction polygon;
 - ``entered_lane`` / ``left_lane``: the rectangle starts / stops overlapping a connecting
@@ -31,8 +31,8 @@ import numpy as np
 import shapely
 from shapely.geometry import Polygon
 
+from service.core.motion.poses import PoseSample, interpolate_heading
 from service.core.network import Fork, Intersection
-from service.core.poses import PoseSample, interpolate_heading
 
 TOLERANCE = 1e-4  # metres
 SPLIT = 16  # shares tried at once in each round of the refinement
@@ -213,7 +213,7 @@ def compute_events(
 ) -> list[LaneEvent]:
     """All events of a car on a route from ``fork``, ordered by distance then kind.
     ``not_before``: when every car ahead of it on its fork has entered the junction (a car
-    still behind another has not arrived, service.core.queues)."""
+    still behind another has not arrived, service.core.motion.queues)."""
     if len(samples) < 2:
         return []
     track = _Track(samples, length, width)

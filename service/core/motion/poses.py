@@ -30,8 +30,8 @@ from service.core.network.lanes import (
     straightest_successor,
     via_chain,
 )
-from service.core.sumo_run import centre_to_front as centre_to_front
-from service.core.sumo_run import front_to_centre as front_to_centre
+from service.core.sumo.run import centre_to_front as centre_to_front
+from service.core.sumo.run import front_to_centre as front_to_centre
 
 Point = tuple[float, float]
 

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 from shapely.geometry import Point
 
-from service.core.events import EventKind, LaneEvent
+from service.core.motion.events import EventKind, LaneEvent
+from service.core.motion.poses import PoseSample
 from service.core.network import Fork, Intersection
-from service.core.poses import PoseSample
 
 PARTED = 0.3  # metres of clearance between two cars' outlines at which their paths have parted
 PARTING_STEP = 0.25  # metres between the points where a parting is looked for

@@ -17,7 +17,7 @@ from typing import Any
 from xml.etree import ElementTree as ET
 
 from service.core.errors import InvalidTrajectory
-from service.core.poses import PoseSample, front_to_centre
+from service.core.motion.poses import PoseSample, front_to_centre
 
 
 def read_trajectory(path: Path, vehicle: str = "ego", length: float = 5.0) -> list[PoseSample]:

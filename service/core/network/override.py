@@ -15,7 +15,7 @@ from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from service.core.errors import NetworkBuildFailed
-from service.core.sumo_binaries import sumo_binary
+from service.core.sumo.binaries import sumo_binary
 
 NETCONVERT_BUDGET = 120.0  # seconds
 _GENERATED = re.compile(rb"<!-- generated on .*?-->\s*", re.DOTALL)

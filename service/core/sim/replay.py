@@ -1,10 +1,10 @@
 """Replay a test-case in libsumo with an ego controller, and judge the ego with the checker.
 
 The replay writes the runner's files (vehicle types, every car's route and departure, and
-the plan ``testcase.run.json``) and runs the loop of service.core.sumo_run, the same files
+the plan ``testcase.run.json``) and runs the loop of service.core.sumo.run, the same files
 and the same code that every exported bundle runs as ``python run.py``: non-egos (and a
 replayed certificate) follow their trajectories exactly, the ego is driven by its controller
-(service.core.controllers): SUMO's own driver model and variants of it, or a user
+(service.core.sim.controllers): SUMO's own driver model and variants of it, or a user
 controller whose acceleration is integrated here. The ego's poses are recorded every step
 and judged by the checker.
 
@@ -22,10 +22,19 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from service.core import sumo_run
 from service.core.budget import run_with_budget
-from service.core.check import check_testcase, testcase_label
-from service.core.controllers import (
+from service.core.checker.check import check_testcase, testcase_label
+from service.core.checker.verdict import Verdict
+from service.core.errors import BudgetExceeded, InvalidInput
+from service.core.motion.poses import (
+    PoseSample,
+    centre_to_front,
+    front_to_centre,
+    plan_drive,
+    start_distance_of,
+)
+from service.core.network import Intersection
+from service.core.sim.controllers import (
     BUILT_IN,
     CertificateDriver,
     Driver,
@@ -33,18 +42,9 @@ from service.core.controllers import (
     UserDriver,
     resolve_driver,
 )
-from service.core.errors import BudgetExceeded, InvalidInput
-from service.core.network import Intersection
-from service.core.poses import (
-    PoseSample,
-    centre_to_front,
-    front_to_centre,
-    plan_drive,
-    start_distance_of,
-)
-from service.core.replay_child import run_replay
+from service.core.sim.replay_child import run_replay
+from service.core.sumo import run as sumo_run
 from service.core.testcase import TestCase, load_testcase_intersection
-from service.core.verdict import Verdict
 
 REPLAY_BUDGET = 60.0  # seconds for one evaluation
 TYPES_FILE = "testcase.types.xml"
@@ -160,7 +160,7 @@ def xml_file(root: str, lines: list[str]) -> str:
 
 
 def controller_spec(driver: Driver) -> dict[str, Any]:
-    """How the runner (service.core.sumo_run) drives the ego for ``driver``."""
+    """How the runner (service.core.sumo.run) drives the ego for ``driver``."""
     if isinstance(driver, SumoDriver):
         return {
             "kind": "sumo", "speed_mode": driver.speed_mode,

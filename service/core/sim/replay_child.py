@@ -1,6 +1,6 @@
 """The child-process side of a replay: run the plan in libsumo with the runner's loop.
 
-Kept apart from service.core.replay so that the child imports only what it runs (the
+Kept apart from service.core.sim.replay so that the child imports only what it runs (the
 runner, the controllers, libsumo), not the checker and the network model: every evaluation
 starts a fresh process.
 """
@@ -11,8 +11,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-from service.core import sumo_run
-from service.core.controllers import (
+from service.core.errors import ScengenError, SimulationFailed
+from service.core.sim.controllers import (
     LEADER_LOOKAHEAD,
     Controller,
     Leader,
@@ -20,7 +20,7 @@ from service.core.controllers import (
     Vehicle,
     load_user_controller,
 )
-from service.core.errors import ScengenError, SimulationFailed
+from service.core.sumo import run as sumo_run
 
 Lanes = dict[str, float]  # a car's lanes in driving order, each with where it starts (m)
 

@@ -1,10 +1,10 @@
 """Where SUMO's programs are: the installed eclipse-sumo wheel first, then $SUMO_HOME/bin,
-else the PATH (the lookup of the standalone runner, service.core.sumo_run)."""
+else the PATH (the lookup of the standalone runner, service.core.sumo.run)."""
 
 from __future__ import annotations
 
 from service.core.errors import ScengenError
-from service.core.sumo_run import RunFailed, find_program
+from service.core.sumo.run import RunFailed, find_program
 
 
 def sumo_binary(name: str) -> str:

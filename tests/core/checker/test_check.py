@@ -12,10 +12,10 @@ from dataclasses import dataclass
 import pytest
 from shapely.geometry import Point
 
-from service.core.check import check_testcase
+from service.core.checker.check import check_testcase
 from service.core.errors import InvalidTrajectory
+from service.core.motion.poses import PoseSample, PoseTrack, generate_poses
 from service.core.network import Intersection, load_intersection
-from service.core.poses import PoseSample, PoseTrack, generate_poses
 from service.core.testcase import TestCase, new_testcase
 from tests.helpers import drive_with_stops, retime, with_nonegos
 

@@ -12,12 +12,12 @@ from pathlib import Path
 import pytest
 import sumolib
 
-from service.core.check import check_testcase
+from service.core.checker.check import check_testcase
 from service.core.errors import InvalidTrajectory
+from service.core.motion.trajectory import read_fcd, read_trajectory
 from service.core.network import bundled_networks
-from service.core.sumo_binaries import sumo_binary
+from service.core.sumo.binaries import sumo_binary
 from service.core.testcase import new_testcase
-from service.core.trajectory import read_fcd, read_trajectory
 from tests.helpers import with_nonegos
 
 START = 40.0

@@ -11,9 +11,7 @@ from pathlib import Path
 import clingo
 import pytest
 
-from service.core.events import EventKind, LaneEvent
-from service.core.network import ControlType, Intersection
-from service.core.rules import (
+from service.core.checker.rules import (
     INPUT_PREDICATES,
     REQUESTED_LANE,
     TimedEvent,
@@ -25,6 +23,8 @@ from service.core.rules import (
     solve_rules,
     time_symbol,
 )
+from service.core.motion.events import EventKind, LaneEvent
+from service.core.network import ControlType, Intersection
 
 ARRIVED, STOPPED, ENTERED = EventKind.ARRIVED, EventKind.STOPPED, EventKind.ENTERED
 IN, OUT = EventKind.ENTERED_LANE, EventKind.LEFT_LANE

@@ -12,18 +12,18 @@ from pathlib import Path
 
 import pytest
 
-from service.core.check import check_testcase
-from service.core.check import testcase_label as label_of
-from service.core.controllers import BUILT_IN
-from service.core.export import export_bundle
-from service.core.generate import extend_testcase
+from service.core.checker.check import check_testcase
+from service.core.checker.check import testcase_label as label_of
+from service.core.checker.verdict import Verdict
+from service.core.export.bundle import export_bundle
+from service.core.generator.extension import extend_testcase
+from service.core.motion.poses import centre_to_front, generate_poses
+from service.core.motion.trajectory import read_trajectory
 from service.core.network import Intersection, bundled_networks
-from service.core.poses import centre_to_front, generate_poses
-from service.core.replay import Evaluation, evaluate
-from service.core.sumo_binaries import sumo_binary
+from service.core.sim.controllers import BUILT_IN
+from service.core.sim.replay import Evaluation, evaluate
+from service.core.sumo.binaries import sumo_binary
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase, read_testcase
-from service.core.trajectory import read_trajectory
-from service.core.verdict import Verdict
 from tests.helpers import every_exported_case, retime, with_nonegos
 
 

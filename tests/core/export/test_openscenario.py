@@ -15,10 +15,10 @@ from pathlib import Path
 import pytest
 from shapely.geometry import Point
 
+from service.core.export.openscenario import angle_of, export_openscenario, heading_of
+from service.core.motion.poses import interpolate_heading
 from service.core.network import Intersection, load_intersection
-from service.core.openscenario import angle_of, export_openscenario, heading_of
-from service.core.poses import interpolate_heading
-from service.core.sumo_binaries import sumo_binary
+from service.core.sumo.binaries import sumo_binary
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
 from tests.helpers import every_exported_case
 
@@ -56,7 +56,7 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[TestCase, P
     return out
 
 
-QC_BIN = Path(__file__).resolve().parents[2] / ".venv-qc" / "bin"
+QC_BIN = Path(__file__).resolve().parents[3] / ".venv-qc" / "bin"
 BUNDLES = {"xosc": ("qc_openscenario", "xoscBundle"), "xodr": ("qc_opendrive", "xodrBundle")}
 QC_CONFIG = """<?xml version="1.0" encoding="UTF-8"?>
 <Config>

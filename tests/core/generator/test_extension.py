@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from service.core.check import check_testcase
+from service.core.checker.check import check_testcase
 from service.core.errors import (
     InvalidInput,
     InvalidTestCase,
@@ -19,9 +19,9 @@ from service.core.errors import (
     NoneFound,
     UnknownRoute,
 )
-from service.core.generate import Extension, extend_testcase
-from service.core.invariants import motion_fault
-from service.core.poses import PoseSample
+from service.core.generator.extension import Extension, extend_testcase
+from service.core.motion.invariants import motion_fault
+from service.core.motion.poses import PoseSample
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -122,7 +122,7 @@ def test_four_way_car_from_the_left(tmp_path: Path) -> None:
     assert_strictly_more_complex(start, new)
 
 
-UNSEEN = Path(__file__).parents[1] / "data" / "junctions"
+UNSEEN = Path(__file__).parents[2] / "data" / "junctions"
 
 
 @pytest.mark.parametrize(

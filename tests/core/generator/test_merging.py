@@ -1,4 +1,4 @@
-"""Cars from two forks that leave into one exit lane (service.core.merging): the car
+"""Cars from two forks that leave into one exit lane (service.core.generator.merging): the car
 behind keeps its gap there, and cars gather speed after the junction instead of crawling
 out of it. Checked on the generated samples, with the exit lane's own geometry.
 
@@ -16,11 +16,11 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pytest
 
-from service.core.generate import Extension, extend_testcase
+from service.core.generator.extension import Extension, extend_testcase
+from service.core.generator.timing import CRUISE
+from service.core.motion.poses import PoseSample, generate_poses
 from service.core.network import Intersection, load_intersection
-from service.core.poses import PoseSample, generate_poses
 from service.core.testcase import new_testcase
-from service.core.timing import CRUISE
 from tests.helpers import drive_with_stops, retime, with_nonegos
 
 NET = "4way-stop"

@@ -7,19 +7,19 @@ import clingo.ast
 import pytest
 from clingodl import ClingoDLTheory
 
-from service.core.check import Judge
-from service.core.events import EventKind, LaneEvent
-from service.core.generate import _limits, _ordering_cars, _validate
-from service.core.network import Intersection
-from service.core.ordering import (
+from service.core.checker.check import Judge
+from service.core.checker.rules import asp_dir
+from service.core.generator.extension import _limits, _ordering_cars, _validate
+from service.core.generator.ordering import (
     CarKind,
     OrderingCar,
     OrderingSearch,
     event_groups,
     stand_distance,
 )
-from service.core.poses import generate_poses
-from service.core.rules import asp_dir
+from service.core.motion.events import EventKind, LaneEvent
+from service.core.motion.poses import generate_poses
+from service.core.network import Intersection
 from service.core.testcase import new_testcase
 
 

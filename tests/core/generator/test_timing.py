@@ -24,11 +24,8 @@ import z3
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from service.core.invariants import motion_fault
-from service.core.kinematics import DWELL
-from service.core.linear import Linear, LinearProgram, total, value_of
-from service.core.testcase import Params
-from service.core.timing import (
+from service.core.generator.linear import Linear, LinearProgram, total, value_of
+from service.core.generator.timing import (
     CarPlan,
     Curve,
     Knot,
@@ -37,6 +34,9 @@ from service.core.timing import (
     TimingSolution,
     solve_timing,
 )
+from service.core.motion.invariants import motion_fault
+from service.core.motion.kinematics import DWELL
+from service.core.testcase import Params
 
 PARAMS = Params()
 DURATION = 20.0

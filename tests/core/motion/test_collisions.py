@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import shapely
 
-from service.core.collisions import Motion, first_collision
-from service.core.poses import PoseSample
+from service.core.motion.collisions import Motion, first_collision
+from service.core.motion.poses import PoseSample
 
 
 def straight(x0: float, y0: float, heading: float, speed: float, dt: float, n: int) -> Motion:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from service.core.events import EventKind, LaneEvent, compute_events
+from service.core.motion.events import EventKind, LaneEvent, compute_events
+from service.core.motion.poses import PoseSample, PoseTrack, generate_poses
 from service.core.network import Intersection
-from service.core.poses import PoseSample, PoseTrack, generate_poses
 from tests.helpers import retime, stop_and_go
 
 ARRIVAL, V_STOP = 10.0, 0.1

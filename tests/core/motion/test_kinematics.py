@@ -1,4 +1,4 @@
-"""The necessary conditions of service.core.kinematics hold for real motions.
+"""The necessary conditions of service.core.motion.kinematics hold for real motions.
 
 Step 2 refuses every order that breaks them, so a condition that some motion within the
 bounds breaks would hide real test-cases: each is checked on random drives (constant
@@ -9,8 +9,8 @@ from __future__ import annotations
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from service.core.kinematics import Bounds, lingering
-from tests.core.test_timing import PARAMS, STEP, Drive, drives
+from service.core.motion.kinematics import Bounds, lingering
+from tests.core.generator.test_timing import PARAMS, STEP, Drive, drives
 
 BOUNDS = Bounds(PARAMS.v_max, PARAMS.a_max, PARAMS.a_min)
 SLACK = 3 * STEP  # the drives are integrated in steps of STEP seconds

@@ -9,14 +9,14 @@ import pytest
 from shapely.geometry import LineString, Point
 
 from service.core.errors import InvalidInput
-from service.core.network import Intersection
-from service.core.poses import (
+from service.core.motion.poses import (
     PoseTrack,
     centre_to_front,
     front_to_centre,
     generate_poses,
     interpolate_heading,
 )
+from service.core.network import Intersection
 
 
 @pytest.mark.parametrize(

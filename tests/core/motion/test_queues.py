@@ -11,17 +11,17 @@ from typing import Any
 
 import pytest
 
-from service.core.check import Judge, check_testcase
-from service.core.collisions import Motion, first_collision
+from service.core.checker.check import Judge, check_testcase
+from service.core.checker.verdict import REAR_END
 from service.core.errors import InvalidInput
-from service.core.events import EventKind
-from service.core.generate import extend_testcase
+from service.core.generator.extension import extend_testcase
+from service.core.generator.timing import BEHIND
+from service.core.motion.collisions import Motion, first_collision
+from service.core.motion.events import EventKind
+from service.core.motion.poses import PoseSample, PoseTrack, generate_poses
+from service.core.motion.queues import Follow, Places, QueueCar, follows, gap_fault
 from service.core.network import Intersection, load_intersection
-from service.core.poses import PoseSample, PoseTrack, generate_poses
-from service.core.queues import Follow, Places, QueueCar, follows, gap_fault
 from service.core.testcase import TestCase, new_testcase, parse_testcase
-from service.core.timing import BEHIND
-from service.core.verdict import REAR_END
 from tests.helpers import drive_with_stops, retime, with_nonegos
 
 NET = "4way-stop"
@@ -233,7 +233,7 @@ def test_a_new_car_joins_a_queue_of_old_cars() -> None:
     _check_queue(old, new, "S2C_0")
 
 
-QUEUE_DATA = Path(__file__).resolve().parents[1] / "data" / "queues"
+QUEUE_DATA = Path(__file__).resolve().parents[2] / "data" / "queues"
 
 
 def test_a_follower_behind_a_car_that_stands_is_planned_behind_it() -> None:

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from service.core.errors import InvalidTrajectory
-from service.core.trajectory import parse_samples, read_trajectory
+from service.core.motion.trajectory import parse_samples, read_trajectory
 
 FCD = """<?xml version="1.0" encoding="UTF-8"?>
 <fcd-export>

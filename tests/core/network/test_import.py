@@ -11,13 +11,13 @@ from pathlib import Path
 
 import pytest
 
-from service.core.check import check_testcase
+from service.core.checker.check import check_testcase
 from service.core.errors import InvalidInput
-from service.core.generate import extend_testcase
+from service.core.export.openscenario import opendrive_text
+from service.core.generator.extension import extend_testcase
+from service.core.motion.poses import PoseSample
 from service.core.network import bundled_networks, load_intersection
 from service.core.network.convert import convert_network, source_format
-from service.core.openscenario import opendrive_text
-from service.core.poses import PoseSample
 from service.core.testcase import (
     TestCase,
     dump_testcase,

@@ -10,18 +10,18 @@ from typing import Any
 
 import pytest
 
-from service.core.chain import candidate_routes
-from service.core.check import Judge
+from service.core.checker.check import Judge
 from service.core.errors import InvalidInput
-from service.core.export import export_bundle
-from service.core.generate import extend_testcase
-from service.core.poses import centre_to_front, generate_poses, plan_drive, start_front
-from service.core.replay import evaluate
+from service.core.export.bundle import export_bundle
+from service.core.generator.chain import candidate_routes
+from service.core.generator.extension import extend_testcase
+from service.core.motion.poses import centre_to_front, generate_poses, plan_drive, start_front
+from service.core.sim.replay import evaluate
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
 from tests.conftest import TOWN05, TOWN07
 from tests.helpers import car_ahead_of_ego, retime, with_nonegos
 
-DOCS = Path(__file__).resolve().parents[2] / "docs" / "controllers.md"
+DOCS = Path(__file__).resolve().parents[3] / "docs" / "controllers.md"
 
 
 @pytest.fixture(scope="module")
@@ -144,7 +144,7 @@ def test_a_controller_registered_by_entry_point_is_found_by_name(
     test's reach); the replay itself is real."""
     from importlib.metadata import EntryPoint
 
-    import service.core.controllers as controllers
+    import service.core.sim.controllers as controllers
 
     registered = [EntryPoint("steady", "steady:Steady", controllers.ENTRY_POINT_GROUP)]
     monkeypatch.setattr(controllers, "entry_points", lambda group: registered)
