@@ -48,12 +48,12 @@ from service.core.generator.extension import (
     checked_judge,
     extend_testcase,
 )
-from service.core.generator.following import QueueBounds
 from service.core.generator.ordering import (
     Limits,
     Ordering,
     OrderingCar,
     OrderingSearch,
+    QueueBounds,
     SearchLimitReached,
     ordering_facts,
     stop_symbol,

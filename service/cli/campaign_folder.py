@@ -31,15 +31,10 @@ from service.core.network.convert import source_format
 from service.core.testcase import local_network_name
 from service.jobs import tasks
 from service.jobs.batch import parse_batch
+from service.jobs.campaign_steps import outcome_of
 from service.jobs.runner import run_item
 from service.jobs.store import JobStore
-from service.pictures.report import (
-    campaign_paths,
-    campaign_title,
-    outcome_of,
-    report_html,
-    store_fetch,
-)
+from service.pictures.report import campaign_paths, campaign_title, report_html
 from service.settings import Settings
 from service.store import Store
 
@@ -138,6 +133,8 @@ def _run(store: Store, settings: Settings, job: str, say: Callable[[str], None])
 
 def report_of(store: Store, settings: Settings, job: str) -> tuple[dict[str, Any], str]:
     """The outcome of the campaign ``job`` and its self-contained report."""
+    from service.api.public import store_fetch  # the API's own answers (FastAPI: 0.5 s)
+
     outcome = outcome_of(store, job)
 
     def shapes(network: Path, junction: str, control: str) -> dict[str, Any]:

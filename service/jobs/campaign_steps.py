@@ -1,6 +1,6 @@
 """A campaign item's steps (service.core.campaign.CampaignSteps) over the service's state.
 
-Every step runs in a killable child process (``Work.call``) and is remembered as soon as
+Every step runs in a killable child process (``ItemWork.call``) and is remembered as soon as
 it is done: test-cases and evaluations in the store (and in the item's lists), the end of a
 chain and the outcome so far in the item's memos. A retried item runs the campaign's loop
 again and every step done before answers from memory, so it goes on where it stopped.
@@ -10,25 +10,40 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from service.core.campaign import CHAIN_ENDS, CampaignPlan, run_campaign
 from service.core.errors import InvalidInput, ScengenError, UnknownNetwork, choices
 from service.core.testcase import NetworkRef, TestCase, dump_testcase, parse_testcase
 from service.jobs import tasks
 from service.jobs.batch import CampaignItem
-
-if TYPE_CHECKING:
-    from service.jobs.runner import Work
+from service.jobs.store import ItemRecord, JobStore
+from service.settings import Settings
+from service.store import Store
 
 OUTCOME = "outcome"  # the memo key of the campaign's outcome (so far)
 _ENDS = {error.__name__: error for error in CHAIN_ENDS}
 
 
+class ItemWork(Protocol):
+    """What a campaign's steps work through: the item's state and a killable call
+    (service.jobs.runner's Work)."""
+
+    store: Store
+    jobs: JobStore
+    settings: Settings
+    item: ItemRecord
+    owner: str
+
+    def call(
+        self, function: Callable[..., Any], args: tuple[Any, ...], budget: float, what: str
+    ) -> Any: ...
+
+
 class JobCampaign:
     """The steps of one campaign item; ``run`` runs it."""
 
-    def __init__(self, work: Work, spec: CampaignItem) -> None:
+    def __init__(self, work: ItemWork, spec: CampaignItem) -> None:
         self.work, self.spec = work, spec
         self.item = work.item
         self.made = list(work.item.testcases)
@@ -125,9 +140,7 @@ class JobCampaign:
         return found["testcase"], self._testcase(found["testcase"]), found["route"]
 
     def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
-        from service.jobs.runner import evaluation_id
-
-        key = evaluation_id(self.item, ident, controller)
+        key = self.item.evaluation_id(ident, controller)
         stored = self.work.store.evaluation(key)
         if stored is None:
             budget = self.spec.budget or self.work.settings.evaluate_budget
@@ -180,3 +193,17 @@ class JobCampaign:
 
     def _save(self, outcome: dict[str, Any]) -> None:
         self._remember(OUTCOME, outcome)
+
+
+def outcome_of(store: Store, job: str) -> dict[str, Any]:
+    """The campaign outcome (so far) of ``job``'s first campaign item."""
+    jobs = JobStore(store)
+    record = jobs.job(job)
+    if record is None:
+        raise KeyError(job)
+    for item in record.items:
+        if item.kind == "campaign":
+            found = jobs.memo(job, item.position, OUTCOME)
+            if found is not None:
+                return dict(found)
+    raise KeyError(f"job {job} has no campaign outcome yet")

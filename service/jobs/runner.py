@@ -9,7 +9,6 @@ the job, or losing the lease, kills the running child.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import os
 import signal
 import socket
@@ -174,7 +173,7 @@ class Work:
         budget = spec.budget or self.settings.evaluate_budget
         pairs = [(t, c) for t in targets for c in spec.controllers]
         for number, (target, controller) in enumerate(pairs, start=1):
-            ident = evaluation_id(self.item, target.id, controller)
+            ident = self.item.evaluation_id(target.id, controller)
             progress = f"evaluation {number}/{len(pairs)}"
             if ident not in done and self.store.evaluation(ident) is None:
                 self.jobs.record(self.item.job, self.item.position, self.owner, progress)
@@ -270,9 +269,3 @@ def run_stoppable(
                 os.killpg(child.pid, signal.SIGKILL)
         talker.join(5)
     return decode_outcome(answer.get("out", b""), answer.get("err", b""), what)
-
-
-def evaluation_id(item: ItemRecord, testcase: str, controller: str) -> str:
-    """The same item, test-case and controller: the same stored evaluation, once."""
-    key = f"{item.job}/{item.position}/{testcase}/{controller}"
-    return hashlib.sha256(key.encode()).hexdigest()[:16]

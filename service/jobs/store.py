@@ -9,6 +9,7 @@ written as they are made (a chain's test-cases level by level), so a retry resum
 
 from __future__ import annotations
 
+import hashlib
 import json
 import secrets
 import time
@@ -87,6 +88,11 @@ class ItemRecord:
     error: str | None
     started_at: datetime | None
     finished_at: datetime | None
+
+    def evaluation_id(self, testcase: str, controller: str) -> str:
+        """The same item, test-case and controller: the same stored evaluation, once."""
+        key = f"{self.job}/{self.position}/{testcase}/{controller}"
+        return hashlib.sha256(key.encode()).hexdigest()[:16]
 
 
 @dataclass(frozen=True)

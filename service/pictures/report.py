@@ -13,11 +13,7 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
-from urllib.parse import quote, unquote
-
-from service.jobs.campaign_steps import OUTCOME
-from service.jobs.store import JobStore
-from service.store import DRIVE_COLUMNS, Store
+from urllib.parse import quote
 
 UI = Path(__file__).resolve().parent / "ui"  # the results browser's pages
 
@@ -27,7 +23,7 @@ Fetch = Callable[[str], Any]  # an API path -> its JSON answer
 
 def campaign_paths(job: str, outcome: dict[str, Any], fetch: Fetch) -> dict[str, Any]:
     """Every API answer the report's pages need, through ``fetch`` (the server's, or the
-    store's ``store_fetch``), keyed by path."""
+    store's, service.api.public.store_fetch), keyed by path."""
     data: dict[str, Any] = {"/jobs/" + job: fetch("/jobs/" + job)}
     data[f"/jobs/{job}/campaign"] = outcome
     idents = []
@@ -60,65 +56,6 @@ def geometry_path(document: dict[str, Any]) -> str:
     network = quote(document["network"]["ref"], safe=URI_COMPONENT_SAFE)
     junction = quote(document["junction"], safe=URI_COMPONENT_SAFE)
     return f"/networks/{network}/junctions/{junction}/geometry?control={document['control']}"
-
-
-Shapes = Callable[[Path, str, str], dict[str, Any]]  # network file, junction, control
-
-
-def store_fetch(store: Store, shapes: Shapes) -> Fetch:
-    """The answers a server on ``store`` gives (its own response models), for the paths a
-    report needs; ``shapes`` draws a junction (``tasks.junction_geometry``)."""
-    from service.api.routes.evaluations import evaluation_public
-    from service.api.routes.jobs import job_public
-    from service.api.routes.testcases import public
-
-    jobs = JobStore(store)
-
-    def fetch(path: str) -> Any:
-        where, _, query = path.partition("?")
-        parts = [unquote(part) for part in where.strip("/").split("/")]
-        asked = dict(pair.split("=", 1) for pair in query.split("&") if pair)
-        answer: Any
-        if parts[0] == "jobs":
-            answer = job_public(store, _found(jobs.job(parts[1]), path))
-        elif parts[0] == "testcases":
-            answer = public(_found(store.testcase(parts[1]), path))
-        elif parts[0] == "networks":
-            return shapes(store.network_file(parts[1]), parts[3], asked["control"])
-        elif parts == ["evaluations"]:
-            found = store.list_evaluations(asked["testcase"], int(asked.get("limit", 50)))
-            return {
-                "items": [evaluation_public(e).model_dump(mode="json") for e in found.items],
-                "total": found.total,
-            }
-        elif parts[0] == "evaluations" and parts[2:] == ["drive"]:
-            return {"evaluation": parts[1], "columns": DRIVE_COLUMNS,
-                    "trajectory": store.drive(parts[1]) or []}  # fmt: skip
-        else:
-            raise KeyError(path)
-        return answer.model_dump(mode="json")
-
-    return fetch
-
-
-def _found(record: Any, path: str) -> Any:
-    if record is None:
-        raise KeyError(f"nothing stored at {path}")
-    return record
-
-
-def outcome_of(store: Store, job: str) -> dict[str, Any]:
-    """The campaign outcome (so far) of ``job``'s first campaign item."""
-    jobs = JobStore(store)
-    record = jobs.job(job)
-    if record is None:
-        raise KeyError(job)
-    for item in record.items:
-        if item.kind == "campaign":
-            found = jobs.memo(job, item.position, OUTCOME)
-            if found is not None:
-                return dict(found)
-    raise KeyError(f"job {job} has no campaign outcome yet")
 
 
 def campaign_title(outcome: dict[str, Any]) -> str:

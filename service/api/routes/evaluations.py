@@ -12,6 +12,7 @@ from fastapi import APIRouter, Query, Request, Response, status
 from service.api.bodies import OffLoopValidation
 from service.api.media import wants_junit
 from service.api.problems import WORK_PROBLEMS, Problem, documented
+from service.api.public import evaluation_public
 from service.api.routes.testcases import check_controller
 from service.api.schemas import (
     MAX_OFFSET,
@@ -19,7 +20,6 @@ from service.api.schemas import (
     EvaluationCreate,
     EvaluationPage,
     EvaluationPublic,
-    Links,
 )
 from service.api.state import State, Token, json_answer
 from service.core.checker.verdict import Verdict
@@ -36,25 +36,6 @@ JUNIT_RESPONSE: dict[int | str, dict[str, Any]] = {
         "description": "the evaluation; JUnit XML with Accept: application/xml or ?format=junit",
     }
 }
-
-
-def evaluation_public(record: EvaluationRecord) -> EvaluationPublic:
-    return EvaluationPublic(
-        id=record.id,
-        testcase=record.testcase,
-        controller=record.controller,
-        passed=record.passed,
-        reasons=Verdict.from_dict(record.verdict).reasons,
-        verdict=record.verdict,
-        seconds=round(record.seconds, 3),
-        created_at=record.created_at,
-        links=Links(
-            self=f"/evaluations/{record.id}",
-            junit=f"/evaluations/{record.id}?format=junit",
-            testcase=f"/testcases/{record.testcase}",
-            plot=f"/testcases/{record.testcase}/plot?controller={record.controller}",
-        ),
-    )
 
 
 def _answer(record: EvaluationRecord, junit: bool) -> Response:

@@ -12,7 +12,7 @@ from fastapi import APIRouter, Response, status
 
 from service.api.bodies import OffLoopValidation
 from service.api.problems import WORK_PROBLEMS, Problem, documented
-from service.api.routes.testcases import public
+from service.api.public import testcase_public
 from service.api.schemas import Attempt, ExtendRequest, ExtensionPublic
 from service.api.state import AppState, State, Token, json_answer
 from service.core.testcase import parse_testcase
@@ -84,7 +84,7 @@ def _store(state: AppState, old: TestCaseRecord, result: dict[str, Any]) -> Resp
     record = state.store.add_testcase(testcase, parent=old.id)
     old_ids = {car["id"] for car in json.loads(old.document).get("nonegos", [])}
     answer = ExtensionPublic(
-        **public(record).model_dump(),
+        **testcase_public(record).model_dump(),
         new_cars=[car.id for car in testcase.nonegos if car.id not in old_ids],
         attempts=[Attempt(**a) for a in result["attempts"]],
         seconds=result["seconds"],

@@ -12,59 +12,21 @@ from fastapi.responses import Response as PlainResponse
 
 from service.api.bodies import OffLoopValidation
 from service.api.problems import WORK_PROBLEMS, Problem, documented
+from service.api.public import job_public, store_fetch
 from service.api.routes.networks import junction_geometry
-from service.api.schemas import MAX_OFFSET, JobItemPublic, JobPage, JobPublic, Links
+from service.api.schemas import MAX_OFFSET, JobPage, JobPublic
 from service.api.state import AppState, State, Token, json_answer
 from service.core.campaign import campaign_junit
 from service.core.checker.verdict import Verdict, junit_report
 from service.core.export import Flavour
 from service.jobs import tasks
 from service.jobs.batch import Batch, CampaignItem
+from service.jobs.campaign_steps import outcome_of
 from service.jobs.store import FINISHED, IdempotencyConflict, JobRecord, JobStore
-from service.store import Store
+from service.pictures.report import campaign_paths, campaign_title, report_html
 
 router = APIRouter(prefix="/jobs", tags=["jobs"], route_class=OffLoopValidation)
 STATES = ("queued", "running", *FINISHED)
-
-
-def job_public(store: Store, job: JobRecord) -> JobPublic:
-    verdicts = list(store.evaluations_passed([e for item in job.items for e in item.evaluations]))
-    base = f"/jobs/{job.id}"
-    return JobPublic(
-        id=job.id,
-        name=job.name,
-        state=job.state,
-        created_at=job.created_at,
-        started_at=job.started_at,
-        finished_at=job.finished_at,
-        done=sum(1 for item in job.items if item.state in FINISHED),
-        total=len(job.items),
-        evaluations={"passed": sum(verdicts), "failed": len(verdicts) - sum(verdicts)},
-        items=[
-            JobItemPublic(
-                position=i.position,
-                kind=i.kind,
-                state=i.state,
-                attempts=i.attempts,
-                progress=i.progress,
-                needs=i.needs,
-                testcases=i.testcases,
-                evaluations=i.evaluations,
-                error=i.error,
-                started_at=i.started_at,
-                finished_at=i.finished_at,
-                links=[f"/testcases/{t}" for t in i.testcases]
-                + [f"/evaluations/{e}" for e in i.evaluations],
-            )
-            for i in job.items
-        ],
-        links=Links(
-            self=base,
-            junit=f"{base}/junit",
-            bundles=f"{base}/bundles",
-            openscenario=f"{base}/openscenario",
-        ),
-    )
 
 
 def _jobs(state: AppState) -> JobStore:
@@ -208,8 +170,6 @@ async def get_job_junit(state: State, job: str) -> Response:
 
 
 def _campaign_or_404(state: AppState, job: str) -> dict[str, Any]:
-    from service.pictures.report import outcome_of
-
     _job_or_404(state, job)
     try:
         return outcome_of(state.store, job)
@@ -248,8 +208,6 @@ async def get_job_campaign_junit(state: State, job: str) -> Response:
 )
 async def get_job_campaign_report(state: State, job: str) -> Response:
     """The campaign's self-contained HTML report (`scengen report`), to save and publish."""
-    from service.pictures.report import campaign_paths, campaign_title, report_html, store_fetch
-
     outcome = await asyncio.to_thread(_campaign_or_404, state, job)
     plan = outcome["plan"]
     record = await asyncio.to_thread(state.network_or_404, plan["network"])

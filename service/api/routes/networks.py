@@ -16,6 +16,7 @@ from fastapi.responses import JSONResponse
 
 from service.api.media import IMAGE_RESPONSES, cached, picture_format
 from service.api.problems import WORK_PROBLEMS, Problem, documented
+from service.api.public import network_public
 from service.api.schemas import JunctionSummary, Links, NetworkPublic
 from service.api.state import AppState, State, Token
 from service.core.errors import InvalidInput, UnknownJunction
@@ -32,25 +33,6 @@ CONTROLS_FIELD = (
     'JSON object junction -> control type, e.g. {"J1": "allway_stop"}; control types: '
     + ", ".join(CONTROLS)
 )
-
-
-def network_public(record: NetworkRecord) -> NetworkPublic:
-    return NetworkPublic(
-        id=record.id,
-        filename=record.filename,
-        sha256=record.sha256,
-        size=record.size,
-        bundled=record.bundled,
-        controls=record.controls,
-        created_at=record.created_at,
-        source=record.source,
-        links=Links(
-            self=f"/networks/{record.id}",
-            file=f"/networks/{record.id}/file",
-            junctions=f"/networks/{record.id}/junctions",
-            **({"source": f"/networks/{record.id}/source"} if record.source else {}),
-        ),
-    )
 
 
 @router.get("", operation_id="list_networks")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import json
 import time
 from collections.abc import Awaitable, Callable
 from typing import Annotated, Any
@@ -14,14 +13,13 @@ from fastapi.responses import JSONResponse
 from service.api.bodies import OffLoopValidation
 from service.api.media import IMAGE_RESPONSES, cached, picture_format
 from service.api.problems import WORK_PROBLEMS, Problem, documented
+from service.api.public import testcase_public, testcase_summary
 from service.api.schemas import (
     MAX_OFFSET,
     Lineage,
-    Links,
     TestCaseCreate,
     TestCasePage,
     TestCasePublic,
-    TestCaseSummary,
 )
 from service.api.state import State, Token, json_answer
 from service.core.errors import InvalidInput, choices
@@ -29,41 +27,8 @@ from service.core.export import Flavour
 from service.core.sim.controllers import controller_names
 from service.core.testcase import NetworkRef, check_samples, parse_testcase
 from service.jobs import tasks
-from service.store import TestCaseRecord
 
 router = APIRouter(prefix="/testcases", tags=["testcases"], route_class=OffLoopValidation)
-
-
-def links(record: TestCaseRecord) -> Links:
-    base = f"/testcases/{record.id}"
-    extra = {"parent": f"/testcases/{record.parent}"} if record.parent else {}
-    return Links(
-        self=base,
-        document=f"{base}/document",
-        bundle=f"{base}/bundle",
-        openscenario=f"{base}/openscenario",
-        plot=f"{base}/plot",
-        lineage=f"{base}/lineage",
-        evaluations=f"/evaluations?testcase={record.id}",
-        **extra,
-    )
-
-
-def summary(record: TestCaseRecord) -> TestCaseSummary:
-    return TestCaseSummary(
-        id=record.id,
-        name=record.name,
-        network=record.network,
-        junction=record.junction,
-        parent=record.parent,
-        nonegos=record.nonegos,
-        created_at=record.created_at,
-        links=links(record),
-    )
-
-
-def public(record: TestCaseRecord) -> TestCasePublic:
-    return TestCasePublic(**summary(record).model_dump(), testcase=json.loads(record.document))
 
 
 @router.post(
@@ -99,7 +64,9 @@ async def create_testcase(state: State, body: TestCaseCreate) -> Response:
 
     def stored() -> Response:
         record = state.store.add_testcase(parse_testcase(document))
-        return json_answer(public(record), status.HTTP_201_CREATED, f"/testcases/{record.id}")
+        return json_answer(
+            testcase_public(record), status.HTTP_201_CREATED, f"/testcases/{record.id}"
+        )
 
     return await asyncio.to_thread(stored)
 
@@ -128,7 +95,7 @@ async def list_testcases(
         if roots:
             following += "&roots=true"
     return TestCasePage(
-        items=[summary(r) for r in page.items],
+        items=[testcase_summary(r) for r in page.items],
         total=page.total,
         limit=limit,
         offset=offset,
@@ -139,7 +106,9 @@ async def list_testcases(
 @router.get("/{testcase}", operation_id="get_testcase", response_model=TestCasePublic)
 async def get_testcase(state: State, testcase: str) -> Response:
     """One test-case with its document and links."""
-    return await asyncio.to_thread(lambda: json_answer(public(state.testcase_or_404(testcase))))
+    return await asyncio.to_thread(
+        lambda: json_answer(testcase_public(state.testcase_or_404(testcase)))
+    )
 
 
 @router.get(
@@ -184,8 +153,8 @@ async def get_lineage(state: State, testcase: str) -> Lineage:
     state.testcase_or_404(testcase)
     return Lineage(
         id=testcase,
-        ancestors=[summary(r) for r in state.store.ancestors(testcase)],
-        children=[summary(r) for r in state.store.children(testcase)],
+        ancestors=[testcase_summary(r) for r in state.store.ancestors(testcase)],
+        children=[testcase_summary(r) for r in state.store.children(testcase)],
     )
 
 

@@ -32,7 +32,7 @@ from service.core.errors import (
     NoMoreComplexTestCase,
     NoneFound,
 )
-from service.core.generator.following import CERTIFICATES, QueueBounds, QueueMember, queue_bounds
+from service.core.generator.following import CERTIFICATES, QueueMember, queue_bounds
 from service.core.generator.linear import GRID
 from service.core.generator.merging import exit_followings
 from service.core.generator.ordering import (
@@ -41,6 +41,7 @@ from service.core.generator.ordering import (
     Ordering,
     OrderingCar,
     OrderingSearch,
+    QueueBounds,
     SearchLimitReached,
     event_groups,
     stand_distance,

@@ -30,6 +30,7 @@ from service.core.generator.ordering import (
     START,
     CarKind,
     OrderingCar,
+    QueueBounds,
     stand_distance,
     stop_symbol,
     timed_events,
@@ -39,16 +40,6 @@ from service.core.motion.kinematics import DWELL, Bounds, fastest
 from service.core.motion.queues import Follow, Places
 
 CERTIFICATES = ("ego", "illegal")
-
-
-@dataclass(frozen=True)
-class QueueBounds:
-    """Conditions on time symbols (seconds) from the queues."""
-
-    headways: tuple[tuple[clingo.Symbol, clingo.Symbol, float], ...] = ()  # t >= s + g
-    earliest: tuple[tuple[clingo.Symbol, float], ...] = ()  # t >= the number
-    latest: tuple[tuple[clingo.Symbol, float], ...] = ()  # t <= the number
-    ahead: tuple[tuple[str, str], ...] = ()  # (new car, "illegal"): it may drive into it
 
 
 @dataclass(frozen=True)

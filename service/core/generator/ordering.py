@@ -20,7 +20,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import clingo
 import clingo.ast
@@ -43,9 +43,6 @@ from service.core.checker.rules import (
 from service.core.motion.events import EventKind, LaneEvent
 from service.core.motion.kinematics import Bounds, least_gaps, lingering, stand_before
 from service.core.network import Intersection
-
-if TYPE_CHECKING:
-    from service.core.generator.following import QueueBounds
 
 OLD = Predicate("old", 1)
 NEW = Predicate("new", 1)
@@ -132,6 +129,17 @@ class Ordering:
 
     def describe(self) -> list[str]:
         return [f"{kind}({a},{b})" for kind, a, b in self.named]
+
+
+@dataclass(frozen=True)
+class QueueBounds:
+    """Conditions on time symbols (seconds) that the queues ask of the symbolic cars
+    (service.core.generator.following works them out)."""
+
+    headways: tuple[tuple[clingo.Symbol, clingo.Symbol, float], ...] = ()  # t >= s + g
+    earliest: tuple[tuple[clingo.Symbol, float], ...] = ()  # t >= the number
+    latest: tuple[tuple[clingo.Symbol, float], ...] = ()  # t <= the number
+    ahead: tuple[tuple[str, str], ...] = ()  # (new car, "illegal"): it may drive into it
 
 
 ONE_PLACE = 0.01  # metres: a symbolic car's events this close share one time symbol
