@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from service.cli.commands import _parser
+from service.cli.main import parser
 from service.settings import Settings
 
 ROOT = Path(__file__).parents[1]
@@ -18,7 +18,7 @@ DOCKERFILE = (ROOT / "docker" / "Dockerfile").read_text()
 
 
 def subcommands() -> set[str]:
-    actions = [a for a in _parser()._actions if a.dest == "command"]
+    actions = [a for a in parser()._actions if a.dest == "command"]
     return set(actions[0].choices)  # type: ignore[arg-type]
 
 
@@ -31,8 +31,8 @@ def test_compose_commands_are_scengen_commands() -> None:
         command = COMPOSE["services"][name]["command"]
         assert command[0] == "scengen" and command[1] in subcommands()
         options = [word.split("=")[0] for word in command[2:] if word.startswith("--")]
-        parser = _parser()._subparsers._group_actions[0].choices[command[1]]  # type: ignore[union-attr]
-        known = {s for action in parser._actions for s in action.option_strings}
+        command_parser = parser()._subparsers._group_actions[0].choices[command[1]]  # type: ignore[union-attr]
+        known = {s for action in command_parser._actions for s in action.option_strings}
         assert set(options) <= known, command
 
 

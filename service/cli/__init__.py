@@ -1,5 +1,11 @@
-"""The ``scengen`` command line: a thin adapter over ``service.core`` and the service."""
+"""The ``scengen`` command line: a thin adapter over ``service.core`` and the service.
 
-from service.cli.commands import main
+``main`` runs the table of commands (service.cli.main); each command group has a module
+(networks, testcases, judging, exports, servers, campaigns) with its commands' arguments
+beside their handlers; the arguments they share are defined once (service.cli.arguments).
+``submit``, ``campaign_folder`` and ``examples`` do the work behind some of them.
+"""
+
+from service.cli.main import main
 
 __all__ = ["main"]

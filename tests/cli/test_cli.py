@@ -10,9 +10,12 @@ from pathlib import Path
 
 import pytest
 
-from service.cli import commands as cli
+from service import cli
 from service.cli import submit as _submit  # noqa: F401 (its errors join the tree: collected always)
 from service.cli.examples import EXAMPLES
+from service.cli.main import parser
+from service.cli.output import exit_code
+from service.cli.testcases import start_distances
 from service.core import errors
 from service.core.checker.check import Judge
 from service.core.network import load_intersection
@@ -133,7 +136,7 @@ def _subclasses(root: type[errors.ScengenError]) -> list[type[errors.ScengenErro
 @pytest.mark.parametrize("error", _subclasses(errors.ScengenError), ids=lambda e: e.__name__)
 def test_every_domain_error_has_an_exit_code(error: type[errors.ScengenError]) -> None:
     expected = 2 if issubclass(error, errors.InvalidInput | errors.UnsupportedIntersection) else 3
-    assert cli.exit_code(error("x")) == expected
+    assert exit_code(error("x")) == expected
     if error.__module__ == errors.__name__:  # the core's tree in its docstring is complete
         assert error.__name__ in (errors.__doc__ or "")
 
@@ -230,8 +233,8 @@ def test_extend_unknown_route_exits_2(tmp_path: Path) -> None:
 def test_extend_start_distances_none_one_or_one_per_car(given: list[str], expected: object) -> None:
     starts = [arg for value in given for arg in ("--start-distance", value)]
     adds = ["--add", "E2C_0:C2W_0", "--add", "S2C_1:C2N_1"]
-    args = cli._parser().parse_args(["extend", "old.json", *adds, *starts])
-    assert cli._start_distances(args) == expected
+    args = parser().parse_args(["extend", "old.json", *adds, *starts])
+    assert start_distances(args) == expected
 
 
 @pytest.mark.parametrize(

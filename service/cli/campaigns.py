@@ -1,0 +1,145 @@
+"""Campaigns: ``campaign`` (chains grown and judged on this machine) and ``report`` (a
+campaign's self-contained HTML report)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+from urllib.parse import quote
+
+from service.cli.arguments import NETWORK, TOKEN, output
+from service.cli.output import EXIT_FAILED_CHECK, EXIT_OK, print_table
+from service.cli.table import OneOf, arg, command
+from service.core.sim.controllers import controller_names, resolve_driver
+
+
+@command(
+    "campaign",
+    "grow chains of test-cases and judge every level with controllers: where they fail",
+    NETWORK,
+    OneOf(
+        (
+            arg(
+                "--ego",
+                action="append",
+                metavar="FORK_LANE:EXIT_LANE",
+                help="an ego route (repeatable)",
+            ),
+            arg("--all-egos", action="store_true", help="every route of the junction"),
+        ),
+        required=True,
+    ),
+    arg("--depth", type=int, required=True, metavar="K", help="levels (1-10)"),
+    arg("--chains", type=int, required=True, metavar="N", help="chains per ego route (1-20)"),
+    arg(
+        "--controller",
+        action="append",
+        required=True,
+        metavar="NAME",
+        help="who drives the ego (repeatable): "
+        + ", ".join(controller_names())
+        + ", or module:attribute",
+    ),
+    arg("--seed", type=int, default=0, help="chain c has seed SEED + c"),
+    arg(
+        "--duration",
+        type=float,
+        default=20.0,
+        metavar="SECONDS",
+        help="how long each test-case lasts (default 20 s; deep chains need room: try 45)",
+    ),
+    arg(
+        "--budget-per-level",
+        type=float,
+        metavar="SECONDS",
+        help="budget of growing one level (default: SCENGEN_EXTEND_BUDGET, 60 s)",
+    ),
+    arg(
+        "--budget",
+        type=float,
+        metavar="SECONDS",
+        help="budget of each replay (default: SCENGEN_EVALUATE_BUDGET, 60 s)",
+    ),
+    output("DIR", required=True),
+    description="Grows CHAINS chains per ego route to DEPTH levels (one new car per level, "
+    "on a route chosen as `extend`'s automatic choice does, steered towards rules no "
+    "level has covered yet), and evaluates every level, the ego-only start included, "
+    "with every controller. Writes campaign.json, junit.xml, report.html and testcases/ "
+    "into DIR; run the same command again to resume after a crash or Ctrl-C. Exit "
+    "codes: 0 every evaluation passed, 1 some failed, 2 bad input, 3 the campaign "
+    "could not run.",
+)
+def campaign(args: argparse.Namespace) -> int:
+    from service.cli.campaign_folder import elapsed_printer, run_folder_campaign
+    from service.core.campaign import failure_table
+
+    for name in args.controller:
+        resolve_driver(name)  # a bad name fails before any work
+    spec = {
+        "network": args.network,
+        "junction": args.junction,
+        "control": args.control,
+        "egos": args.ego,
+        "all_egos": args.all_egos,
+        "depth": args.depth,
+        "chains": args.chains,
+        "controllers": args.controller,
+        "seed": args.seed,
+        "duration": args.duration,
+        "budget_per_level": args.budget_per_level,
+        "budget": args.budget,
+    }
+    outcome = run_folder_campaign(spec, args.output, elapsed_printer(time.monotonic()))
+    print("failed test-cases per level (failed/test-cases):")
+    print_table(failure_table(outcome))
+    failed = False
+    for controller in outcome["plan"]["controllers"]:
+        shares = [level["controllers"][controller] for level in outcome["levels"]]
+        count, total = sum(s["failed"] for s in shares), sum(s["evaluated"] for s in shares)
+        firsts = [c["first_failure"][controller] for c in outcome["chains"]]
+        failing = [level for level in firsts if level is not None]
+        if not count:
+            print(f"{controller}: passed all {total} test-cases")
+            continue
+        failed = True
+        print(f"FAIL {controller}: failed {count} of {total} test-cases; first at level "
+              f"{min(failing)}, in {len(failing)} of {len(firsts)} chains")  # fmt: skip
+    covered = [c["rule"] for c in outcome["coverage"] if c["covered"]]
+    missing = [c["rule"] for c in outcome["coverage"] if c["coverable"] and not c["covered"]]
+    print(f"rules covered by complexity certificates: {', '.join(covered) or 'none'}; "
+          f"not covered: {', '.join(missing) or 'none'}")  # fmt: skip
+    for chain in outcome["chains"]:
+        if chain["end"]:
+            print(f"{chain['ego']} chain {chain['chain'] + 1} ended at {chain['end']}")
+    print(f"written: {args.output}/campaign.json, junit.xml, report.html, testcases/")
+    return EXIT_FAILED_CHECK if failed else EXIT_OK
+
+
+@command(
+    "report",
+    "write a campaign's report as one self-contained HTML file",
+    arg("source", metavar="DIR|JOB", help="a campaign folder or a job id"),
+    arg("--server", metavar="URL", help="the server of JOB"),
+    TOKEN,
+    output("FILE", required=True),
+    description="SOURCE is a folder `scengen campaign` wrote, or a job id on a server "
+    "(--server): the report is the results browser with the campaign's data inside; "
+    "it opens offline.",
+)
+def report(args: argparse.Namespace) -> int:
+    if args.server is None:
+        from service.cli.campaign_folder import folder_report
+
+        page = folder_report(Path(args.source))
+    else:  # the server writes it (GET /jobs/{id}/campaign/report)
+        from service.cli import submit
+
+        client = submit.Client(args.server, args.token or os.environ.get("SCENGEN_TOKEN"))
+        path = f"/jobs/{quote(args.source, safe='')}/campaign/report"
+        page = client.call("GET", path)[2].decode()
+    args.output.write_text(page)
+    print(f"written: {args.output}", file=sys.stderr)
+    return EXIT_OK

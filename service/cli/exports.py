@@ -1,0 +1,117 @@
+"""A test-case as files: ``export`` (a SUMO bundle, or OpenSCENARIO and OpenDRIVE) and
+``plot`` (a picture or an animation)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from service.cli.arguments import NETWORK_FILE, TESTCASE, output, testcase_intersection
+from service.cli.output import EXIT_OK, StepProgress
+from service.cli.table import arg, command
+from service.core.errors import InvalidInput
+from service.core.export import FLAVOURS
+from service.core.export.bundle import export_bundle
+from service.core.motion.poses import PoseSample
+from service.core.sim.replay import evaluate as evaluate_controller
+from service.core.testcase import read_testcase
+
+
+@command(
+    "export",
+    "write a test-case as a SUMO bundle or as OpenSCENARIO + OpenDRIVE",
+    TESTCASE,
+    output("DIR", "folder to write", required=True),
+    arg("--format", choices=("sumo", "openscenario"), default="sumo", help="default: sumo"),
+    arg(
+        "--flavour",
+        choices=FLAVOURS,
+        default="asam",
+        help="OpenSCENARIO only: asam (1.2, one vertex per time step; default) or carla "
+        "(1.0, 20 Hz, the CARLA town by name)",
+    ),
+    NETWORK_FILE,
+    description="--format sumo (default): writes into DIR the network, the test-case "
+    "JSON, a README, run.py (the replay of `scengen evaluate`: python run.py --controller "
+    "NAME writes the ego's FCD) with its plan, vehicle types and routes, and a .sumocfg "
+    "for the plain sumo binary (the non-egos' trajectories as FCD for SUMO's fcd-replay "
+    "device). --format openscenario: testcase.xodr (ASAM OpenDRIVE), testcase.xosc (ASAM "
+    "OpenSCENARIO XML: the non-egos on their trajectories, the ego left to the system "
+    "under test), one .xosc per certificate and verdict-rules.md; --flavour carla for "
+    "CARLA's ScenarioRunner.",
+)
+def export(args: argparse.Namespace) -> int:
+    testcase = read_testcase(args.testcase)
+    if args.format == "openscenario":
+        from service.core.export.openscenario import export_openscenario  # scenariogeneration
+
+        for path in export_openscenario(
+            testcase, args.output, testcase_intersection(testcase, args), args.flavour
+        ):
+            print(path)
+        print(
+            f"play it: esmini --window 60 60 800 400 --osc {args.output}/testcase.xosc; "
+            f"the verdict rules: {args.output}/verdict-rules.md",
+            file=sys.stderr,
+        )
+        return EXIT_OK
+    for path in export_bundle(testcase, args.output, testcase_intersection(testcase, args)):
+        print(path)
+    print(
+        f"run it: cd {args.output} && python run.py --controller sumo "
+        "(or plain sumo: sumo -c testcase.sumocfg; see its README.md)",
+        file=sys.stderr,
+    )
+    return EXIT_OK
+
+
+@command(
+    "plot",
+    "draw a test-case (and optionally an evaluation) to PNG or SVG, or animate it to GIF",
+    TESTCASE,
+    output("FILE", "a .png or .svg file", required=True),
+    arg("--controller", metavar="NAME", help="evaluate this controller and draw it"),
+    arg(
+        "--animate",
+        action="store_true",
+        help="write an animated GIF of the cars moving instead (FILE must end in .gif)",
+    ),
+    NETWORK_FILE,
+    description="Draws the intersection with every car's path, the certificates (green "
+    "solvability, red complexity) and a time-distance panel with the events. With "
+    "--controller, the ego's path from that evaluation and its verdict instead.",
+)
+def plot(args: argparse.Namespace) -> int:
+    suffixes = (".gif",) if args.animate else (".png", ".svg")
+    if args.output.suffix.lower() not in suffixes:
+        raise InvalidInput(
+            f"plot file must end in {' or '.join(suffixes)}, got {args.output.name!r}"
+        )
+    from service.pictures.plot import animate_testcase, plot_testcase  # matplotlib: on use
+
+    testcase = read_testcase(args.testcase)
+    junction = testcase_intersection(testcase, args)
+    if args.animate:
+        trajectory: list[PoseSample] = []
+        label = ""
+        if args.controller:
+            trajectory = evaluate_controller(testcase, args.controller, junction).trajectory
+            label = f"ego: {args.controller}"
+        frames: list[StepProgress] = []
+
+        def drawn(frame: int, total: int) -> None:  # matplotlib counts the frames it saves
+            if not frames:
+                frames.append(StepProgress(total, "frames", lines_every=10))
+            frames[0].step(f"frame {frame + 1} of {total}")
+
+        animate_testcase(testcase, junction, args.output, trajectory, label, progress=drawn)
+        for bar in frames:
+            bar.close()
+    elif args.controller:
+        evaluation = evaluate_controller(testcase, args.controller, junction)
+        plot_testcase(testcase, junction, args.output, evaluation.trajectory,
+                      f"ego: {args.controller}", evaluation.verdict)  # fmt: skip
+    else:
+        plot_testcase(testcase, junction, args.output)
+    print(args.output)
+    return EXIT_OK

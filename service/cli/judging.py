@@ -1,0 +1,194 @@
+"""Judging egos: ``check`` (a trajectory from a file) and ``evaluate`` (controllers driven
+through test-cases in SUMO)."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from service.cli.arguments import JUNIT, NETWORK_FILE, TESTCASE, testcase_intersection
+from service.cli.output import (
+    EXIT_BAD_INPUT,
+    EXIT_FAILED,
+    EXIT_FAILED_CHECK,
+    EXIT_OK,
+    StepProgress,
+    exit_code,
+    print_table,
+    print_verdict,
+    short,
+)
+from service.cli.table import arg, command
+from service.core.checker.check import check_testcase
+from service.core.checker.verdict import Verdict, junit_report
+from service.core.errors import InvalidInput, ScengenError
+from service.core.motion.trajectory import read_trajectory
+from service.core.sim.controllers import CertificateDriver, controller_names, resolve_driver
+from service.core.sim.replay import evaluate as evaluate_controller
+from service.core.testcase import read_testcase
+
+
+@command(
+    "check",
+    "judge an ego trajectory against a test-case (exit 0 pass, 1 fail)",
+    TESTCASE,
+    arg(
+        "--ego",
+        required=True,
+        type=Path,
+        metavar="TRAJECTORY",
+        help="the ego's trajectory: JSON samples or a SUMO FCD file (sumo --fcd-output)",
+    ),
+    arg("--vehicle", default="ego", metavar="ID", help="the ego's id in an FCD file (default ego)"),
+    arg("--controller", metavar="NAME", help="name of what drove the ego (default: file name)"),
+    JUNIT,
+    arg("--json", action="store_true", help="print the verdict as JSON"),
+    NETWORK_FILE,
+)
+def check(args: argparse.Namespace) -> int:
+    testcase = read_testcase(args.testcase)
+    ego = read_trajectory(args.ego, args.vehicle, testcase.ego.length)
+    verdict = check_testcase(
+        testcase, ego, args.controller or args.ego.stem, testcase_intersection(testcase, args)
+    )
+    if args.junit:
+        args.junit.write_text(verdict.to_junit())
+    if args.json:
+        sys.stdout.write(verdict.to_json())
+    else:
+        print_verdict(verdict)
+    return EXIT_OK if verdict.passed else EXIT_FAILED_CHECK
+
+
+@command(
+    "evaluate",
+    "replay test-cases in SUMO with ego controllers and judge them",
+    arg(
+        "testcases",
+        type=Path,
+        nargs="+",
+        metavar="TESTCASE",
+        help="test-case JSON files, or folders of them",
+    ),
+    arg(
+        "--controller",
+        action="append",
+        metavar="NAME",
+        help="who drives the ego (repeatable; default sumo)",
+    ),
+    JUNIT,
+    arg("--json", action="store_true", help="print the verdicts as JSON"),
+    arg(
+        "--budget",
+        type=float,
+        default=60.0,
+        metavar="SECONDS",
+        help="time budget of each replay (default 60 s)",
+    ),
+    NETWORK_FILE,
+    description="Replays each test-case in SUMO (non-egos exactly as recorded) with each "
+    "controller driving the ego, and judges the ego with the checker. Controllers: "
+    + ", ".join(controller_names())
+    + ", or a user controller as module:attribute.",
+)
+def evaluate(args: argparse.Namespace) -> int:
+    controllers = args.controller or ["sumo"]
+    drivers = [resolve_driver(name) for name in controllers]  # bad names fail before any replay
+    files = _testcase_files(args.testcases)
+    if len(files) == 1 and len(controllers) == 1:  # one verdict: errors are the command's
+        testcase = read_testcase(files[0])
+        junction = testcase_intersection(testcase, args, files[0])
+        verdict = evaluate_controller(testcase, controllers[0], junction,
+                                      args.budget).verdict  # fmt: skip
+        verdict = dataclasses.replace(verdict, testcase=files[0].stem)
+        return _report_evaluations(args, [verdict], [], [], [])
+    rows = [["test-case", *controllers]]
+    verdicts: list[Verdict] = []
+    skipped: list[tuple[str, str]] = []  # (test-case, controller): a certificate it lacks
+    problems: list[tuple[str, str, ScengenError]] = []  # (test-case, controller, why)
+    steps = StepProgress(len(files) * len(controllers), "evaluations")
+    for path in files:
+        try:
+            testcase = read_testcase(path)
+            junction = testcase_intersection(testcase, args, path)
+        except ScengenError as error:  # this file cannot be evaluated: its row says why
+            rows.append([path.stem, *(["ERROR (below)"] * len(controllers))])
+            problems.append((path.stem, "", error))
+            for name in controllers:
+                steps.step(f"{path.stem} / {name}: error")
+            continue
+        row = [path.stem]
+        for name, driver in zip(controllers, drivers, strict=True):
+            if isinstance(driver, CertificateDriver) and testcase.certificates is None:
+                row.append("(none)")
+                skipped.append((path.stem, name))
+                steps.step(f"{path.stem} / {name}: (none)")
+                continue
+            try:
+                verdict = evaluate_controller(testcase, name, junction, args.budget).verdict
+            except ScengenError as error:
+                row.append("ERROR (below)")
+                problems.append((path.stem, name, error))
+                steps.step(f"{path.stem} / {name}: error")
+                continue
+            verdict = dataclasses.replace(verdict, testcase=path.stem)
+            verdicts.append(verdict)
+            row.append("pass" if verdict.passed else "FAIL: " + short(verdict))
+            steps.step(f"{path.stem} / {name}: {'pass' if verdict.passed else 'FAIL'}")
+        rows.append(row)
+    steps.close()
+    return _report_evaluations(args, verdicts, skipped, problems, rows)
+
+
+def _testcase_files(paths: Sequence[Path]) -> list[Path]:
+    files: list[Path] = []
+    for path in paths:
+        if path.is_dir():
+            found = sorted(path.glob("*.json"))
+            if not found:
+                raise InvalidInput(f"folder {path} holds no test-case (*.json)")
+            files += found
+        elif path.exists():
+            files.append(path)
+        else:
+            raise InvalidInput(f"no such test-case file or folder: {path}")
+    return files
+
+
+def _report_evaluations(
+    args: argparse.Namespace,
+    verdicts: Sequence[Verdict],
+    skipped: Sequence[tuple[str, str]],
+    problems: Sequence[tuple[str, str, ScengenError]],
+    rows: Sequence[Sequence[str]],
+) -> int:
+    """Print the verdicts (one, a table, or JSON), write JUnit, and the overall exit code:
+    0 all passed (cells without a certificate to replay do not count), 1 some failed, and,
+    when some could not be evaluated at all, 2 if each of those was bad input, else 3."""
+    if args.junit:
+        errors = [(f"{t} / {c}" if c else t, str(e)) for t, c, e in problems]
+        skips = [f"{t} / {c}" for t, c in skipped]
+        args.junit.write_text(junit_report(verdicts, errors=errors, skipped=skips))
+    if args.json:
+        json.dump([v.to_dict() for v in verdicts], sys.stdout, indent=2)
+        print()
+    elif not rows:
+        print_verdict(verdicts[0])
+    else:
+        print_table(rows)
+    for testcase, controller, error in problems:  # after the table (stderr with --json)
+        where = f"{testcase} / {controller}" if controller else testcase
+        print(f"ERROR {where}: {error}", file=sys.stderr if args.json else sys.stdout)
+    if rows:
+        failed = sum(1 for v in verdicts if not v.passed)
+        print(f"{len(verdicts) - failed} passed, {failed} failed, {len(skipped)} without a "
+              f"certificate to replay, {len(problems)} could not be evaluated",
+              file=sys.stderr)  # fmt: skip
+    if problems:
+        codes = {exit_code(error) for _, _, error in problems}
+        return EXIT_BAD_INPUT if codes == {EXIT_BAD_INPUT} else EXIT_FAILED
+    return EXIT_OK if all(v.passed for v in verdicts) else EXIT_FAILED_CHECK

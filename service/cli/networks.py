@@ -1,0 +1,65 @@
+"""``scengen networks`` and ``scengen intersection``: what there is to test on."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from service.cli.arguments import NETWORK
+from service.cli.output import EXIT_OK, print_table
+from service.cli.table import arg, command
+from service.core.network import bundled_networks, load_intersection
+from service.core.network.describe import describe_intersection
+
+
+@command("networks", "list the bundled networks")
+def networks(args: argparse.Namespace) -> int:
+    for name, path in bundled_networks().items():
+        print(f"{name}\t{path}")
+    return EXIT_OK
+
+
+@command(
+    "intersection",
+    "describe a junction: forks, routes, conflicts, right-of relations",
+    NETWORK,
+    arg("--json", action="store_true", help="print one JSON object"),
+    arg("--plot", type=Path, metavar="FILE", help="also draw it to FILE (.png/.svg)"),
+)
+def intersection(args: argparse.Namespace) -> int:
+    junction = load_intersection(args.network, args.junction, args.control)
+    description = describe_intersection(junction)
+    if args.plot:
+        from service.pictures.plot import plot_intersection
+
+        plot_intersection(junction, args.plot)
+    if args.json:
+        print(json.dumps(description, indent=2))
+    else:
+        _print_intersection(description)
+    return EXIT_OK
+
+
+def _print_intersection(d: dict[str, Any]) -> None:
+    overridden = " (overridden)" if d["control_overridden"] else ""
+    print(f"junction {d['junction']}  control {d['control']}{overridden}  network {d['network']}")
+    print()
+    rows = [["fork", "heading", "stop", "to its right", "opposite"]]
+    for f in d["forks"]:
+        rows.append(
+            [
+                f["lane"],
+                f"{f['heading']:.1f}",
+                "yes" if f["stop_sign"] else "no",
+                " ".join(f["to_its_right"]) or "-",
+                " ".join(f["opposite"]) or "-",
+            ]
+        )
+    print_table(rows)
+    print()
+    rows = [["route", "turn", "conflicts"]]
+    for r in d["routes"]:
+        rows.append([r["id"], r["turn"], " ".join(r["conflicts"]) or "-"])
+    print_table(rows)

@@ -1,0 +1,273 @@
+"""Making test-cases: ``new`` (ego only), ``drive`` (Step 1 alone), ``extend`` (one more
+complex) and ``example`` (the paper's chains)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from service.cli.arguments import (
+    NETWORK,
+    NETWORK_FILE,
+    TESTCASE,
+    distance_or_auto,
+    output,
+    testcase_intersection,
+)
+from service.cli.examples import EXAMPLES, run_example, write_testcase
+from service.cli.output import EXIT_OK, StepProgress, emit, print_table, progress
+from service.cli.table import arg, command
+from service.core.generator.extension import StartDistances, extend_testcase
+from service.core.motion.events import compute_events
+from service.core.motion.poses import generate_poses
+from service.core.testcase import (
+    TestCase,
+    name_stem,
+    new_testcase,
+    read_testcase,
+    readable_name,
+    renamed,
+)
+
+
+@command(
+    "new",
+    "write an ego-only test-case",
+    NETWORK,
+    arg("--ego", required=True, metavar="FORK_LANE:EXIT_LANE", help="ego route"),
+    arg(
+        "--start-distance",
+        type=float,
+        default=30.0,
+        metavar="M",
+        help="ego front bumper before the stop line (default 30 m)",
+    ),
+    arg(
+        "--start-speed",
+        type=float,
+        default=8.0,
+        metavar="V",
+        help="ego speed at t = 0 (default 8 m/s)",
+    ),
+    arg("--duration", type=float, default=20.0, help="seconds (default 20)"),
+    arg("--timestep", type=float, default=0.1, help="seconds (default 0.1)"),
+    arg(
+        "--name",
+        default="",
+        help="a name for the test-case (default: network, junction, ego route and level, "
+        "as in '4way-stop C S2C_1:C2W_1 level 0')",
+    ),
+    output("FILE", "write here, not stdout"),
+)
+def new(args: argparse.Namespace) -> int:
+    testcase = new_testcase(
+        args.network,
+        args.ego,
+        args.junction,
+        args.control,
+        args.start_distance,
+        args.start_speed,
+        args.duration,
+        args.timestep,
+        name=args.name,
+    )
+    if not args.name:
+        testcase = renamed(testcase, readable_name(testcase))
+    return emit(testcase, args.output)
+
+
+@command(
+    "drive",
+    "Step 1: drive a car alone along a route in SUMO and list its events",
+    TESTCASE,
+    arg("--route", metavar="FORK_LANE:EXIT_LANE", help="route to drive (default: the ego's)"),
+    arg(
+        "--start-distance",
+        type=float,
+        metavar="M",
+        help="front bumper before the stop line (default: the ego's start)",
+    ),
+    arg("--speed", type=float, default=8.0, help="cruise speed (default 8 m/s)"),
+    arg("--json", action="store_true", help="print samples and events as JSON"),
+    arg("--plot", type=Path, metavar="FILE", help="draw the drive to FILE"),
+    NETWORK_FILE,
+)
+def drive(args: argparse.Namespace) -> int:
+    testcase = read_testcase(args.testcase)
+    intersection = testcase_intersection(testcase, args)
+    route = intersection.route(args.route or testcase.ego.route.id)
+    start = testcase.ego.start.distance if args.start_distance is None else args.start_distance
+    track = generate_poses(
+        intersection,
+        [(route, start)],
+        args.speed,
+        testcase.duration,
+        testcase.timestep,
+        testcase.ego.length,
+        testcase.ego.width,
+    )[0]
+    events = compute_events(
+        track.samples,
+        track.length,
+        track.width,
+        intersection,
+        route.fork,
+        testcase.params.arrival_distance,
+        testcase.params.v_stop,
+    )
+    if args.plot:
+        from service.pictures.plot import plot_intersection
+
+        plot_intersection(intersection, args.plot, [route.id], track.samples)
+    if args.json:
+        print(
+            json.dumps(
+                {
+                    "route": route.id,
+                    "samples": [vars(s) for s in track.samples],
+                    "events": [
+                        {"kind": e.kind.value, "lane": e.lane, "t": e.time, "distance": e.distance}
+                        for e in events
+                    ],
+                },
+                indent=2,
+            )
+        )
+        return EXIT_OK
+    print(
+        f"route {route.id} ({route.turn.value}), {len(track.samples)} samples, "
+        f"{track.samples[-1].distance:.1f} m in {track.samples[-1].t:.1f} s"
+    )
+    rows = [["t (s)", "distance (m)", "event", "lane"]]
+    for e in events:
+        rows.append([f"{e.time:.3f}", f"{e.distance:.3f}", e.kind.value, e.lane])
+    print_table(rows)
+    return EXIT_OK
+
+
+@command(
+    "extend",
+    "add new non-egos so that the test-case becomes strictly more complex",
+    arg("testcase", type=Path, metavar="OLD", help="the test-case to extend"),
+    arg(
+        "--add",
+        action="append",
+        required=True,
+        metavar="FORK_LANE:EXIT_LANE",
+        help="route of a new non-ego (repeat to add several in one extension)",
+    ),
+    arg("--seed", type=int, default=0, help="seed of the search (default 0)"),
+    arg(
+        "--budget",
+        type=float,
+        default=60.0,
+        metavar="SECONDS",
+        help="total time for the extension (default 60 s)",
+    ),
+    arg(
+        "--start-distance",
+        action="append",
+        type=distance_or_auto,
+        metavar="M",
+        help="a new car's front before its stop line at t = 0 (m), or 'auto'; once for every "
+        "new car, or once per --add in the same order (default auto: behind the last car on "
+        "its fork, ahead of the ego on the ego's fork, where the ego starts on a free fork)",
+    ),
+    arg(
+        "--name",
+        help="the new test-case's name (default: the old one's with the new level, "
+        "'... level 1' after '... level 0')",
+    ),
+    output("FILE", "write here"),
+    NETWORK_FILE,
+)
+def extend(args: argparse.Namespace) -> int:
+    start_distance = start_distances(args)
+    old = read_testcase(args.testcase)
+    if args.name is not None:
+        renamed(old, args.name)  # a name that cannot be stored fails before the search
+    started = time.monotonic()
+    extension = extend_testcase(
+        old,
+        args.add,
+        args.seed,
+        args.budget,
+        start_distance,
+        progress(started),
+        testcase_intersection(old, args),
+    )
+    name = args.name or readable_name(extension.testcase, name_stem(old.name))
+    extended = renamed(extension.testcase, name)
+    provenance = extended.provenance or {}
+    print(
+        f"extended in {time.monotonic() - started:.1f} s after {len(extension.attempts)} "
+        f"answer sets: added {', '.join(provenance.get('new_nonegos', []))}; the complexity "
+        f"certificate {_what_certificate_breaks(provenance)}",
+        file=sys.stderr,
+    )
+    return emit(extended, args.output)
+
+
+def start_distances(args: argparse.Namespace) -> StartDistances:
+    """--start-distance as extend_testcase takes it: none given, automatic for all; one, for
+    every new car; one per --add, for each car in turn. Other counts are a usage error."""
+    given: list[float | None] = args.start_distance or []
+    if len(given) <= 1:
+        return given[0] if given else None
+    if len(given) != len(args.add):
+        args.usage.error(
+            "give --start-distance once (for every new car) or once per --add: "
+            f"{len(args.add)} --add, {len(given)} --start-distance"
+        )
+    return given
+
+
+def _what_certificate_breaks(provenance: dict[str, Any]) -> str:
+    """How the complexity certificate fails the new test-case: a right-of-way it violates,
+    or, for a new car ahead of the ego, the car it drives into."""
+    violated = ", ".join(
+        f"{v['car']} ({v['rule']})" for v in provenance.get("complexity_certificate_violates", [])
+    )
+    rear_end = ", ".join(provenance.get("complexity_certificate", {}).get("rear_end", []))
+    broken = [f"violates the right-of-way of {violated}"] if violated else []
+    broken += [f"drives into {rear_end} (rear-end)"] if rear_end else []
+    return " and ".join(broken) or "fails the new test-case"
+
+
+@command(
+    "example",
+    "run one of the paper's experiments: a chain of extensions",
+    arg(
+        "name",
+        choices=sorted(EXAMPLES),
+        metavar="NAME",
+        help=f"one of {', '.join(sorted(EXAMPLES))}",
+    ),
+    output("DIR", "folder for the test-cases (default examples-out)", default=Path("examples-out")),
+    arg("--seed", type=int, default=0),
+    arg(
+        "--budget",
+        type=float,
+        default=120.0,
+        metavar="SECONDS",
+        help="budget of each extension (default 120 s)",
+    ),
+)
+def example(args: argparse.Namespace) -> int:
+    chosen = EXAMPLES[args.name]
+    print(f"{chosen.name}: {chosen.about}", file=sys.stderr)
+    levels = StepProgress(len(chosen.steps) + 1, "level")
+
+    def keep(testcase: TestCase) -> None:  # each level is written as soon as it is verified
+        print(write_testcase(testcase, args.output), flush=True)
+        levels.step(f"{testcase.name} written")
+
+    try:
+        run_example(chosen, args.seed, args.budget, levels.note, keep)
+    finally:
+        levels.close()
+    return EXIT_OK
