@@ -12,7 +12,8 @@ the theories agree on satisfiability; how many answer sets they share, and wheth
 other theory accepts each one (solved under assumptions on a fresh search); whether every
 run gives the same answer sets and times (determinism); whether each assignment keeps
 every constraint of the problem (decided exactly, in rationals); and the float check of
-tests/core/test_ordering.py (every relation with its margin, times in [0, duration - margin]).
+tests/core/generator/test_ordering.py (every relation with its margin, times in
+[0, duration - margin]).
 
 Variants: dl (asp/time_dl.lp), lpx (bench/time_lpx.lp: the same constraints), and
 lpx-strict (clingo-lpx's strict mode: equal(S, T) as |s - t| < m - margin over the
@@ -302,8 +303,8 @@ def broken_constraints(
 
 
 def float_check(ordering: Ordering, problem: Problem) -> list[str]:
-    """The check of tests/core/test_ordering.py's last test on Ordering.times (seconds,
-    floats): every relation with its margin, every time in [0, duration - margin]."""
+    """The check of tests/core/generator/test_ordering.py's last test on Ordering.times
+    (seconds, floats): every relation with its margin, every time in [0, duration - margin]."""
     times = dict(ordering.times)
     m, margin = problem.m, problem.limits.margin
     found = []

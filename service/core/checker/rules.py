@@ -1,7 +1,8 @@
 """Traffic rules: the clingo rule set of a control type and typed builders of its facts.
 
 Facts are built through the helpers below, never as free text, so a renamed predicate
-breaks a test (tests/core/test_rules.py checks every input predicate against the files).
+breaks a test (tests/core/checker/test_rules.py checks every input predicate against the
+files).
 Every identifier from a network or a test-case (car ids, lane ids) is an ASP string, so ids
 such as ``-35_0`` or ``:C_11_0`` need no escaping. Time symbols are ``t(Car, K)``.
 """
