@@ -1,16 +1,38 @@
 """Schemathesis hooks of the fuzz test: after every request the server must still answer
 ``/healthz`` (a request that wedges the event loop, kills the database or the worker pool
-fails here, not only its own check)."""
+fails here, not only its own check).
+
+Also a mend of the fuzzer's own process: on CPython 3.11, two threads in ``ast.parse`` at
+once can corrupt the interpreter's AST recursion counter (a garbage collection inside one
+parse runs Python code, the other thread parses meanwhile) and raise ``SystemError: AST
+constructor recursion depth mismatch`` (python/cpython#106905). Hypothesis parses lambdas'
+sources to describe filtered strategies, and schemathesis runs two workers, so the
+fuzzer's coverage phase failed now and then on a loaded machine, before any request was
+judged. Parsing one at a time removes the race; the server is not touched.
+"""
 
 from __future__ import annotations
 
+import ast
 import os
+import threading
 from typing import Any
 
 import httpx2 as httpx
 import schemathesis
 
 HEALTH_TIMEOUT = 30.0  # seconds: generous on a loaded machine; a wedged loop takes longer
+
+_PARSING = threading.RLock()
+_parse = ast.parse
+
+
+def _parse_alone(*args: Any, **options: Any) -> Any:
+    with _PARSING:
+        return _parse(*args, **options)
+
+
+ast.parse = _parse_alone
 
 
 @schemathesis.check
