@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 Handler = Callable[[argparse.Namespace], int]  # a command's work: its exit code
@@ -24,7 +24,7 @@ class Argument:
     """One argument, as ``argparse``'s ``add_argument`` takes it."""
 
     flags: tuple[str, ...]
-    options: Mapping[str, Any] = field(default_factory=dict)
+    options: Mapping[str, Any]
 
     def add_to(self, parser: _Target) -> None:
         parser.add_argument(*self.flags, **self.options)
