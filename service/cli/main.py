@@ -13,8 +13,8 @@ import sys
 from collections.abc import Sequence
 
 from service.cli import campaigns, exports, judging, networks, servers, testcases
-from service.cli.output import EXIT_BAD_INPUT, EXIT_OK, exit_code
-from service.cli.table import Command, build_parser
+from service.cli.output import EXIT_BAD_INPUT, EXIT_OK, check_writable, exit_code
+from service.cli.table import Command, Parser, build_parser
 from service.core.errors import ScengenError
 
 COMMANDS: tuple[Command, ...] = (
@@ -37,16 +37,37 @@ COMMANDS: tuple[Command, ...] = (
 
 
 def parser() -> argparse.ArgumentParser:
-    return build_parser(
+    table = build_parser(
         COMMANDS,
         prog="scengen",
         description="Intersection test-cases of increasing complexity for autonomous vehicles.",
     )
+    table.add_argument("--version", action="version", version=f"%(prog)s {version()}")
+    return table
+
+
+def version() -> str:
+    """The installed package's version (and SUMO's, whose drivers and netconvert matter)."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as installed
+
+    try:
+        ours = installed("scengen")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        ours = "(not installed)"
+    try:
+        return f"{ours} (SUMO {installed('eclipse-sumo')})"
+    except PackageNotFoundError:
+        return ours
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    Parser.given = list(sys.argv[1:] if argv is None else argv)
     args = parser().parse_args(argv)
     try:
+        for destination, what in args.writes:  # before any work: nothing computed in vain
+            if getattr(args, destination) is not None:
+                check_writable(getattr(args, destination), what)
         code: int = args.run(args)
         return code
     except BrokenPipeError:  # the reader (head, less) went away: not an error

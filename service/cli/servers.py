@@ -4,7 +4,9 @@ batch sent to a server, for CI)."""
 from __future__ import annotations
 
 import argparse
+import errno
 import os
+import socket
 import sys
 from pathlib import Path
 from typing import Any
@@ -20,7 +22,7 @@ from service.core.errors import InvalidInput, ScengenError
     "run the HTTP API (OpenAPI UI at /docs); settings from SCENGEN_* variables",
     arg("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1)"),
     arg("--port", type=int, default=8000, help="port (default 8000)"),
-    arg("--data-dir", type=Path, metavar="DIR", help="sets SCENGEN_DATA_DIR"),
+    arg("--data-dir", type=Path, metavar="DIR", writes="folder", help="sets SCENGEN_DATA_DIR"),
     arg("--workers", type=int, metavar="N", help="sets SCENGEN_WORKERS"),
     description="Runs the HTTP API with uvicorn. With no settings it keeps its state in "
     "./scengen-data (SQLite) and runs work in local worker processes; see the README for "
@@ -44,13 +46,37 @@ def serve(args: argparse.Namespace) -> int:
         raise InvalidInput(
             f"settings: {error.errors()[0]['loc']}: {error.errors()[0]['msg']}"
         ) from None
+    listening = listen(args.host, args.port)  # a port in use is refused before anything starts
+    config = uvicorn.Config(create_app(settings), log_level="info")
+    base = f"http://{args.host}:{args.port}"
     print(
-        f"scengen: serving on http://{args.host}:{args.port} (UI at /docs), data in "
-        f"{settings.data_dir.resolve()}, {settings.workers} worker(s)",
+        f"scengen: serving on {base} (API docs at {base}/docs, results browser at {base}/ui/), "
+        f"data in {settings.data_dir.resolve()}, {settings.workers} worker(s)",
         file=sys.stderr,
     )
-    uvicorn.run(create_app(settings), host=args.host, port=args.port, log_level="info")
+    uvicorn.Server(config).run(sockets=[listening])
     return EXIT_OK
+
+
+def listen(host: str, port: int) -> socket.socket:
+    """A socket bound to ``host``:``port`` for the server; InvalidInput when the address
+    is taken or is not this machine's."""
+    try:
+        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+    except socket.gaierror as error:
+        raise InvalidInput(f"cannot serve on {host}: {error.strerror}") from None
+    listening = socket.socket(family, kind, proto)
+    listening.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn does
+    try:
+        listening.bind(address)
+    except OSError as error:
+        listening.close()
+        hint = " (another program listens there: choose another --port)"
+        raise InvalidInput(
+            f"cannot serve on {host}:{port}: {error.strerror}"
+            + (hint if error.errno == errno.EADDRINUSE else "")
+        ) from None
+    return listening
 
 
 @command(
@@ -92,8 +118,20 @@ def worker(args: argparse.Namespace) -> int:
     arg("--server", required=True, metavar="URL", help="e.g. http://127.0.0.1:8000"),
     TOKEN,
     arg("--wait", action="store_true", help="follow the job until it finishes"),
-    arg("--junit", type=Path, metavar="FILE", help="write the JUnit report (waits)"),
-    arg("--out", type=Path, metavar="DIR", help="download every result into DIR (waits)"),
+    arg(
+        "--junit",
+        type=Path,
+        metavar="FILE",
+        writes="file",
+        help="write the JUnit report (waits)",
+    ),
+    arg(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        writes="folder",
+        help="download every result into DIR (waits)",
+    ),
     arg("--idempotency-key", metavar="KEY", help="resubmitting with the same key is safe"),
     description="Exit codes: 0 every evaluation passed, 1 some evaluation failed, 2 bad "
     "input, 3 the job failed or was cancelled (or the server could not be reached).",

@@ -66,8 +66,20 @@ def read_batch(path: Path) -> Batch:
         else:
             raise InvalidInput(f"{path}: a batch file ends in .json, .yaml or .yml")
     except (json.JSONDecodeError, yaml.YAMLError) as error:
-        raise InvalidInput(f"{path} is not valid {path.suffix[1:].upper()}: {error}") from None
+        kind = path.suffix[1:].upper()
+        raise InvalidInput(f"{path} is not valid {kind}: {_one_line(error)}") from None
     return parse_batch(document)
+
+
+def _one_line(error: json.JSONDecodeError | yaml.YAMLError) -> str:
+    """A parser's error as one line: what is wrong, and where (line and column from 1)."""
+    if isinstance(error, json.JSONDecodeError):
+        return f"{error.msg} at line {error.lineno} column {error.colno}"
+    if isinstance(error, yaml.MarkedYAMLError) and error.problem_mark is not None:
+        mark = error.problem_mark
+        what = ": ".join(part for part in (error.context, error.problem) if part)
+        return f"{what} at line {mark.line + 1} column {mark.column + 1}"
+    return " ".join(str(error).split())
 
 
 @dataclass

@@ -8,9 +8,10 @@ several commands share are tuples of ``Argument`` defined once (service.cli.argu
 from __future__ import annotations
 
 import argparse
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any, Literal, NoReturn, Protocol
 
 Handler = Callable[[argparse.Namespace], int]  # a command's work: its exit code
 
@@ -19,19 +20,26 @@ class _Target(Protocol):
     def add_argument(self, *flags: str, **options: Any) -> Any: ...
 
 
+Writes = Literal["file", "folder"]  # what an argument names that the command writes
+
+
 @dataclass(frozen=True)
 class Argument:
-    """One argument, as ``argparse``'s ``add_argument`` takes it."""
+    """One argument, as ``argparse``'s ``add_argument`` takes it; ``writes`` marks a path
+    the command writes (a file or a folder), checked before the command's work starts."""
 
     flags: tuple[str, ...]
     options: Mapping[str, Any]
+    writes: Writes | None = None
 
-    def add_to(self, parser: _Target) -> None:
-        parser.add_argument(*self.flags, **self.options)
+    def add_to(self, parser: _Target) -> list[tuple[str, Writes]]:
+        """Add it; the written paths it declares, as (destination, what) pairs."""
+        action = parser.add_argument(*self.flags, **self.options)
+        return [(action.dest, self.writes)] if self.writes else []
 
 
-def arg(*flags: str, **options: Any) -> Argument:
-    return Argument(flags, options)
+def arg(*flags: str, writes: Writes | None = None, **options: Any) -> Argument:
+    return Argument(flags, options, writes)
 
 
 @dataclass(frozen=True)
@@ -41,10 +49,9 @@ class OneOf:
     arguments: tuple[Argument, ...]
     required: bool = False
 
-    def add_to(self, parser: argparse.ArgumentParser) -> None:
+    def add_to(self, parser: argparse.ArgumentParser) -> list[tuple[str, Writes]]:
         group = parser.add_mutually_exclusive_group(required=self.required)
-        for argument in self.arguments:
-            argument.add_to(group)
+        return [written for argument in self.arguments for written in argument.add_to(group)]
 
 
 @dataclass(frozen=True)
@@ -78,13 +85,34 @@ def command(
 
 def build_parser(commands: Sequence[Command], **options: Any) -> argparse.ArgumentParser:
     """The parser of a table of commands, in the table's order (the order of ``--help``);
-    each parsed namespace carries its handler (``run``) and its command's parser
-    (``usage``, for usage errors found after parsing)."""
-    parser = argparse.ArgumentParser(**options)
+    each parsed namespace carries its handler (``run``), its command's parser (``usage``,
+    for usage errors found after parsing) and the paths it writes (``writes``: destination
+    and file or folder)."""
+    parser = Parser(**options)
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for entry in commands:
         sub = subparsers.add_parser(entry.name, help=entry.help, description=entry.description)
-        for argument in entry.arguments:
-            argument.add_to(sub)
-        sub.set_defaults(run=entry.run, usage=sub)
+        writes = [written for argument in entry.arguments for written in argument.add_to(sub)]
+        sub.set_defaults(run=entry.run, usage=sub, writes=tuple(writes))
     return parser
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse's parser, with a hint where its error does not say how to go on."""
+
+    given: Sequence[str] = ()  # the words being parsed: main() sets them for every parser
+
+    def error(self, message: str) -> NoReturn:
+        if "expected one argument" in message:
+            message += _dash_hint(message, Parser.given)
+        super().error(message)
+
+
+def _dash_hint(message: str, given: Sequence[str]) -> str:
+    """For an option whose value starts with '-' (a lane id such as -44_1:-9_1), which
+    argparse takes for an option: how to write it."""
+    flags = re.findall(r"(--?[A-Za-z][\w-]*)", message.split(":", 1)[0])
+    for index, word in enumerate(given[:-1]):
+        if word in flags and given[index + 1].startswith("-"):
+            return f"; a value that starts with '-' goes after '=': {word}={given[index + 1]}"
+    return ""
