@@ -28,6 +28,7 @@ from service.core.testcase import (
     check_samples,
     dump_testcase,
     parse_testcase,
+    without_network_path,
 )
 
 T = TypeVar("T")
@@ -339,8 +340,10 @@ class Store:
     # test-cases
 
     def add_testcase(self, testcase: TestCase, parent: str | None = None) -> TestCaseRecord:
-        """Store a test-case under its content address (idempotent)."""
-        document = dump_testcase(testcase)
+        """Store a test-case under its content address (idempotent). A network's ``path``
+        is where a file on a client's disk found its network: no place on the server, so it
+        is not kept, and the same test-case has the same id wherever it was written."""
+        document = dump_testcase(without_network_path(testcase))
         ident = testcase_id(document)
         existing = self.testcase(ident)
         if existing is not None:

@@ -9,14 +9,20 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from pathlib import Path
 from typing import Any
 
-from service.cli.table import Argument, arg
+from service.cli.table import Argument, Writes, arg
 from service.core.errors import UnknownNetwork
 from service.core.network import ControlType, Intersection, bundled_networks, load_intersection
-from service.core.testcase import TestCase, find_network_file
+from service.core.testcase import (
+    TestCase,
+    find_network_file,
+    implausible_trajectories,
+    read_testcase,
+)
 
 CONTROLS = [c.value for c in ControlType]
 
@@ -44,38 +50,64 @@ NETWORK_FILE = arg(
     "--network",
     type=Path,
     metavar="FILE",
-    help="the .net.xml of a test-case made on a network uploaded to a server (its "
-    "network.ref is the server's id; GET /networks/{id}/file downloads it)",
+    help="the test-case's network file, when the test-case cannot find it itself (see the "
+    "README: where a test-case's network is found; a test-case from a server names the "
+    "server's network id: GET /networks/{id}/file)",
 )
 TESTCASE = arg("testcase", type=Path, metavar="TESTCASE", help="a test-case JSON file")
-JUNIT = arg("--junit", type=Path, metavar="FILE", help="also write JUnit XML here")
+JUNIT = arg("--junit", type=Path, metavar="FILE", writes="file", help="also write JUnit XML here")
 TOKEN = arg("--token", metavar="T", help="the server's API token (or SCENGEN_TOKEN)")
 
 
 def output(metavar: str, help: str | None = None, **options: Any) -> Argument:
-    """``-o/--output``: the file or folder a command writes."""
-    return arg("-o", "--output", type=Path, metavar=metavar, help=help, **options)
+    """``-o/--output``: the file (or, with ``DIR``, the folder) a command writes."""
+    writes: Writes = "folder" if metavar == "DIR" else "file"
+    return arg("-o", "--output", type=Path, metavar=metavar, help=help, writes=writes, **options)
+
+
+def read_input(path: Path) -> TestCase:
+    """A test-case file a command works on; a warning on stderr for each stored trajectory
+    that no car can drive (the command goes on: the document is valid)."""
+    testcase = read_testcase(path)
+    for problem in implausible_trajectories(testcase):
+        print(f"scengen: warning: {path}: {problem}", file=sys.stderr)
+    return testcase
+
+
+def network_search_path() -> list[Path]:
+    """The folders of ``SCENGEN_NETWORK_PATH`` (separated by ``os.pathsep``), in order."""
+    value = os.environ.get("SCENGEN_NETWORK_PATH", "")
+    return [Path(part) for part in value.split(os.pathsep) if part]
+
+
+def locate_network(
+    testcase: TestCase, args: argparse.Namespace, read_from: Path | None = None
+) -> Path:
+    """The file of the test-case's network (``find_network_file``), looked for from the
+    folder of the file it was read from (``read_from``, default the command's TESTCASE),
+    with --network and SCENGEN_NETWORK_PATH. Says on stderr which file it used when it is
+    not the bundled network."""
+    source = read_from or getattr(args, "testcase", None)
+    near = source.parent if isinstance(source, Path) else None
+    try:
+        path, how = find_network_file(testcase, args.network, near, network_search_path())
+    except UnknownNetwork as error:
+        if args.network is not None or testcase.network.ref.endswith((".net.xml", ".xodr", ".osm")):
+            raise
+        raise UnknownNetwork(
+            f"{error}; a test-case from a server names the server's network id: its file is "
+            "at GET /networks/{id}/file"
+        ) from None
+    if how != "bundled":
+        print(f"network {testcase.network.ref}: {path} ({how})", file=sys.stderr)
+    return path
 
 
 def testcase_intersection(
     testcase: TestCase, args: argparse.Namespace, read_from: Path | None = None
 ) -> Intersection:
-    """The test-case's intersection; its network found next to the file it was read from
-    (``read_from``, default the command's TESTCASE), with --network, or among the bundled
-    ones. Says on stderr which file it used when it is not a bundled network."""
-    source = read_from or getattr(args, "testcase", None)
-    near = source.parent if isinstance(source, Path) else None
-    try:
-        path, how = find_network_file(testcase, args.network, near)
-    except UnknownNetwork as error:
-        if args.network is not None or testcase.network.ref.endswith((".net.xml", ".xodr", ".osm")):
-            raise
-        raise UnknownNetwork(
-            f"{error}; a test-case from a server names the server's network id: pass the "
-            "network's file with --network FILE (GET /networks/{id}/file)"
-        ) from None
-    if how != "bundled":
-        print(f"network {testcase.network.ref}: {path} ({how})", file=sys.stderr)
+    """The test-case's intersection, its network found by ``locate_network``."""
+    path = locate_network(testcase, args, read_from)
     return load_intersection(path, testcase.junction, testcase.control)  # hash checked above
 
 

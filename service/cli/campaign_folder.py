@@ -23,12 +23,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from service.cli.output import make_folder
 from service.core import errors
 from service.core.campaign import campaign_junit
 from service.core.errors import InvalidInput, ScengenError
+from service.core.files import write_atomically
 from service.core.network import bundled_networks, resolve_network
 from service.core.network.convert import source_format
-from service.core.testcase import local_network_name
+from service.core.testcase import dump_testcase, local_network_name, with_network_path
 from service.jobs import tasks
 from service.jobs.batch import parse_batch
 from service.jobs.campaign_steps import outcome_of
@@ -67,7 +69,7 @@ def run_folder_campaign(
 ) -> dict[str, Any]:
     """Run (or resume) the campaign ``spec`` (a campaign item with ``network`` a bundled name
     or a file) in ``folder`` and write its results there; its outcome."""
-    folder.mkdir(parents=True, exist_ok=True)
+    make_folder(folder)
     lock = (folder / LOCK_FILE).open("w")
     try:
         fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -164,24 +166,31 @@ def folder_report(folder: Path) -> str:
 def write_results(store: Store, settings: Settings, job: str, folder: Path) -> dict[str, Any]:
     """campaign.json, junit.xml, report.html and testcases/ of the campaign ``job``."""
     outcome, report = report_of(store, settings, job)
-    (folder / "campaign.json").write_text(json.dumps(outcome, indent=1) + "\n")
-    (folder / "junit.xml").write_text(campaign_junit(outcome))
-    (folder / "report.html").write_text(report)
+    write_atomically(folder / "campaign.json", json.dumps(outcome, indent=1) + "\n")
+    write_atomically(folder / "junit.xml", campaign_junit(outcome))
+    write_atomically(folder / "report.html", report)
     cases = folder / "testcases"
     cases.mkdir(exist_ok=True)
     network = outcome["plan"]["network"]
+    local = None  # the network's file beside the test-cases, which they name as their path
     if network not in bundled_networks():
-        target = cases / local_network_name(network)
-        if not target.exists():
-            target.write_bytes(store.network_file(network).read_bytes())
+        local = cases / local_network_name(network)
+        if not local.exists():
+            write_atomically(local, store.network_file(network).read_bytes())
     for chain in outcome["chains"]:
-        ego = chain["ego"].replace(":", "-")
         for level in chain["levels"]:
             record = store.testcase(level["testcase"])
             assert record is not None
-            name = f"{ego}.chain{chain['chain'] + 1}.level{level['level']}.json"
-            (cases / name).write_text(record.document)
+            name = testcase_file_name(chain["ego"], chain["chain"] + 1, level["level"])
+            placed = with_network_path(record.testcase, local, cases)
+            write_atomically(cases / name, dump_testcase(placed))
     return outcome
+
+
+def testcase_file_name(ego: str, chain: int, level: int) -> str:
+    """``EGO.chainC.levelL.json``, the ego's route with ``-`` for ``:`` (a file name
+    without a colon works on every file system): ``S2C_0-C2N_0.chain1.level2.json``."""
+    return f"{ego.replace(':', '-')}.chain{chain}.level{level}.json"
 
 
 def elapsed_printer(started: float) -> Callable[[str], None]:

@@ -11,7 +11,7 @@ from pathlib import Path
 from urllib.parse import quote
 
 from service.cli.arguments import NETWORK, TOKEN, output
-from service.cli.output import EXIT_FAILED_CHECK, EXIT_OK, print_table
+from service.cli.output import EXIT_FAILED_CHECK, EXIT_OK, print_table, write_output
 from service.cli.table import OneOf, arg, command
 from service.core.sim.controllers import controller_names, resolve_driver
 
@@ -140,6 +140,6 @@ def report(args: argparse.Namespace) -> int:
         client = submit.Client(args.server, args.token or os.environ.get("SCENGEN_TOKEN"))
         path = f"/jobs/{quote(args.source, safe='')}/campaign/report"
         page = client.call("GET", path)[2].decode()
-    args.output.write_text(page)
+    write_output(args.output, page)
     print(f"written: {args.output}", file=sys.stderr)
     return EXIT_OK

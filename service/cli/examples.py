@@ -10,6 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from service.cli.output import write_output
 from service.core.errors import ScengenError
 from service.core.generator.extension import extend_testcase
 from service.core.testcase import TestCase, dump_testcase, new_testcase
@@ -91,7 +92,6 @@ def run_example(
 
 def write_testcase(testcase: TestCase, folder: Path) -> Path:
     """``folder/NAME.json``, the folder made when missing."""
-    folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{testcase.name}.json"
-    path.write_text(dump_testcase(testcase))
+    write_output(path, dump_testcase(testcase))
     return path

@@ -6,15 +6,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from service.cli.arguments import NETWORK_FILE, TESTCASE, output, testcase_intersection
-from service.cli.output import EXIT_OK, StepProgress
+from service.cli.arguments import NETWORK_FILE, TESTCASE, output, read_input, testcase_intersection
+from service.cli.output import EXIT_OK, StepProgress, make_folder, output_file
 from service.cli.table import arg, command
 from service.core.errors import InvalidInput
 from service.core.export import FLAVOURS
 from service.core.export.bundle import export_bundle
 from service.core.motion.poses import PoseSample
 from service.core.sim.replay import evaluate as evaluate_controller
-from service.core.testcase import read_testcase
 
 
 @command(
@@ -41,7 +40,8 @@ from service.core.testcase import read_testcase
     "CARLA's ScenarioRunner.",
 )
 def export(args: argparse.Namespace) -> int:
-    testcase = read_testcase(args.testcase)
+    testcase = read_input(args.testcase)
+    make_folder(args.output)
     if args.format == "openscenario":
         from service.core.export.openscenario import export_openscenario  # scenariogeneration
 
@@ -89,7 +89,7 @@ def plot(args: argparse.Namespace) -> int:
         )
     from service.pictures.plot import animate_testcase, plot_testcase  # matplotlib: on use
 
-    testcase = read_testcase(args.testcase)
+    testcase = read_input(args.testcase)
     junction = testcase_intersection(testcase, args)
     if args.animate:
         trajectory: list[PoseSample] = []
@@ -104,14 +104,17 @@ def plot(args: argparse.Namespace) -> int:
                 frames.append(StepProgress(total, "frames", lines_every=10))
             frames[0].step(f"frame {frame + 1} of {total}")
 
-        animate_testcase(testcase, junction, args.output, trajectory, label, progress=drawn)
+        with output_file(args.output) as picture:
+            animate_testcase(testcase, junction, picture, trajectory, label, progress=drawn)
         for bar in frames:
             bar.close()
     elif args.controller:
         evaluation = evaluate_controller(testcase, args.controller, junction)
-        plot_testcase(testcase, junction, args.output, evaluation.trajectory,
-                      f"ego: {args.controller}", evaluation.verdict)  # fmt: skip
+        with output_file(args.output) as picture:
+            plot_testcase(testcase, junction, picture, evaluation.trajectory,
+                          f"ego: {args.controller}", evaluation.verdict)  # fmt: skip
     else:
-        plot_testcase(testcase, junction, args.output)
+        with output_file(args.output) as picture:
+            plot_testcase(testcase, junction, picture)
     print(args.output)
     return EXIT_OK

@@ -10,7 +10,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from service.cli.arguments import JUNIT, NETWORK_FILE, TESTCASE, testcase_intersection
+from service.cli.arguments import JUNIT, NETWORK_FILE, TESTCASE, read_input, testcase_intersection
 from service.cli.output import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
@@ -21,6 +21,7 @@ from service.cli.output import (
     print_table,
     print_verdict,
     short,
+    write_output,
 )
 from service.cli.table import arg, command
 from service.core.checker.check import check_testcase
@@ -29,7 +30,6 @@ from service.core.errors import InvalidInput, ScengenError
 from service.core.motion.trajectory import read_trajectory
 from service.core.sim.controllers import CertificateDriver, controller_names, resolve_driver
 from service.core.sim.replay import evaluate as evaluate_controller
-from service.core.testcase import read_testcase
 
 
 @command(
@@ -50,13 +50,13 @@ from service.core.testcase import read_testcase
     NETWORK_FILE,
 )
 def check(args: argparse.Namespace) -> int:
-    testcase = read_testcase(args.testcase)
+    testcase = read_input(args.testcase)
     ego = read_trajectory(args.ego, args.vehicle, testcase.ego.length)
     verdict = check_testcase(
         testcase, ego, args.controller or args.ego.stem, testcase_intersection(testcase, args)
     )
     if args.junit:
-        args.junit.write_text(verdict.to_junit())
+        write_output(args.junit, verdict.to_junit())
     if args.json:
         sys.stdout.write(verdict.to_json())
     else:
@@ -100,7 +100,7 @@ def evaluate(args: argparse.Namespace) -> int:
     drivers = [resolve_driver(name) for name in controllers]  # bad names fail before any replay
     files = _testcase_files(args.testcases)
     if len(files) == 1 and len(controllers) == 1:  # one verdict: errors are the command's
-        testcase = read_testcase(files[0])
+        testcase = read_input(files[0])
         junction = testcase_intersection(testcase, args, files[0])
         verdict = evaluate_controller(testcase, controllers[0], junction,
                                       args.budget).verdict  # fmt: skip
@@ -113,7 +113,7 @@ def evaluate(args: argparse.Namespace) -> int:
     steps = StepProgress(len(files) * len(controllers), "evaluations")
     for path in files:
         try:
-            testcase = read_testcase(path)
+            testcase = read_input(path)
             junction = testcase_intersection(testcase, args, path)
         except ScengenError as error:  # this file cannot be evaluated: its row says why
             rows.append([path.stem, *(["ERROR (below)"] * len(controllers))])
@@ -172,7 +172,7 @@ def _report_evaluations(
     if args.junit:
         errors = [(f"{t} / {c}" if c else t, str(e)) for t, c, e in problems]
         skips = [f"{t} / {c}" for t, c in skipped]
-        args.junit.write_text(junit_report(verdicts, errors=errors, skipped=skips))
+        write_output(args.junit, junit_report(verdicts, errors=errors, skipped=skips))
     if args.json:
         json.dump([v.to_dict() for v in verdicts], sys.stdout, indent=2)
         print()

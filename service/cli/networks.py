@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from service.cli.arguments import NETWORK
-from service.cli.output import EXIT_OK, print_table
+from service.cli.output import EXIT_OK, output_file, print_table
 from service.cli.table import arg, command
 from service.core.network import bundled_networks, load_intersection
 from service.core.network.describe import describe_intersection
@@ -26,7 +26,13 @@ def networks(args: argparse.Namespace) -> int:
     "describe a junction: forks, routes, conflicts, right-of relations",
     NETWORK,
     arg("--json", action="store_true", help="print one JSON object"),
-    arg("--plot", type=Path, metavar="FILE", help="also draw it to FILE (.png/.svg)"),
+    arg(
+        "--plot",
+        type=Path,
+        metavar="FILE",
+        writes="file",
+        help="also draw it to FILE (.png/.svg)",
+    ),
 )
 def intersection(args: argparse.Namespace) -> int:
     junction = load_intersection(args.network, args.junction, args.control)
@@ -34,7 +40,8 @@ def intersection(args: argparse.Namespace) -> int:
     if args.plot:
         from service.pictures.plot import plot_intersection
 
-        plot_intersection(junction, args.plot)
+        with output_file(args.plot) as picture:
+            plot_intersection(junction, picture)
     if args.json:
         print(json.dumps(description, indent=2))
     else:

@@ -7,14 +7,19 @@ failed).
 
 from __future__ import annotations
 
+import contextlib
+import os
 import sys
+import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 
+from service.cli.table import Writes
 from service.core.checker.verdict import Verdict
 from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
-from service.core.testcase import TestCase, dump_testcase
+from service.core.files import replacing, write_atomically
+from service.core.testcase import TestCase, dump_testcase, with_network_path
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
 
@@ -34,15 +39,70 @@ def print_table(rows: Sequence[Sequence[str]]) -> None:
         )
 
 
-def emit(testcase: TestCase, output: Path | None) -> int:
-    """Write a test-case to ``output``, or to stdout without one."""
-    text = dump_testcase(testcase)
+def emit(testcase: TestCase, output: Path | None, network_file: Path | None = None) -> int:
+    """Write a test-case to ``output`` (with its network's path from there), or to stdout
+    without one."""
     if output:
-        output.write_text(text)
+        placed = with_network_path(testcase, network_file, output.parent)
+        write_output(output, dump_testcase(placed))
         print(f"wrote {output}", file=sys.stderr)
     else:
-        sys.stdout.write(text)
+        sys.stdout.write(dump_testcase(testcase))
     return EXIT_OK
+
+
+def check_writable(path: Path, what: Writes) -> None:
+    """InvalidInput unless the command can write ``path`` (a file, or a folder it writes
+    into): checked before the work, so that nothing is computed for a place that cannot
+    take it. A missing folder on the way is fine (it is made when the result is written);
+    a file on the way, a folder where a file goes, or a place that refuses a new file is
+    not."""
+    if what == "file" and path.is_dir():
+        raise InvalidInput(f"cannot write {path}: it is a folder; give a file name")
+    folder = path if what == "folder" else path.parent
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InvalidInput(f"cannot write {path}: {existing} is a file, not a folder")
+    try:  # the only reliable test (as root, os.access says yes to /proc and read-only mounts)
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as error:
+        raise InvalidInput(
+            f"cannot write {path}: the folder {existing} takes no new file ({error.strerror})"
+        ) from None
+    if what == "file" and path.exists() and not os.access(path, os.W_OK):
+        raise InvalidInput(f"cannot write {path}: permission denied")
+
+
+def make_folder(folder: Path) -> None:
+    """Make ``folder`` (and its parents) when missing, and say so."""
+    if folder.is_dir():
+        return
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise InvalidInput(f"cannot make the folder {folder}: {error.strerror}") from None
+    print(f"scengen: made the folder {folder}", file=sys.stderr)
+
+
+def write_output(path: Path, data: str | bytes) -> None:
+    """Write a result to ``path`` whole or not at all, its folder made when missing."""
+    make_folder(path.parent)
+    try:
+        write_atomically(path, data)
+    except OSError as error:  # the disk filled up or the folder went away since the check
+        raise ScengenError(f"cannot write {path}: {error.strerror}") from None
+
+
+@contextlib.contextmanager
+def output_file(path: Path) -> Iterator[Path]:
+    """A temporary path for a writer that takes a path (a picture), renamed to ``path``
+    when the writer is done; its folder made when missing."""
+    make_folder(path.parent)
+    with replacing(path) as temporary:
+        yield temporary
 
 
 def short(verdict: Verdict) -> str:
@@ -97,6 +157,13 @@ class StepProgress:
             elapsed = time.monotonic() - self.started
             print(f"[{elapsed:6.2f} s] {self.done}/{self.total} {message}", file=sys.stderr,
                   flush=True)  # fmt: skip
+
+    def print(self, line: str) -> None:
+        """A line of the command's output (stdout), above the bar on a terminal."""
+        if self.bar is not None:
+            self.bar.write(line, file=sys.stdout)
+        else:
+            print(line, flush=True)
 
     def note(self, message: str) -> None:
         """Something said between steps: beside the bar on a terminal, else its own line."""

@@ -15,20 +15,22 @@ from service.cli.arguments import (
     NETWORK_FILE,
     TESTCASE,
     distance_or_auto,
+    locate_network,
     output,
+    read_input,
     testcase_intersection,
 )
 from service.cli.examples import EXAMPLES, run_example, write_testcase
-from service.cli.output import EXIT_OK, StepProgress, emit, print_table, progress
+from service.cli.output import EXIT_OK, StepProgress, emit, output_file, print_table, progress
 from service.cli.table import arg, command
 from service.core.generator.extension import StartDistances, extend_testcase
 from service.core.motion.events import compute_events
 from service.core.motion.poses import generate_poses
+from service.core.network import bundled_networks, load_intersection
 from service.core.testcase import (
     TestCase,
     name_stem,
     new_testcase,
-    read_testcase,
     readable_name,
     renamed,
 )
@@ -77,7 +79,8 @@ def new(args: argparse.Namespace) -> int:
     )
     if not args.name:
         testcase = renamed(testcase, readable_name(testcase))
-    return emit(testcase, args.output)
+    network_file = None if args.network in bundled_networks() else Path(args.network)
+    return emit(testcase, args.output, network_file)
 
 
 @command(
@@ -93,11 +96,11 @@ def new(args: argparse.Namespace) -> int:
     ),
     arg("--speed", type=float, default=8.0, help="cruise speed (default 8 m/s)"),
     arg("--json", action="store_true", help="print samples and events as JSON"),
-    arg("--plot", type=Path, metavar="FILE", help="draw the drive to FILE"),
+    arg("--plot", type=Path, metavar="FILE", writes="file", help="draw the drive to FILE"),
     NETWORK_FILE,
 )
 def drive(args: argparse.Namespace) -> int:
-    testcase = read_testcase(args.testcase)
+    testcase = read_input(args.testcase)
     intersection = testcase_intersection(testcase, args)
     route = intersection.route(args.route or testcase.ego.route.id)
     start = testcase.ego.start.distance if args.start_distance is None else args.start_distance
@@ -122,7 +125,8 @@ def drive(args: argparse.Namespace) -> int:
     if args.plot:
         from service.pictures.plot import plot_intersection
 
-        plot_intersection(intersection, args.plot, [route.id], track.samples)
+        with output_file(args.plot) as picture:
+            plot_intersection(intersection, picture, [route.id], track.samples)
     if args.json:
         print(
             json.dumps(
@@ -187,18 +191,14 @@ def drive(args: argparse.Namespace) -> int:
 )
 def extend(args: argparse.Namespace) -> int:
     start_distance = start_distances(args)
-    old = read_testcase(args.testcase)
+    old = read_input(args.testcase)
     if args.name is not None:
         renamed(old, args.name)  # a name that cannot be stored fails before the search
+    network_file = locate_network(old, args)
+    intersection = load_intersection(network_file, old.junction, old.control)
     started = time.monotonic()
     extension = extend_testcase(
-        old,
-        args.add,
-        args.seed,
-        args.budget,
-        start_distance,
-        progress(started),
-        testcase_intersection(old, args),
+        old, args.add, args.seed, args.budget, start_distance, progress(started), intersection
     )
     name = args.name or readable_name(extension.testcase, name_stem(old.name))
     extended = renamed(extension.testcase, name)
@@ -209,7 +209,7 @@ def extend(args: argparse.Namespace) -> int:
         f"certificate {_what_certificate_breaks(provenance)}",
         file=sys.stderr,
     )
-    return emit(extended, args.output)
+    return emit(extended, args.output, network_file)
 
 
 def start_distances(args: argparse.Namespace) -> StartDistances:
@@ -263,7 +263,7 @@ def example(args: argparse.Namespace) -> int:
     levels = StepProgress(len(chosen.steps) + 1, "level")
 
     def keep(testcase: TestCase) -> None:  # each level is written as soon as it is verified
-        print(write_testcase(testcase, args.output), flush=True)
+        levels.print(str(write_testcase(testcase, args.output)))
         levels.step(f"{testcase.name} written")
 
     try:

@@ -8,8 +8,11 @@ front bumper's distance before the stop line of its fork.
 
 from __future__ import annotations
 
+import hashlib
 import json
+import os
 import re
+from collections.abc import Sequence
 from pathlib import Path, PurePosixPath
 from typing import Annotated, Any, Literal
 
@@ -24,6 +27,7 @@ from pydantic import (
 
 from service.core.errors import InvalidTestCase, UnknownNetwork
 from service.core.motion.events import EventKind
+from service.core.motion.plausibility import first_jump
 from service.core.motion.poses import plan_drive
 from service.core.network import (
     Intersection,
@@ -93,10 +97,23 @@ class Params(_Model):
 
 
 class NetworkRef(_Model):
-    """The network: a bundled name, a path, or an uploaded id; with its content hash."""
+    """The network: a bundled name, a path, or an uploaded id; with its content hash, and
+    where a file written by the command line last saw the network's file."""
 
     ref: str = Field(min_length=1)
     sha256: str = Field(pattern=r"^[0-9a-f]{64}$")
+    path: str | None = Field(
+        None,
+        min_length=1,
+        max_length=4096,
+        description="the network's file relative to the test-case's folder (POSIX), written "
+        "when the command line writes the test-case to a file; a hint, checked by sha256",
+    )
+
+    @field_validator("path")
+    @classmethod
+    def _printable_path(cls, value: str | None) -> str | None:
+        return None if value is None else check_name(value)
 
 
 class RouteRef(_Model):
@@ -272,6 +289,19 @@ def read_testcase(path: Path) -> TestCase:
     return parse_testcase(text)
 
 
+def implausible_trajectories(testcase: TestCase) -> list[str]:
+    """Each stored trajectory that jumps further between two samples than any car can
+    drive (service.core.motion.plausibility), in words: a warning, not an error, since the
+    checker judges a document as it is written."""
+    found = [(f"{car.id}'s trajectory", first_jump(car.trajectory)) for car in testcase.nonegos]
+    if testcase.certificates is not None:
+        found += [
+            ("the complexity certificate", first_jump(testcase.certificates.complexity)),
+            ("the solvability certificate", first_jump(testcase.certificates.solvability)),
+        ]
+    return [f"{what} {jump}: no car can" for what, jump in found if jump is not None]
+
+
 def dump_testcase(testcase: TestCase) -> str:
     """The JSON text of a test-case (stable key order, two-space indent, newline at end)."""
     return (
@@ -337,48 +367,93 @@ def local_network_name(ref: str) -> str:
     return name if name.endswith(".xml") else f"{name}.net.xml"
 
 
+def with_network_path(testcase: TestCase, network_file: Path | None, folder: Path) -> TestCase:
+    """``testcase`` as it is written into ``folder``: its network's ``path`` is
+    ``network_file`` relative to that folder, so that the test-case finds the file from
+    wherever it is read, and moving both together keeps it so. A bundled network (found by
+    name anywhere) and a test-case without a known file get no path."""
+    path = None
+    if network_file is not None and testcase.network.ref not in bundled_networks():
+        path = Path(os.path.relpath(network_file.resolve(), folder.resolve())).as_posix()
+    if path == testcase.network.path:
+        return testcase
+    network = testcase.network.model_copy(update={"path": path})
+    return testcase.model_copy(update={"network": network})
+
+
+def without_network_path(testcase: TestCase) -> TestCase:
+    """``testcase`` without its network's ``path``: the same test-case wherever it was
+    written (a server stores it so, and a parent's hash is taken of it)."""
+    return with_network_path(testcase, None, Path())
+
+
+def document_sha256(testcase: TestCase) -> str:
+    """The hash of a test-case's document, the same wherever the file was written."""
+    return hashlib.sha256(dump_testcase(without_network_path(testcase)).encode()).hexdigest()
+
+
 def find_network_file(
-    testcase: TestCase, network_file: Path | None = None, near: Path | None = None
+    testcase: TestCase,
+    network_file: Path | None = None,
+    near: Path | None = None,
+    search_path: Sequence[Path] = (),
 ) -> tuple[Path, str]:
-    """The file of a test-case's network and how it was found: ``network_file`` when given
-    (its bytes must match), a bundled network, a file of that name in ``near`` (the
-    test-case's folder), the reference as a path (relative to the working directory; older
-    test-cases stored absolute paths), or a file this process made a test-case from."""
+    """The file of a test-case's network (a map as it is, not converted) and how it was
+    found. The places, in order: the network's ``path`` from ``near`` (the folder the
+    test-case was read from); a file of its name in ``near``; ``network_file``; a file of
+    its name in a folder of ``search_path``; the bundled network of that name; the
+    reference as a path from the working directory (older test-cases); a file this process
+    made a test-case from. The first whose bytes have the test-case's sha256 wins; when
+    files are found but none has it, InvalidTestCase names each file and both hashes."""
+    candidates = _network_candidates(testcase, network_file, near, search_path)
     ref, digest = testcase.network.ref, testcase.network.sha256
-    if network_file is not None:
-        candidates = [(network_file, "given with --network")]
-    elif ref in bundled_networks():
-        candidates = [(bundled_networks()[ref], "bundled")]
-    else:
-        candidates = []
-        if near is not None:
-            candidates.append((near / local_network_name(ref), "next to the test-case"))
-            if source_format(ref):  # the map itself, converted again
-                candidates.append((near / PurePosixPath(ref).name, "next to the test-case"))
-        candidates.append((Path(ref), "as named"))
-        if digest in _READ_FROM:
-            candidates.append((_READ_FROM[digest], "read before by this process"))
-    unique: dict[Path, tuple[Path, str]] = {}
-    for path, how in candidates:  # next to the test-case and as named can be one place
-        unique.setdefault(path.resolve(), (path, how))
-    candidates = list(unique.values())
-    # an OpenDRIVE or OpenStreetMap map is compared as the network it converts to
-    present = [(resolve_network(path), how) for path, how in candidates if path.is_file()]
-    for path, how in present:
-        if file_sha256(path) == digest:
+    present = [(path, how) for path, how in candidates if path.is_file()]
+    found = [(path, how, file_sha256(resolve_network(path))) for path, how in present]
+    for path, how, sha256 in found:
+        if sha256 == digest:
             return path.resolve(), how
-    if present:
-        path = present[0][0]
+    if found:
+        others = "; ".join(f"{path.resolve()} ({how}) has sha256 {sha}" for path, how, sha in found)
         raise InvalidTestCase(
-            f"network.sha256: {ref} has changed since the test-case was made ({path}: "
-            f"expected {digest[:12]}..., found {file_sha256(path)[:12]}...)"
+            f"network.sha256: the test-case was made on {ref} with sha256 {digest}, but "
+            f"{others}: the network has changed since; pass the file it was made on "
+            "with --network FILE"
         )
     looked = ", ".join(f"{path.resolve()} ({how})" for path, how in candidates)
     raise UnknownNetwork(
-        f"network {ref!r} (sha256 {digest[:12]}...) is not bundled and is not at {looked}: "
-        "pass its file with --network FILE",
+        f"network {ref!r} (sha256 {digest[:12]}...) is not at {looked}: pass its file with "
+        "--network FILE, or name its folder in SCENGEN_NETWORK_PATH",
         network=ref,
     )
+
+
+def _network_candidates(
+    testcase: TestCase, network_file: Path | None, near: Path | None, search_path: Sequence[Path]
+) -> list[tuple[Path, str]]:
+    """Where ``find_network_file`` looks, in order, each place once."""
+    ref = testcase.network.ref
+    names = [local_network_name(ref)]
+    if source_format(ref):  # the map itself, converted again
+        names.append(PurePosixPath(ref).name)
+    candidates: list[tuple[Path, str]] = []
+    if near is not None:
+        if testcase.network.path is not None:
+            candidates.append((near / testcase.network.path, "its path from the test-case"))
+        candidates += [(near / name, "next to the test-case") for name in names]
+    if network_file is not None:
+        candidates.append((network_file, "given with --network"))
+    for folder in search_path:
+        candidates += [(folder / name, "on SCENGEN_NETWORK_PATH") for name in names]
+    if ref in bundled_networks():
+        candidates.append((bundled_networks()[ref], "bundled"))
+    else:
+        candidates.append((Path(ref), "as named"))
+    if testcase.network.sha256 in _READ_FROM:
+        candidates.append((_READ_FROM[testcase.network.sha256], "read before by this process"))
+    unique: dict[Path, tuple[Path, str]] = {}
+    for path, how in candidates:  # next to the test-case and as named can be one place
+        unique.setdefault(path.resolve(), (path, how))
+    return list(unique.values())
 
 
 def new_testcase(

@@ -391,7 +391,9 @@ def test_an_evaluation_table_finishes_whatever_its_cells(tmp_path: Path) -> None
 
 def test_a_testcase_finds_its_network_next_to_it_or_with_network(tmp_path: Path) -> None:
     """No absolute path is stored: a test-case made from a file names it by file name and
-    hash; the CLI looks next to the test-case and takes --network, and says which it used."""
+    hash (and its path relative to its own folder, which this test takes away, as from a
+    test-case written before paths were kept); the CLI looks next to the test-case and takes
+    --network, and says which it used."""
     folder = tmp_path / "suite"
     folder.mkdir()
     testcase = folder / "t7.json"
@@ -403,6 +405,8 @@ def test_a_testcase_finds_its_network_next_to_it_or_with_network(tmp_path: Path)
     assert made.returncode == 0, made.stderr
     document = json.loads(testcase.read_text())
     assert document["network"]["ref"] == "Town07.net.xml"
+    assert not Path(document["network"].pop("path")).is_absolute()
+    testcase.write_text(json.dumps(document))
     text = testcase.read_text()
     assert str(tmp_path) not in text and str(TOWN07.parent) not in text
 

@@ -181,5 +181,5 @@ def test_read_testcase_reports_unreadable_and_non_json(tmp_path: Path) -> None:
 def test_changed_network_is_detected(ego_only: TestCase, tmp_path: Path) -> None:
     document = _document(ego_only)
     document["network"]["sha256"] = "0" * 64
-    with pytest.raises(InvalidTestCase, match="has changed since the test-case was made"):
+    with pytest.raises(InvalidTestCase, match="the network has changed since"):
         load_testcase_intersection(parse_testcase(document))

@@ -13,11 +13,11 @@ to run it:
 
 from __future__ import annotations
 
-import shutil
 from collections.abc import Sequence
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
+from service.core.files import write_atomically
 from service.core.motion.poses import centre_to_front
 from service.core.network import Intersection, bundled_networks
 from service.core.sim.controllers import BUILT_IN
@@ -36,6 +36,7 @@ from service.core.testcase import (
     dump_testcase,
     load_testcase_intersection,
     local_network_name,
+    with_network_path,
 )
 
 NAME = "testcase"
@@ -185,8 +186,11 @@ def export_bundle(
     if testcase.network.ref not in bundled_networks():  # what scengen finds by the test-case
         networks.setdefault(local_network_name(testcase.network.ref), junction.source_file)
     for name, source in networks.items():
-        shutil.copyfile(source, folder / name)
-    shutil.copyfile(sumo_run.__file__, folder / "run.py")
+        write_atomically(folder / name, source.read_bytes())
+    write_atomically(folder / "run.py", Path(sumo_run.__file__).read_bytes())
+    local = None  # the file that the bundle's test-case finds its network by
+    if testcase.network.ref not in bundled_networks():
+        local = folder / local_network_name(testcase.network.ref)
     ego, others = departures(testcase, junction)
     # the runner's files: types (also the .sumocfg's: the fcd-replay device reads its file,
     # and needs the non-egos' types, before the route files are loaded), every car's route
@@ -196,10 +200,10 @@ def export_bundle(
         f"{NAME}.rou.xml": xml_file("routes", vehicle_lines([ego])),
         f"{NAME}.fcd.xml": fcd_text(testcase, others),
         f"{NAME}.sumocfg": sumocfg_text(testcase, network),
-        f"{NAME}.json": dump_testcase(testcase),
+        f"{NAME}.json": dump_testcase(with_network_path(testcase, local, folder)),
         "README.md": readme_text(testcase, [ego, *others], list(networks)),
     }
     for name, text in files.items():
-        (folder / name).write_text(text)
+        write_atomically(folder / name, text)
         written.append(folder / name)
     return written

@@ -45,6 +45,7 @@ from shapely.geometry import LineString
 from service.core.checker.rules import rule_set_file, solve_rules
 from service.core.errors import InvalidInput, NetworkBuildFailed
 from service.core.export import FLAVOURS
+from service.core.files import replacing, write_atomically
 from service.core.motion.poses import _cached_network, interpolate_heading, start_front
 from service.core.network import ControlType, Intersection
 from service.core.network.override import run_netconvert
@@ -395,13 +396,14 @@ def export_openscenario(
     junction = intersection or load_testcase_intersection(testcase)
     folder.mkdir(parents=True, exist_ok=True)
     written = [folder / f"{NAME}.xodr"]
-    written[0].write_text(opendrive_text(junction))
+    write_atomically(written[0], opendrive_text(junction))
     variants: list[tuple[str, str | None]] = [(f"{NAME}.xosc", None)]
     if testcase.certificates is not None:
         variants += [(f"{NAME}.{kind}.xosc", kind) for kind in ("solvability", "complexity")]
     for name, certificate in variants:
-        scenario(testcase, junction, flavour, certificate).write_xml(str(folder / name))
+        with replacing(folder / name) as partial:
+            scenario(testcase, junction, flavour, certificate).write_xml(str(partial))
         written.append(folder / name)
-    (folder / RULES_FILE).write_text(rules_text(testcase))
+    write_atomically(folder / RULES_FILE, rules_text(testcase))
     written.append(folder / RULES_FILE)
     return written

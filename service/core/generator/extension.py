@@ -16,7 +16,6 @@ budget in seconds only stops a call that runs too long, with an error that says 
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -75,7 +74,7 @@ from service.core.motion.queues import (
 from service.core.network import Intersection, Route
 from service.core.testcase import (
     TestCase,
-    dump_testcase,
+    document_sha256,
     load_testcase_intersection,
     parse_testcase,
 )
@@ -803,7 +802,7 @@ def _candidate(
         "solvability": [asdict(s) for s in samples["ego"]],
     }
     document["provenance"] = {
-        "parent": hashlib.sha256(dump_testcase(old).encode()).hexdigest(),
+        "parent": document_sha256(old),
         "level": level,
         "new_nonegos": list(ids),
         "seed": seed,

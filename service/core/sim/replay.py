@@ -26,6 +26,7 @@ from service.core.budget import run_with_budget
 from service.core.checker.check import check_testcase, testcase_label
 from service.core.checker.verdict import Verdict
 from service.core.errors import BudgetExceeded, InvalidInput
+from service.core.files import write_atomically
 from service.core.motion.poses import (
     PoseSample,
     centre_to_front,
@@ -232,7 +233,7 @@ def write_run_files(
     }
     folder.mkdir(parents=True, exist_ok=True)
     for name, text in files.items():
-        (folder / name).write_text(text)
+        write_atomically(folder / name, text)
     return files
 
 

@@ -162,7 +162,7 @@ def test_the_bundle_runner_reproduces_the_evaluation(
                 cwd=folder, capture_output=True, text=True, timeout=120,
             )  # fmt: skip
             assert judged.returncode == (0 if service.passed else 1), judged.stderr
-            assert "(next to the test-case)" in judged.stderr
+            assert "(its path from the test-case)" in judged.stderr
     # the comparison covers passes and failures of SUMO's drivers and of the certificates
     assert {("sumo", True), ("sumo-rolling-stop", False), ("certificate:complexity", False)} <= (
         outcomes

@@ -25,6 +25,7 @@ from service.core.motion.poses import PoseSample
 from service.core.testcase import (
     TestCase,
     dump_testcase,
+    implausible_trajectories,
     load_testcase_intersection,
     new_testcase,
     parse_testcase,
@@ -50,6 +51,7 @@ def assert_strictly_more_complex(old: TestCase, new: TestCase) -> None:
     assert on_new.violations and all(v.other in added for v in on_new.violations)
     # Old non-egos are kept exactly: that is what makes the solutions a subset.
     assert new.nonegos[: len(old.nonegos)] == old.nonegos
+    assert implausible_trajectories(new) == []  # every car and certificate drivable
 
 
 @pytest.fixture(scope="module")
