@@ -216,7 +216,10 @@ def test_the_bundle_runs_in_sumo(
     reply = api.get(chain[-1]["links"]["bundle"])
     assert reply.headers["content-type"] == "application/zip"
     zipfile.ZipFile(io.BytesIO(reply.content)).extractall(tmp_path)
-    assert json.loads((tmp_path / "testcase.json").read_text()) == chain[-1]["testcase"]
+    bundled_document = json.loads((tmp_path / "testcase.json").read_text())
+    # the stored test-case, and the path of the network file beside it in the bundle
+    assert bundled_document["network"].pop("path") == f"{chain[-1]['network']}.net.xml"
+    assert bundled_document == chain[-1]["testcase"]
     subprocess.run(
         [sumo_binary("sumo"), "-c", "testcase.sumocfg", "--fcd-output", "run.fcd.xml"],
         cwd=tmp_path, check=True, capture_output=True, timeout=120,
@@ -242,7 +245,7 @@ def test_the_bundle_runs_in_sumo(
         cwd=tmp_path, capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert checked.returncode in (0, 1), checked.stderr
-    assert "(next to the test-case)" in checked.stderr
+    assert "(its path from the test-case)" in checked.stderr
     verdict = json.loads(checked.stdout)
     served = api.post("/evaluations", json={"testcase_id": chain[-1]["id"], "controller": "sumo"})
     assert served.status_code == 201, served.text
