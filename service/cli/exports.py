@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from service.cli.arguments import NETWORK_FILE, TESTCASE, output, testcase_intersection
-from service.cli.output import EXIT_OK, StepProgress
+from service.cli.output import EXIT_OK, StepProgress, progress
 from service.cli.table import arg, command
 from service.core.errors import InvalidInput
 from service.core.export import FLAVOURS
@@ -87,16 +88,23 @@ def plot(args: argparse.Namespace) -> int:
         raise InvalidInput(
             f"plot file must end in {' or '.join(suffixes)}, got {args.output.name!r}"
         )
-    from service.pictures.plot import animate_testcase, plot_testcase  # matplotlib: on use
+    say = progress(time.monotonic())
+    from service.pictures.animation import animate_testcase  # matplotlib: on use
+    from service.pictures.plot import plot_testcase
 
     testcase = read_testcase(args.testcase)
     junction = testcase_intersection(testcase, args)
+    say(f"read {args.testcase.name}: junction {testcase.junction}, "
+        f"{len(testcase.nonegos)} cars besides the ego")  # fmt: skip
+    trajectory: list[PoseSample] = []
+    verdict = None
+    if args.controller:
+        say(f"evaluating {args.controller}")
+        evaluation = evaluate_controller(testcase, args.controller, junction)
+        trajectory, verdict = evaluation.trajectory, evaluation.verdict
+        say(f"{args.controller}: {'PASS' if verdict.passed else 'FAIL'}")
+    label = f"ego: {args.controller}" if args.controller else ""
     if args.animate:
-        trajectory: list[PoseSample] = []
-        label = ""
-        if args.controller:
-            trajectory = evaluate_controller(testcase, args.controller, junction).trajectory
-            label = f"ego: {args.controller}"
         frames: list[StepProgress] = []
 
         def drawn(frame: int, total: int) -> None:  # matplotlib counts the frames it saves
@@ -107,11 +115,7 @@ def plot(args: argparse.Namespace) -> int:
         animate_testcase(testcase, junction, args.output, trajectory, label, progress=drawn)
         for bar in frames:
             bar.close()
-    elif args.controller:
-        evaluation = evaluate_controller(testcase, args.controller, junction)
-        plot_testcase(testcase, junction, args.output, evaluation.trajectory,
-                      f"ego: {args.controller}", evaluation.verdict)  # fmt: skip
     else:
-        plot_testcase(testcase, junction, args.output)
+        plot_testcase(testcase, junction, args.output, trajectory, label, verdict, say)
     print(args.output)
     return EXIT_OK
