@@ -129,7 +129,15 @@ def plot_intersection(
         f"junction {intersection.junction} ({intersection.control.value}): "
         "left red, right green, straight blue"
     )
-    figure.savefig(path, dpi=110, bbox_inches="tight")
+    save(figure, path)
+
+
+def save(figure: Figure, path: Path) -> None:
+    """Write a figure (the legend below a map included) and close it: the same picture
+    gives the same bytes (an SVG's ids from a fixed salt, no date in its metadata)."""
+    metadata = {"Date": None} if path.suffix.lower() == ".svg" else None
+    with matplotlib.rc_context({"svg.hashsalt": "scengen"}):
+        figure.savefig(path, dpi=110, bbox_inches="tight", metadata=metadata)
     plt.close(figure)
 
 
@@ -457,8 +465,7 @@ def plot_testcase(
     figure = draw_testcase(testcase, intersection, ego, ego_label, verdict, progress)
     if progress is not None:
         progress(f"writing {path}")
-    figure.savefig(path, dpi=110, bbox_inches="tight")  # the legend below the map included
-    plt.close(figure)
+    save(figure, path)
 
 
 def frame_map(axes: Axes, intersection: Intersection, starts: Sequence[PoseSample]) -> None:

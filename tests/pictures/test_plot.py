@@ -62,6 +62,16 @@ def test_every_lane_id_is_whole_and_exits_are_labelled(tmp_path: Path) -> None:
         assert f">{exit_lane.lane} (exit)<" in text
 
 
+def test_the_same_picture_is_the_same_bytes(tmp_path: Path) -> None:
+    """SVG ids from a fixed salt and no date: a cached picture and a new one agree."""
+    intersection = load_intersection("t-stop")
+    for suffix in ("svg", "png"):
+        first, second = tmp_path / f"a.{suffix}", tmp_path / f"b.{suffix}"
+        plot_intersection(intersection, first)
+        plot_intersection(intersection, second)
+        assert first.read_bytes() == second.read_bytes(), suffix
+
+
 def test_a_testcase_picture_marks_starts_times_and_stop_lines(tmp_path: Path) -> None:
     start = new_testcase("4way-stop", "E2C_1:C2S_1", duration=20.0)
     testcase = extend_testcase(start, ["S2C_1:C2N_1"], seed=0).testcase
