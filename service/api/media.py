@@ -1,14 +1,18 @@
 """Content negotiation and the artifact cache (pictures, bundles, descriptions).
 
 Artifacts derive from immutable things (a content-addressed test-case, an uploaded network),
-so a file cached under the data directory never goes stale; it is written atomically.
+so a file cached under the data directory never goes stale; it is written atomically. An
+artifact is produced once however many ask for it at the same time (a page reloaded while
+its first load waits for the workers, two tabs): the later requests wait for the first's.
 """
 
 from __future__ import annotations
 
+import asyncio
 import json
 import secrets
 from collections.abc import Awaitable, Callable
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from service.api.problems import Problem
@@ -62,7 +66,8 @@ async def cached(
     produce: Callable[[], Awaitable[Any]],
     json_cache: bool = False,
 ) -> Any:
-    """The artifact ``name`` from the cache, or produced (in a worker) and cached."""
+    """The artifact ``name`` from the cache, or produced (in a worker) and cached; while it
+    is being produced, a second request for it waits for that work rather than repeating it."""
     root = (state.cache_dir / "artifacts").resolve()
     path = (root / name).resolve()
     if not path.is_relative_to(root) or len(path.name) > 200:
@@ -70,6 +75,20 @@ async def cached(
     if path.is_file():
         content = path.read_bytes()
         return json.loads(content) if json_cache else content
+    making = _MAKING.get(path)
+    if making is None or making.get_loop() is not asyncio.get_running_loop():
+        making = asyncio.ensure_future(_produce(path, produce, json_cache))
+        _MAKING[path] = making
+        making.add_done_callback(lambda done: _made(path, done))
+    # shielded: a request that goes away leaves the work to those that still wait (and the
+    # cache), rather than cancelling it for them
+    return await asyncio.shield(making)
+
+
+_MAKING: dict[Path, asyncio.Future[Any]] = {}  # artifacts being produced, by their file
+
+
+async def _produce(path: Path, produce: Callable[[], Awaitable[Any]], json_cache: bool) -> Any:
     value = await produce()
     content = json.dumps(value).encode() if json_cache else value
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -77,3 +96,10 @@ async def cached(
     partial.write_bytes(content)
     partial.replace(path)
     return value
+
+
+def _made(path: Path, done: asyncio.Future[Any]) -> None:
+    if _MAKING.get(path) is done:
+        del _MAKING[path]
+    if not done.cancelled():
+        done.exception()  # retrieved: every waiter may have gone, the error is theirs to see

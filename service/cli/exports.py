@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from service.cli.arguments import NETWORK_FILE, TESTCASE, output, read_input, testcase_intersection
-from service.cli.output import EXIT_OK, StepProgress, make_folder, output_file
+from service.cli.output import EXIT_OK, StepProgress, make_folder, output_file, progress
 from service.cli.table import arg, command
 from service.core.errors import InvalidInput
 from service.core.export import FLAVOURS
@@ -87,16 +88,23 @@ def plot(args: argparse.Namespace) -> int:
         raise InvalidInput(
             f"plot file must end in {' or '.join(suffixes)}, got {args.output.name!r}"
         )
-    from service.pictures.plot import animate_testcase, plot_testcase  # matplotlib: on use
+    say = progress(time.monotonic())
+    from service.pictures.animation import animate_testcase  # matplotlib: on use
+    from service.pictures.plot import draw_testcase, save
 
     testcase = read_input(args.testcase)
     junction = testcase_intersection(testcase, args)
+    say(f"read {args.testcase.name}: junction {testcase.junction}, "
+        f"{len(testcase.nonegos)} cars besides the ego")  # fmt: skip
+    trajectory: list[PoseSample] = []
+    verdict = None
+    if args.controller:
+        say(f"evaluating {args.controller}")
+        evaluation = evaluate_controller(testcase, args.controller, junction)
+        trajectory, verdict = evaluation.trajectory, evaluation.verdict
+        say(f"{args.controller}: {'PASS' if verdict.passed else 'FAIL'}")
+    label = f"ego: {args.controller}" if args.controller else ""
     if args.animate:
-        trajectory: list[PoseSample] = []
-        label = ""
-        if args.controller:
-            trajectory = evaluate_controller(testcase, args.controller, junction).trajectory
-            label = f"ego: {args.controller}"
         frames: list[StepProgress] = []
 
         def drawn(frame: int, total: int) -> None:  # matplotlib counts the frames it saves
@@ -108,13 +116,10 @@ def plot(args: argparse.Namespace) -> int:
             animate_testcase(testcase, junction, picture, trajectory, label, progress=drawn)
         for bar in frames:
             bar.close()
-    elif args.controller:
-        evaluation = evaluate_controller(testcase, args.controller, junction)
-        with output_file(args.output) as picture:
-            plot_testcase(testcase, junction, picture, evaluation.trajectory,
-                          f"ego: {args.controller}", evaluation.verdict)  # fmt: skip
     else:
+        figure = draw_testcase(testcase, junction, trajectory, label, verdict, say)
+        say(f"writing {args.output}")
         with output_file(args.output) as picture:
-            plot_testcase(testcase, junction, picture)
+            save(figure, picture)
     print(args.output)
     return EXIT_OK

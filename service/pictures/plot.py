@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import matplotlib
 import numpy as np
@@ -23,7 +24,8 @@ from service.core.motion.events import rectangles
 from service.core.motion.poses import PoseSample
 from service.core.motion.queues import QueueCar, follows
 from service.core.network import Intersection
-from service.core.testcase import TestCase
+from service.core.testcase import TestCase, readable_name, testcase_level
+from service.pictures.labels import LabelPlacer, Spot
 
 TURN_COLOURS = {"left": "tab:red", "right": "tab:green", "straight": "tab:blue"}
 
@@ -34,7 +36,7 @@ def _fill(axes: Axes, polygon: Polygon, **style: Any) -> None:
         axes.fill(xs, ys, **style)
 
 
-def _draw_roads(axes: Axes, intersection: Intersection) -> None:
+def draw_roads(axes: Axes, intersection: Intersection) -> None:
     _fill(axes, intersection.polygon, color="0.85", zorder=0)
     for fork in intersection.forks.values():
         _fill(axes, fork.approach.buffer(fork.width / 2, cap_style="flat"), color="0.9", zorder=0)
@@ -46,7 +48,7 @@ def _draw_roads(axes: Axes, intersection: Intersection) -> None:
 STOP_LINE = "firebrick"  # a stop sign's line; other forks' lines are grey
 
 
-def _draw_stop_lines(axes: Axes, intersection: Intersection) -> None:
+def draw_stop_lines(axes: Axes, intersection: Intersection) -> None:
     """Each fork's line across its lane at the junction: red with a stop sign, else grey
     (lines, so that they clash with no event marker)."""
     for fork in intersection.forks.values():
@@ -85,7 +87,7 @@ def plot_intersection(
     """Draw the junction, every connecting lane (coloured by turn), forks with their names,
     the highlighted routes, and optionally a car's rectangles every second."""
     figure, axes = plt.subplots(figsize=(8, 8))
-    _draw_roads(axes, intersection)
+    draw_roads(axes, intersection)
     for route in intersection.routes.values():
         lane = intersection.connecting_lanes[route.connecting_lane]
         chosen = route.id in highlight
@@ -100,7 +102,7 @@ def plot_intersection(
         axes.annotate("", xy=(xs[-1], ys[-1]), xytext=(xs[-2], ys[-2]), zorder=2,
                       arrowprops={"arrowstyle": "-|>", "color": TURN_COLOURS[route.turn.value],
                                   "lw": 0.8, "alpha": 1.0 if chosen else 0.6})  # fmt: skip
-    _draw_stop_lines(axes, intersection)
+    draw_stop_lines(axes, intersection)
     for fork in intersection.forks.values():
         sign = " (stop)" if fork.stop_sign else ""
         _label_outward(axes, f"{fork.lane}{sign}", _back_along(fork.approach, 1.5), fork.approach)
@@ -127,7 +129,15 @@ def plot_intersection(
         f"junction {intersection.junction} ({intersection.control.value}): "
         "left red, right green, straight blue"
     )
-    figure.savefig(path, dpi=110, bbox_inches="tight")
+    save(figure, path)
+
+
+def save(figure: Figure, path: Path) -> None:
+    """Write a figure (the legend below a map included) and close it: the same picture
+    gives the same bytes (an SVG's ids from a fixed salt, no date in its metadata)."""
+    metadata = {"Date": None} if path.suffix.lower() == ".svg" else None
+    with matplotlib.rc_context({"svg.hashsalt": "scengen"}):
+        figure.savefig(path, dpi=110, bbox_inches="tight", metadata=metadata)
     plt.close(figure)
 
 
@@ -152,6 +162,10 @@ def _label_outward(
 CAR_COLOURS = ["tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive",
                "tab:cyan", "tab:gray"]  # fmt: skip
 CERTIFICATE_COLOURS = {"solvability": "tab:green", "complexity": "tab:red"}
+START_FONT, TIME_FONT = 8.0, 6.5  # points: a car's id at its start, the times on its path
+# behind a label: the lines it crosses stay visible, and it stays legible over them
+BACKDROP = {"boxstyle": "square,pad=0.1", "fc": "white", "ec": "none", "alpha": 0.75}
+VERDICT_FONT, VERDICT_REASONS = 9.0, 4  # the verdict over the panel, the reasons it shows
 
 
 QUEUE_START = "D"  # the start marker of a car that shares its fork with another car
@@ -183,6 +197,14 @@ def start_label(car: str, queues: dict[str, str | None]) -> str:
     return car if ahead is None else f"{car} behind {ahead}"
 
 
+def picture_title(testcase: TestCase) -> str:
+    """What a picture calls the test-case: its name (the readable default where it has
+    none), with its level where the name does not end in it."""
+    name = testcase.name or readable_name(testcase)
+    level = testcase_level(testcase)
+    return name if name.endswith(f"level {level}") else f"{name} (level {level})"
+
+
 def _testcase_paths(
     testcase: TestCase, ego: Sequence[PoseSample], ego_label: str
 ) -> list[DrawnPath]:
@@ -206,7 +228,7 @@ def _testcase_paths(
     return paths
 
 
-def _normal(heading: float) -> tuple[float, float]:
+def normal(heading: float) -> tuple[float, float]:
     """The unit vector to the right of the direction of travel (plot axes: x east, y north)."""
     rad = math.radians(heading)  # clockwise from north
     return math.cos(rad), -math.sin(rad)
@@ -228,100 +250,201 @@ def time_labels(shown: Sequence[PoseSample], near: float = 3.0) -> list[tuple[Po
             for run in runs]  # fmt: skip
 
 
-def _draw_path(axes: Axes, panel: Axes, path: DrawnPath, every: int, rank: int) -> list[Annotation]:
-    """One car's path, its rectangles every ``every`` samples with their times (to the right
-    of the direction of travel, towards the kerb and away from oncoming lanes; further out
-    for each earlier path on its fork, so that cars that drive one lane keep their times
-    apart), its arrow, and its time-distance curve. The time labels drawn."""
+def car_spot(
+    sample: PoseSample, length: float, width: float, sides: Literal["right", "left"]
+) -> Spot:
+    """The places beside a car's rectangle at ``sample``: ``sides`` "right" tries the right
+    of the direction of travel first (towards the kerb, away from oncoming lanes), "left"
+    the left; then the other side, the four corners, behind and ahead."""
+    right = normal(sample.heading)
+    left = (-right[0], -right[1])
+    forward = (-right[1], right[0])  # the right turned a quarter anticlockwise
+    back = (-forward[0], -forward[1])
+    first, second = (right, left) if sides == "right" else (left, right)
+    corners = [(a[0] + b[0], a[1] + b[1]) for a in (first, second) for b in (back, forward)]
+    directions = [first, second, *corners, back, forward]
+    return Spot((sample.x, sample.y), directions, [_extent(d, forward, length, width)
+                                                  for d in directions])  # fmt: skip
+
+
+def _extent(
+    direction: tuple[float, float], forward: tuple[float, float], length: float, width: float
+) -> float:
+    """How far a car's rectangle reaches from its centre in ``direction`` (metres)."""
+    norm = math.hypot(*direction)
+    along = abs(direction[0] * forward[0] + direction[1] * forward[1]) / norm
+    across = abs(direction[0] * forward[1] - direction[1] * forward[0]) / norm
+    return along * length / 2.0 + across * width / 2.0
+
+
+def _draw_path(axes: Axes, panel: Axes, path: DrawnPath, every: int) -> np.ndarray:
+    """One car's path, its rectangles every ``every`` samples, its arrow, and its
+    time-distance curve. The points drawn on the map (the path and the rectangles' corners),
+    which labels should not cover."""
     _, label, colour, drawn, length, width = path
     dashed = "--" if "complexity" in label else "-"
     axes.plot([s.x for s in drawn], [s.y for s in drawn], dashed, color=colour,
               linewidth=1.6, label=label, zorder=3)  # fmt: skip
     shown = list(drawn[::every])
+    points = [np.array([(s.x, s.y) for s in drawn])]
     for rect in rectangles(
         np.array([s.x for s in shown]), np.array([s.y for s in shown]),
         np.array([s.heading for s in shown]), length, width,
     ):  # fmt: skip
         xs, ys = rect.exterior.xy
         axes.plot(xs, ys, color=colour, linewidth=0.6, alpha=0.7, zorder=3)
-    labels = []
-    for sample, text in time_labels(shown):
-        right_x, right_y = _normal(sample.heading)
-        if abs(right_x) > abs(right_y):  # beside a road up or down the picture: a column each
-            out, ha = 4.0 + 22.0 * rank, "left" if right_x > 0 else "right"
-        else:  # above or below a road across it: a row each
-            out, ha = 7.0 + 9.0 * rank, "center"
-        labels.append(axes.annotate(
-            text, (sample.x, sample.y), xytext=(right_x * out, right_y * out),
-            textcoords="offset points", fontsize=5, color=colour, zorder=5, ha=ha, va="center",
-        ))  # fmt: skip
+        points.append(np.column_stack([xs, ys]))
     _arrow(axes, drawn, colour)
     panel.plot([s.t for s in drawn], [s.distance for s in drawn], dashed, color=colour,
                label=label)  # fmt: skip
-    return labels
+    return np.vstack(points)
 
 
-def _draw_starts(
-    axes: Axes, paths: Sequence[DrawnPath], queues: dict[str, str | None], forks: dict[str, str]
-) -> list[Annotation]:
-    """Each path's start: a hollow circle, a diamond on a shared fork; each car's id once
-    (the certificates start together) with the car it starts behind, to the left of the
-    direction of travel (the times are on the right) and running towards the junction,
-    further out for each car labelled before on its fork. The labels drawn."""
-    labelled: list[str] = []
-    labels = []
+def _draw_starts(axes: Axes, paths: Sequence[DrawnPath], queues: dict[str, str | None]) -> None:
+    """Each path's start: a hollow circle, a diamond on a shared fork."""
     for car, _, colour, drawn, _, _ in paths:
         first = drawn[0]
         marker = QUEUE_START if car in queues else "o"
         axes.plot([first.x], [first.y], marker, mfc="white", mec=colour, ms=6, zorder=5)
-        if car in labelled:
-            continue
-        rank = sum(1 for other in labelled if forks[other] == forks[car])
-        labelled.append(car)
-        labels.append(_start_text(axes, start_label(car, queues), first, colour, rank))
     axes.plot([], [], "o", mfc="white", mec="0.3", label="start (t = 0)")
     if queues:
         axes.plot([], [], QUEUE_START, mfc="white", mec="0.3",
                   label="start on a shared fork (label: the car ahead)")  # fmt: skip
-    return labels
 
 
-def _start_text(axes: Axes, text: str, first: PoseSample, colour: str, rank: int) -> Annotation:
-    """A start's label, ``8 + 10 x rank`` points to the left of the direction of travel."""
-    left_x, left_y = (-v for v in _normal(first.heading))
-    out = 8.0 + 10.0 * rank
-    if abs(left_x) > abs(left_y):  # a road up or down the picture: beside it
-        ha, va = ("left" if left_x > 0 else "right"), "center"
-    else:  # across the picture: above or below it, running towards the junction
-        ahead = math.sin(math.radians(first.heading))
-        ha, va = ("right" if ahead < 0 else "left"), ("bottom" if left_y > 0 else "top")
-    return axes.annotate(text, (first.x, first.y), fontsize=8, color=colour, zorder=5,
-                         xytext=(left_x * out, left_y * out), textcoords="offset points",
-                         ha=ha, va=va)  # fmt: skip
+def _map_labels(
+    paths: Sequence[DrawnPath], every: int, queues: dict[str, str | None]
+) -> list[tuple[str, str, float, Spot]]:
+    """The map's labels in the order they are placed (text, colour, font size, spot): each
+    car's id at its start (once: the certificates start together) with the car it starts
+    behind, to the left of its direction of travel; then the times beside the rectangles,
+    to the right, the ego's first and the others' by time, a time that another path shows
+    at the same place once."""
+    starts: list[tuple[str, str, float, Spot]] = []
+    times: list[tuple[float, int, str, str, Spot]] = []
+    for k, (car, _, colour, drawn, length, width) in enumerate(paths):
+        if car not in {text.split()[0] for text, *_ in starts}:
+            spot = car_spot(drawn[0], length, width, "left")
+            starts.append((start_label(car, queues), colour, START_FONT, spot))
+        rank = -1 if car == EGO else k  # the ego's times first, in the order of its paths
+        for sample, text in time_labels(list(drawn[::every])):
+            if any(t == text and math.dist(s.anchor, (sample.x, sample.y)) < 1.0
+                   for _, _, t, _, s in times):  # fmt: skip
+                continue
+            spot = car_spot(sample, length, width, "right")
+            times.append((-1.0 if rank < 0 else sample.t, rank, text, colour, spot))
+    times.sort(key=lambda item: (item[0], item[1]))
+    return starts + [(text, colour, TIME_FONT, spot) for _, _, text, colour, spot in times]
 
 
-def _keep_apart(figure: Figure, labels: Sequence[Annotation], step: float = 8.0) -> None:
-    """Move each label that overlaps one placed before it further out from its point, by
-    ``step`` points at a time, or else to the other side, so that no label hides another
-    (one with no free place in reach stays where it was drawn)."""
-    renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]
-    placed: list[Any] = []
-    for label in labels:
-        dx, dy = label.xyann
-        reach = max(math.hypot(dx, dy), 1.0)
-        tries = [(side * (reach + step * k) / reach) for side in (1, -1) for k in range(4)]
-        for scale in tries:
-            label.xyann = (dx * scale, dy * scale)
-            if not any(_padded(label, renderer).overlaps(o) for o in placed):
-                break
+def place_map_labels(
+    axes: Axes, labels: Sequence[tuple[str, str, float, Spot]], obstacles: np.ndarray
+) -> list[Annotation]:
+    """Each label at its best free place beside its spot (service.pictures.labels); one
+    that finds none is left out. The labels drawn."""
+    placer = LabelPlacer(axes, obstacles)
+    drawn = []
+    for text, colour, size, spot in labels:
+        label = axes.annotate(text, spot.anchor, xytext=(0.0, 0.0), textcoords="offset points",
+                              fontsize=size, color=colour, zorder=6, ha="center", va="center",
+                              annotation_clip=False, bbox=BACKDROP)  # fmt: skip
+        if placer.place(label, spot):
+            drawn.append(label)
         else:
-            label.xyann = (dx, dy)
-        placed.append(_padded(label, renderer))
+            label.remove()
+    return drawn
 
 
-def _padded(label: Annotation, renderer: Any) -> Any:
-    """A label's box on the canvas with a margin of a point and a half."""
-    return label.get_window_extent(renderer).padded(1.5 * label.figure.dpi / 72.0)
+def draw_testcase(
+    testcase: TestCase,
+    intersection: Intersection,
+    ego: Sequence[PoseSample] = (),
+    ego_label: str = "",
+    verdict: Verdict | None = None,
+    progress: Callable[[str], None] | None = None,
+) -> Figure:
+    """The figure plot_testcase saves: the map (its axes first) and the time-distance panel,
+    titled by the test-case's name. ``progress`` hears of each stage."""
+    say = progress or (lambda message: None)
+    figure, (axes, panel) = plt.subplots(
+        1, 2, figsize=(15, 7.5), dpi=110, gridspec_kw={"width_ratios": [1, 1.1]}
+    )  # the dpi it is saved at: labels are kept apart on that canvas
+    draw_roads(axes, intersection)
+    draw_stop_lines(axes, intersection)
+    if any(fork.stop_sign for fork in intersection.forks.values()):
+        axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
+    paths = _testcase_paths(testcase, ego, ego_label)
+    step = max(1, round(2.0 / testcase.timestep))
+    say(f"drawing {len(paths)} paths")
+    obstacles = [_draw_path(axes, panel, drawn, step) for drawn in paths]
+    queues = queue_leaders(testcase, intersection)
+    _draw_starts(axes, paths, queues)
+    _draw_events(panel, testcase, verdict, ego)
+    frame_map(axes, intersection, [drawn[3][0] for drawn in paths if drawn[3]])
+    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)
+    figure.suptitle(picture_title(testcase), fontsize=13)
+    axes.set_title(f"junction {testcase.junction} ({intersection.control.value}), "
+                   f"ego {testcase.ego.route.id}", fontsize=10)  # fmt: skip
+    panel.set_xlabel("time (s)")
+    panel.set_ylabel("distance travelled (m)")
+    panel.grid(alpha=0.3)
+    panel.legend(loc="upper left", fontsize=7)
+    figure.tight_layout()
+    if verdict is not None:
+        _fit_verdict(figure, panel, verdict)
+    else:
+        panel.set_title("distance over time; markers: events")
+    labels = _map_labels(paths, step, queues)
+    say(f"placing {len(labels)} labels")
+    place_map_labels(axes, labels, np.vstack(obstacles) if obstacles else np.empty((0, 2)))
+    return figure
+
+
+def _draw_events(
+    panel: Axes, testcase: TestCase, verdict: Verdict | None, ego: Sequence[PoseSample]
+) -> None:
+    """The non-egos' events in their colours and an evaluated ego's in black, on the panel."""
+    for k, nonego in enumerate(testcase.nonegos):
+        colour = CAR_COLOURS[k % len(CAR_COLOURS)]
+        for event in nonego.events:
+            if event.kind.value in EVENT_MARKERS:
+                panel.plot([event.t], [event.distance], EVENT_MARKERS[event.kind.value],
+                           color=colour, ms=6)  # fmt: skip
+    if verdict is not None and ego:
+        for ref in verdict.ego_events:
+            if ref.kind in EVENT_MARKERS:
+                at = min(ego, key=lambda s: abs(s.t - ref.t))
+                panel.plot([ref.t], [at.distance], EVENT_MARKERS[ref.kind], color="black", ms=6)
+    for kind, marker in EVENT_MARKERS.items():
+        panel.plot([], [], marker, color="0.3", label=f"{kind} (in the car's colour)")
+
+
+def verdict_lines(verdict: Verdict, columns: int) -> list[str]:
+    """The verdict over the panel: the controller and PASS or FAIL, then each reason wrapped
+    to ``columns`` characters (the first VERDICT_REASONS of them, and how many more)."""
+    lines = [f"{verdict.controller}: {'PASS' if verdict.passed else 'FAIL'}"]
+    for reason in verdict.reasons[:VERDICT_REASONS]:
+        lines += textwrap.wrap(reason, columns, subsequent_indent="  ", break_long_words=True)
+    more = len(verdict.reasons) - VERDICT_REASONS
+    if more > 0:
+        lines.append(f"and {more} more (scengen check prints every reason)")
+    return lines
+
+
+def _fit_verdict(figure: Figure, panel: Axes, verdict: Verdict) -> None:
+    """The verdict as the panel's title, wrapped to the narrowest width that fits the
+    panel, then the layout redone for its height."""
+    renderer = figure.canvas.get_renderer()  # type: ignore[attr-defined]
+    room = panel.get_window_extent(renderer).width
+    colour = "tab:green" if verdict.passed else "tab:red"
+    columns = 140
+    while True:
+        title = panel.set_title("\n".join(verdict_lines(verdict, columns)), fontsize=VERDICT_FONT,
+                                color=colour, loc="left")  # fmt: skip
+        if title.get_window_extent(renderer).width <= room or columns <= 20:
+            break
+        columns -= 5
+    figure.tight_layout()
 
 
 def plot_testcase(
@@ -331,62 +454,21 @@ def plot_testcase(
     ego: Sequence[PoseSample] = (),
     ego_label: str = "",
     verdict: Verdict | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> None:
-    """The intersection with every car's path (coloured by car, rectangles every 2 s, the
-    car's id at its start, and the car ahead of it where it shares a fork), the
-    certificates (green solvability, red complexity) or an evaluated ego's path, stop
-    lines; and a time-distance panel with each car's curve and its events (arrived,
-    entered, exited). PNG or SVG by the file's suffix."""
-    figure, (axes, panel) = plt.subplots(
-        1, 2, figsize=(15, 7.5), dpi=110, gridspec_kw={"width_ratios": [1, 1.1]}
-    )  # the dpi it is saved at: labels are kept apart on that canvas
-    _draw_roads(axes, intersection)
-    _draw_stop_lines(axes, intersection)
-    if any(fork.stop_sign for fork in intersection.forks.values()):
-        axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
-    paths = _testcase_paths(testcase, ego, ego_label)
-    forks = {n.id: n.route.fork for n in testcase.nonegos} | {EGO: testcase.ego.route.fork}
-    step = max(1, round(2.0 / testcase.timestep))
-    times = []
-    for k, drawn in enumerate(paths):
-        rank = sum(1 for other in paths[:k] if forks[other[0]] == forks[drawn[0]])
-        times += _draw_path(axes, panel, drawn, step, rank)
-    starts = _draw_starts(axes, paths, queue_leaders(testcase, intersection), forks)
-    for k, nonego in enumerate(testcase.nonegos):
-        colour = CAR_COLOURS[k % len(CAR_COLOURS)]
-        for event in nonego.events:
-            if event.kind.value in EVENT_MARKERS:
-                panel.plot([event.t], [event.distance], EVENT_MARKERS[event.kind.value],
-                           color=colour, ms=6)  # fmt: skip
-    if verdict is not None:
-        for ref in verdict.ego_events:
-            if ref.kind in EVENT_MARKERS and ego:
-                at = min(ego, key=lambda s: abs(s.t - ref.t))
-                panel.plot([ref.t], [at.distance], EVENT_MARKERS[ref.kind], color="black", ms=6)
-    for kind, marker in EVENT_MARKERS.items():
-        panel.plot([], [], marker, color="0.3", label=f"{kind} (in the car's colour)")
-    _frame(axes, intersection, [drawn[3][0] for drawn in paths if drawn[3]])
-    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)
-    title = testcase.name or f"{testcase.network.ref} {testcase.junction}"
-    axes.set_title(f"{title}: {intersection.control.value}, ego {testcase.ego.route.id}")
-    panel.set_xlabel("time (s)")
-    panel.set_ylabel("distance travelled (m)")
-    panel.grid(alpha=0.3)
-    panel.legend(loc="upper left", fontsize=7)
-    if verdict is not None:
-        status = "PASS" if verdict.passed else "FAIL"
-        reasons = "; ".join(verdict.reasons)[:160]
-        panel.set_title(f"{verdict.controller}: {status}" + (f"\n{reasons}" if reasons else ""),
-                        fontsize=9, color="tab:green" if verdict.passed else "tab:red")  # fmt: skip
-    else:
-        panel.set_title("distance over time; markers: events")
-    figure.tight_layout()
-    _keep_apart(figure, [*starts, *times])
-    figure.savefig(path, dpi=110, bbox_inches="tight")  # the legend below the map included
-    plt.close(figure)
+    """The intersection with every car's path (coloured by car, rectangles every 2 s with
+    their times, the car's id at its start, and the car ahead of it where it shares a fork),
+    the certificates (green solvability, red complexity) or an evaluated ego's path and its
+    verdict, stop lines; and a time-distance panel with each car's curve and its events
+    (arrived, entered, exited); titled by the test-case's name. PNG or SVG by the file's
+    suffix. ``progress`` hears of each stage."""
+    figure = draw_testcase(testcase, intersection, ego, ego_label, verdict, progress)
+    if progress is not None:
+        progress(f"writing {path}")
+    save(figure, path)
 
 
-def _frame(axes: Axes, intersection: Intersection, starts: Sequence[PoseSample]) -> None:
+def frame_map(axes: Axes, intersection: Intersection, starts: Sequence[PoseSample]) -> None:
     """The junction with a margin, every start in view, metres on both axes."""
     minx, miny, maxx, maxy = intersection.polygon.bounds
     margin = 25.0
@@ -402,71 +484,3 @@ def _frame(axes: Axes, intersection: Intersection, starts: Sequence[PoseSample])
 
 
 EVENT_MARKERS = {"arrived": "o", "entered": "^", "exited": "s"}
-
-
-def animate_testcase(
-    testcase: TestCase,
-    intersection: Intersection,
-    path: Path,
-    ego: Sequence[PoseSample] = (),
-    ego_label: str = "",
-    every: float = 0.5,
-    progress: Callable[[int, int], None] | None = None,
-) -> None:
-    """A GIF of the cars moving (one frame every ``every`` seconds of the test-case): every
-    non-ego, and the ego (an evaluation's trajectory, else the solvability certificate); the
-    legend names the car each starts behind on a shared fork. ``progress(frame, frames)``
-    hears of each frame as it is saved."""
-    from matplotlib.animation import FuncAnimation, PillowWriter
-
-    cars: list[DrawnPath] = []
-    for k, nonego in enumerate(testcase.nonegos):
-        samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
-        cars.append((nonego.id, nonego.id, CAR_COLOURS[k % len(CAR_COLOURS)], samples,
-                     nonego.length, nonego.width))  # fmt: skip
-    if not ego and testcase.certificates is not None:
-        ego = [PoseSample(**s.model_dump()) for s in testcase.certificates.solvability]
-        ego_label = ego_label or "ego (solvability certificate)"
-    if ego:
-        cars.append((EGO, ego_label or "ego", "black", ego, testcase.ego.length,
-                     testcase.ego.width))  # fmt: skip
-    queues = queue_leaders(testcase, intersection)
-    figure, axes = plt.subplots(figsize=(7, 7))
-    _draw_roads(axes, intersection)
-    minx, miny, maxx, maxy = intersection.polygon.bounds
-    axes.set_xlim(minx - 25, maxx + 25)
-    axes.set_ylim(miny - 25, maxy + 25)
-    axes.set_aspect("equal")
-    patches = []
-    for car, name, colour, _, _, _ in cars:
-        ahead = queues.get(car)
-        name = name if ahead is None else f"{name}, starts behind {ahead}"
-        (outline,) = axes.fill([], [], color=colour, alpha=0.8, label=name, zorder=3)
-        label = axes.text(0, 0, "", fontsize=8, color=colour, zorder=4)
-        patches.append((outline, label))
-    axes.legend(loc="upper left", fontsize=7)
-    title = axes.set_title("")
-    step = max(1, round(every / testcase.timestep))
-    frames = list(range(0, round(testcase.duration / testcase.timestep) + 1, step))
-
-    def draw(frame: int) -> list[Any]:
-        t = frame * testcase.timestep
-        title.set_text(f"{testcase.name or testcase.ego.route.id}  t = {t:4.1f} s")
-        for (outline, label), (car, _, _, samples, length, width) in zip(
-            patches, cars, strict=True
-        ):
-            if frame >= len(samples):
-                outline.set_xy(np.empty((0, 2)))
-                label.set_text("")
-                continue
-            s = samples[frame]
-            rect = rectangles(np.array([s.x]), np.array([s.y]), np.array([s.heading]),
-                              length, width)[0]  # fmt: skip
-            outline.set_xy(np.array(rect.exterior.coords))
-            label.set_text(car)
-            label.set_position((s.x + 2.0, s.y + 2.0))
-        return [title, *(p for pair in patches for p in pair)]
-
-    animation = FuncAnimation(figure, draw, frames=frames, blit=False)
-    animation.save(str(path), writer=PillowWriter(fps=round(1 / every)), progress_callback=progress)
-    plt.close(figure)

@@ -1,14 +1,16 @@
 """The results browser (/ui) in headless Chromium on a real server with generated data: a
 small campaign run as a job (the server has an API token: pages read without it), then
-every page: networks with their pictures, the lineage tree and its filter, a test-case's
-animation (the cars move: frames differ when played, scrubbed or with the certificates
-off), the campaign with its failure-rate plot, and the verdict matrix whose cells open the
-replay of that very evaluation. The report `scengen report JOB --server` writes works from
-a file, offline.
+every page: networks with their junctions drawn (and what the first load waits for), the
+lineage tree and its filter, a test-case's animation (the cars move: frames differ when
+played, scrubbed or with the certificates off) and its time-distance panel (axis numbers,
+curve names whole and apart, measured on the drawn SVG), the campaign with its
+failure-rate plot, and the verdict matrix whose cells open the replay of that very
+evaluation. The report `scengen report JOB --server` writes works from a file, offline.
 Screenshots go to build/screenshots/ui-*.png (look at them)."""
 
 from __future__ import annotations
 
+import itertools
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -65,17 +67,33 @@ def canvas_frame(page: Page) -> bytes:
     return page.locator("#animation").screenshot()
 
 
-def test_networks_show_their_junction_pictures(
+def test_networks_show_their_junctions_drawn_and_say_what_they_wait_for(
     served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
 ) -> None:
+    """The first visit waits for workers: the page says so (a held request shows it), then
+    draws each junction from its shapes (connecting lanes by turn, stop lines), with a link
+    to the server's picture."""
     server, _, _ = served
     page, requested = browser_page
+    held: list[Any] = []
+    page.route("**/networks/t-stop/junctions", lambda route: held.append(route))  # held
     page.goto(f"{server.url}/ui/")
-    picture = page.locator("img[alt='junction C']").first
-    picture.wait_for(timeout=60_000)
-    loaded = "() => [...document.images].every(i => i.complete && i.naturalWidth > 0)"
-    page.wait_for_function(loaded, timeout=60_000)
-    assert page.locator("img").count() == 3  # one supported junction per bundled network
+    page.wait_for_selector("text=Reading the junctions of t-stop…")
+    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 2")
+    assert len(held) == 1  # t-stop's junctions are still on their way
+    held[0].continue_()
+    page.unroute("**/networks/t-stop/junctions")
+    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 3")
+    assert page.locator("text=Reading the junctions").count() == 0
+    for network, routes in (("4way-stop", 16), ("t-stop", 6), ("y-uncontrolled", 6)):
+        drawing = page.locator(f".card:has(a[href='#/networks/{network}']) svg.junction-drawing")
+        assert drawing.get_attribute("data-junction") == "C"
+        assert drawing.locator("polyline.route").count() == routes  # one per connecting lane
+        assert drawing.locator("polyline.stop-line").count() >= 3
+        box = drawing.bounding_box()
+        assert box is not None and box["width"] > 200 and abs(box["width"] - box["height"]) < 2
+    picture = page.locator("a:text-is('picture')").first.get_attribute("href")
+    assert picture and server.client.get(picture).headers["content-type"] == "image/png"
     page.screenshot(path=str(SCREENSHOTS / "ui-networks.png"))
     assert external(server, requested) == []
 
@@ -131,6 +149,47 @@ def test_the_animation_moves_the_cars(
         assert href and server.client.get(href).status_code == 200
     page.screenshot(path=str(SCREENSHOTS / "ui-testcase.png"), full_page=True)
     assert external(server, requested) == []
+
+
+TEXT_BOXES = """() => {
+  const panel = document.querySelector('#time-distance');
+  const frame = panel.getBoundingClientRect();
+  const texts = [...panel.querySelectorAll('text')].map((t) => {
+    const b = t.getBoundingClientRect();
+    return { text: t.textContent, kind: t.getAttribute('class') || '',
+             x0: b.left - frame.left, x1: b.right - frame.left,
+             y0: b.top - frame.top, y1: b.bottom - frame.top };
+  });
+  return { width: frame.width, height: frame.height, texts };
+}"""
+
+
+def test_the_time_distance_panel_numbers_its_axes_and_names_every_curve_whole(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    """Measured on the drawn SVG: metres on the y axis, every word inside the panel (no name
+    cut off at its edge), and no two curve names over each other."""
+    server, _, outcome = served
+    page, _ = browser_page
+    level2 = outcome["chains"][0]["levels"][2]["testcase"]
+    page.goto(f"{server.url}/ui/#/testcases/{level2}")
+    page.wait_for_selector("#time-distance polyline")
+    drawn = page.evaluate(TEXT_BOXES)
+    ticks = [float(t["text"]) for t in drawn["texts"] if t["kind"] == "y-tick"]
+    assert len(ticks) >= 3 and ticks[0] == 0 and ticks == sorted(ticks)
+    assert ticks[1] > 0  # metres, increasing up the axis
+    names = [t for t in drawn["texts"] if t["kind"] == "curve-name"]
+    assert sorted(t["text"] for t in names) == sorted(
+        ["car1", "car2", "ego (solvability)", "ego (complexity)"]
+    )
+    assert len(names) == page.locator("#time-distance polyline").count()
+    for text in drawn["texts"]:  # inside the panel: nothing clipped
+        assert text["x0"] >= 0 and text["x1"] <= drawn["width"], text
+        assert text["y0"] >= 0 and text["y1"] <= drawn["height"], text
+    for a, b in itertools.combinations(names, 2):
+        side_by_side = a["x1"] <= b["x0"] or b["x1"] <= a["x0"]
+        assert side_by_side or a["y1"] <= b["y0"] or b["y1"] <= a["y0"], (a["text"], b["text"])
+    page.locator("#time-distance").screenshot(path=str(SCREENSHOTS / "ui-time-distance.png"))
 
 
 def test_campaign_matrix_opens_the_replay_of_that_evaluation(

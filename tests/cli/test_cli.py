@@ -489,6 +489,8 @@ def test_plot_draws_a_testcase_and_an_evaluation(tmp_path: Path) -> None:
     assert png.read_bytes().startswith(b"\x89PNG")
     result = run("plot", str(testcase), "-o", str(svg), "--controller", "sumo-aggressive")
     assert result.returncode == 0, result.stderr
+    for stage in ("evaluating sumo-aggressive", "placing", f"writing {svg}"):  # progress
+        assert stage in result.stderr, result.stderr
     text = svg.read_text()
     assert text.lstrip().startswith("<?xml") and "<svg" in text
     bad = run("plot", str(testcase), "-o", str(tmp_path / "left.gif"))

@@ -1,17 +1,40 @@
-"""What the pictures say, read from SVG text (matplotlib writes text as text when asked)."""
+"""What the pictures say, read from SVG text (matplotlib writes text as text when asked),
+and where their words are, measured on the drawn artists (matplotlib's text extents): a
+level-6 chain's labels apart and inside the map, times beside their rectangles, the verdict
+whole and inside the figure, the title with the level, the GIF's stop lines and ids."""
 
 from __future__ import annotations
 
+import itertools
+import math
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 import matplotlib
+import matplotlib.pyplot as plt
 import pytest
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.text import Annotation, Text
+from matplotlib.transforms import Bbox
 
+from service.core.checker.verdict import Verdict
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import PoseSample, generate_poses
-from service.core.network import load_intersection
-from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
+from service.core.network import Intersection, load_intersection
+from service.core.testcase import (
+    TestCase,
+    load_testcase_intersection,
+    new_testcase,
+    readable_name,
+    renamed,
+)
+from service.pictures.animation import animate_testcase, draw_animation
 from service.pictures.plot import (
+    STOP_LINE,
+    TIME_FONT,
+    draw_testcase,
     plot_intersection,
     plot_testcase,
     queue_leaders,
@@ -37,6 +60,16 @@ def test_every_lane_id_is_whole_and_exits_are_labelled(tmp_path: Path) -> None:
         assert f">{fork.lane} (stop)<" in text
     for exit_lane in intersection.exits.values():
         assert f">{exit_lane.lane} (exit)<" in text
+
+
+def test_the_same_picture_is_the_same_bytes(tmp_path: Path) -> None:
+    """SVG ids from a fixed salt and no date: a cached picture and a new one agree."""
+    intersection = load_intersection("t-stop")
+    for suffix in ("svg", "png"):
+        first, second = tmp_path / f"a.{suffix}", tmp_path / f"b.{suffix}"
+        plot_intersection(intersection, first)
+        plot_intersection(intersection, second)
+        assert first.read_bytes() == second.read_bytes(), suffix
 
 
 def test_a_testcase_picture_marks_starts_times_and_stop_lines(tmp_path: Path) -> None:
@@ -98,3 +131,163 @@ def test_a_car_standing_gets_one_time_label_for_its_stay() -> None:
     at = [0.0, 0.0, 5.0, 5.1, 5.2, 12.0]  # x every 2 s: moves, stands from 4 s to 8 s, moves
     shown = [PoseSample(2.0 * k, x, 0.0, 90.0, 0.0, x) for k, x in enumerate(at)]
     assert [text for _, text in time_labels(shown)] == ["2s", "4-8s", "10s"]
+
+
+CHAIN = ["E2C_1:C2S_1", "N2C_0:C2S_0", "W2C_1:C2E_1", "E2C_1:C2W_1", "N2C_1:C2S_1",
+         "W2C_0:C2E_0"]  # fmt: skip  # each crosses the ego's left turn
+
+
+@pytest.fixture(scope="module")
+def level6() -> tuple[TestCase, Intersection]:
+    """A level-6 chain on the four-way stop (45 s): six cars on routes that cross the
+    ego's, one a level, as `scengen extend` makes them; unnamed, as the library makes it."""
+    testcase = new_testcase("4way-stop", "S2C_1:C2W_1", duration=45.0)
+    for route in CHAIN:
+        testcase = extend_testcase(testcase, [route], seed=0).testcase
+    assert testcase.name == "" and len(testcase.nonegos) == 6
+    return testcase, load_testcase_intersection(testcase)
+
+
+@pytest.fixture
+def figures() -> Iterator[list[Figure]]:
+    drawn: list[Figure] = []
+    yield drawn
+    for figure in drawn:
+        plt.close(figure)
+
+
+def _labels(axes: Axes) -> list[Text]:
+    """The words drawn on a map (not the arrowheads, which are annotations without text)."""
+    return [
+        text
+        for text in axes.texts
+        if isinstance(text, Annotation) and text.get_text() and text.get_visible()
+    ]
+
+
+def _boxes(figure: Figure, texts: Sequence[Text]) -> list[Bbox]:
+    renderer = figure.canvas.get_renderer()
+    return [text.get_window_extent(renderer) for text in texts]
+
+
+def _apart_and_inside(figure: Figure, axes: Axes, texts: Sequence[Text]) -> None:
+    """No two labels' boxes overlap; each is inside the axes (none over the axis numbers)."""
+    boxes = _boxes(figure, texts)
+    frame = axes.get_window_extent(figure.canvas.get_renderer())
+    for text, box in zip(texts, boxes, strict=True):
+        assert frame.x0 <= box.x0 and box.x1 <= frame.x1, text.get_text()
+        assert frame.y0 <= box.y0 and box.y1 <= frame.y1, text.get_text()
+    for (a, box_a), (b, box_b) in itertools.combinations(zip(texts, boxes, strict=True), 2):
+        assert not box_a.overlaps(box_b), (a.get_text(), b.get_text())
+
+
+def test_a_level_six_picture_is_titled_by_its_name_with_the_level(
+    level6: tuple[TestCase, Intersection], figures: list[Figure], tmp_path: Path
+) -> None:
+    testcase, intersection = level6
+    figures.append(draw_testcase(testcase, intersection))
+    assert figures[-1].get_suptitle() == readable_name(testcase)  # the document has no name
+    assert figures[-1].get_suptitle() == "4way-stop C S2C_1:C2W_1 level 6"
+    named = renamed(testcase, "left turn into six")
+    figures.append(draw_testcase(named, intersection))
+    assert figures[-1].get_suptitle() == "left turn into six (level 6)"
+    picture = tmp_path / "level6.svg"
+    plot_testcase(renamed(testcase, "4way-stop C S2C_1:C2W_1 level 6"), intersection, picture)
+    assert ">4way-stop C S2C_1:C2W_1 level 6<" in picture.read_text()
+
+
+def test_a_level_six_map_keeps_its_labels_apart_and_beside_their_cars(
+    level6: tuple[TestCase, Intersection], figures: list[Figure]
+) -> None:
+    testcase, intersection = level6
+    figure = draw_testcase(testcase, intersection)
+    figures.append(figure)
+    axes = figure.axes[0]
+    texts = _labels(axes)
+    _apart_and_inside(figure, axes, texts)
+    words = {text.get_text() for text in texts}
+    assert {"car1", "car2", "car3", "car4 behind car1", "car5", "car6", "ego"} <= words
+    times = [text for text in texts if text.get_text().endswith("s")]
+    assert len(times) >= 60  # most of the times every 2 s find a place
+    assert all(text.get_fontsize() >= TIME_FONT >= 6.5 for text in times)
+    points_per_metre = _points_per_metre(figure, axes)
+    for text, box in zip(times, _boxes(figure, times), strict=True):
+        x, y = axes.transData.transform(text.xy)
+        gap = math.hypot(max(box.x0 - x, 0.0, x - box.x1), max(box.y0 - y, 0.0, y - box.y1))
+        reach = 2.5 * points_per_metre + 12.0  # half a car's length, and the farthest ring
+        assert gap * 72.0 / figure.dpi <= reach, text.get_text()  # beside its rectangle
+
+
+def _points_per_metre(figure: Figure, axes: Axes) -> float:
+    origin, east = axes.transData.transform([(0.0, 0.0), (1.0, 0.0)])
+    return float(east[0] - origin[0]) * 72.0 / figure.dpi
+
+
+def test_a_long_verdict_is_wrapped_whole_inside_the_figure(
+    level6: tuple[TestCase, Intersection], figures: list[Figure]
+) -> None:
+    testcase, intersection = level6
+    reasons = tuple(f"reason {k}: " + "the ego entered the junction before car5 " * 4
+                    for k in range(6))  # fmt: skip
+    verdict = Verdict(testcase.name, "sumo", True, 30.0, errors=reasons, duration=45.0)
+    ego = [PoseSample(**s.model_dump()) for s in testcase.certificates.solvability]
+    figure = draw_testcase(testcase, intersection, ego, "ego: sumo", verdict)
+    figures.append(figure)
+    panel = figure.axes[1]
+    shown = [t for t in (panel.title, panel._left_title) if t.get_text()]
+    assert len(shown) == 1  # the verdict, not over another title
+    title = shown[0]
+    text = title.get_text()
+    assert text.startswith("sumo: FAIL\n")
+    for reason in reasons[:4]:  # each shown reason whole, wrapped
+        assert " ".join(text.split()).count(" ".join(reason.split())) == 1
+    assert "and 2 more" in text
+    (box,) = _boxes(figure, [title])
+    renderer = figure.canvas.get_renderer()
+    room = panel.get_window_extent(renderer)
+    assert figure.bbox.x0 <= box.x0 and box.x1 <= figure.bbox.x1  # nothing cut off
+    assert box.y1 <= figure.bbox.y1 and box.width <= room.width
+    suptitle = figure._suptitle
+    assert not box.overlaps(_boxes(figure, [suptitle])[0])
+
+
+def _stop_lines(axes: Axes) -> set[tuple[float, ...]]:
+    """The stop-sign lines drawn on a map, by their ends (rounded)."""
+    return {
+        tuple(round(v, 3) for v in (*line.get_xdata(), *line.get_ydata()))
+        for line in axes.get_lines()
+        if isinstance(line, Line2D) and line.get_color() == STOP_LINE and len(line.get_xdata()) == 2
+    }
+
+
+def test_the_animation_draws_stop_lines_and_ids_inside_the_map(
+    level6: tuple[TestCase, Intersection], figures: list[Figure], tmp_path: Path
+) -> None:
+    testcase, intersection = level6
+    still = draw_testcase(testcase, intersection)
+    figure, draw = draw_animation(testcase, intersection)
+    figures += [still, figure]
+    axes = figure.axes[0]
+    signs = sum(1 for fork in intersection.forks.values() if fork.stop_sign)
+    assert len(_stop_lines(axes)) == signs == 8
+    assert _stop_lines(axes) == _stop_lines(still.axes[0])
+    (low_x, high_x), (low_y, high_y) = axes.get_xlim(), axes.get_ylim()
+    hidden = 0
+    ego = testcase.certificates.solvability
+    tracks = {car.id: car.trajectory for car in testcase.nonegos} | {"ego": ego}
+    for frame in range(0, 451, 30):  # every 3 s of 45 s
+        draw(frame)
+        shown = _labels(axes)
+        _apart_and_inside(figure, axes, shown)
+        for car, track in tracks.items():
+            x, y = track[frame].x, track[frame].y
+            if not (low_x <= x <= high_x and low_y <= y <= high_y):
+                assert car not in {text.get_text() for text in shown}, (frame, car)
+                hidden += 1
+    assert hidden > 0  # cars do leave the view, and their ids with them
+    gif = tmp_path / "level6.gif"
+    animate_testcase(testcase, intersection, gif, every=5.0)
+    from PIL import Image
+
+    with Image.open(gif) as image:
+        assert image.n_frames == 10  # t = 0, 5, ..., 45 s

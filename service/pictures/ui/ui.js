@@ -117,32 +117,113 @@ async function route() {
 window.addEventListener("hashchange", route);
 
 // ---------- networks ----------
+// A network's first visit makes the server read it and each junction's shapes, each in a
+// fresh worker (a second or more apiece, longer on a busy machine; cached after): the page
+// says what it waits for and for how long, and draws each junction from its shapes as
+// they come (in the browser: no picture rendered on the server), a few at a time.
+
+const TURN_COLOURS = { left: "#c62828", right: "#1a7f37", straight: "#2456a6" };
+
+function waiting(text, why) { // a line that counts the seconds while it is on the page
+  const started = performance.now();
+  const clock = h("span", { class: "elapsed" });
+  const reason = h("span", {});
+  const line = h("p", { class: "muted waiting" }, text, " ", clock, reason);
+  let shown = false;
+  const tick = () => {
+    shown = shown || line.isConnected;
+    if (shown && !line.isConnected) return;
+    const seconds = (performance.now() - started) / 1000;
+    clock.textContent = seconds >= 1 ? `${seconds.toFixed(0)} s` : "";
+    if (why && seconds >= 2) reason.textContent = ` (${why})`;
+    setTimeout(tick, 500);
+  };
+  tick();
+  return line;
+}
+
+function limiter(width) { // runs the jobs it is given, `width` at a time, in order
+  let running = 0;
+  const queue = [];
+  const pump = () => {
+    while (running < width && queue.length) {
+      const [job, done] = queue.shift();
+      running += 1;
+      job().catch(() => {}).finally(() => { running -= 1; done(); pump(); });
+    }
+  };
+  return (job) => new Promise((done) => { queue.push([job, done]); pump(); });
+}
+const drawInTurn = limiter(3); // junction drawings: the server's workers are few
 
 async function home() {
   const networks = await get("/networks");
   render(h("h1", {}, "Networks and junctions"),
-    h("p", { class: "muted" }, "Bundled and uploaded road networks; each junction with a supported control type can grow test-cases."));
+    h("p", { class: "muted" }, "Bundled and uploaded road networks; each junction with a supported control type can grow test-cases. Connecting lanes: ",
+      h("span", { style: `color:${TURN_COLOURS.left}` }, "left"), ", ", h("span", { style: `color:${TURN_COLOURS.right}` }, "right"), ", ",
+      h("span", { style: `color:${TURN_COLOURS.straight}` }, "straight"), "; stop lines red where there is a stop sign."));
   const list = h("div", {});
   main.append(list);
   for (const network of networks) {
     const card = h("div", { class: "card" }, h("h2", {}, link(network.id, `#/networks/${encodeURIComponent(network.id)}`),
-      " ", h("span", { class: "badge" }, network.bundled ? "bundled" : "uploaded")), h("p", { class: "muted" }, "Loading junctions…"));
+      " ", h("span", { class: "badge" }, network.bundled ? "bundled" : "uploaded")));
     list.append(card);
     junctionCards(network, card, 4);
   }
 }
 
 async function junctionCards(network, card, most) {
-  const junctions = (await get(`/networks/${encodeURIComponent(network.id)}/junctions`)).filter((j) => j.supported);
+  const heading = card.firstChild;
+  card.append(waiting(`Reading the junctions of ${network.id}…`, "the first visit reads the network in a worker; later visits answer from the cache"));
+  let junctions;
+  try {
+    junctions = (await get(`/networks/${encodeURIComponent(network.id)}/junctions`)).filter((j) => j.supported);
+  } catch (error) {
+    card.replaceChildren(heading, h("p", { class: "error" }, `junctions of ${network.id}: ${error.message || error}`));
+    return;
+  }
   const grid = h("div", { class: "grid" });
+  const boxes = [];
   for (const junction of junctions.slice(0, most)) {
-    grid.append(h("div", {}, h("img", { src: junction.links.plot, alt: `junction ${junction.id}` }),
+    const box = h("div", { class: "thumb", "data-junction": junction.id }, h("p", { class: "muted" }, `junction ${junction.id}: waiting its turn…`));
+    grid.append(h("div", {}, box,
       h("div", {}, link(`junction ${junction.id}`, `#/testcases?network=${encodeURIComponent(network.id)}&junction=${encodeURIComponent(junction.id)}`),
-        ` · ${junction.control} · ${junction.approaches} approaches`)));
+        ` · ${junction.control} · ${junction.approaches} approaches · `, h("a", { href: junction.links.plot, target: "_blank" }, "picture"))));
+    boxes.push([junction, box]);
   }
   const more = junctions.length > most ? h("p", {}, link(`all ${junctions.length} supported junctions`, `#/networks/${encodeURIComponent(network.id)}`)) : null;
-  card.replaceChildren(card.firstChild, junctions.length ? grid : h("p", { class: "muted" }, "no junction with a supported control type"));
+  card.replaceChildren(heading, junctions.length ? grid : h("p", { class: "muted" }, "no junction with a supported control type"));
   if (more) card.append(more);
+  await Promise.all(boxes.map(([junction, box]) => drawInTurn(() => drawJunction(network, junction, box)))); // on the page: drawn
+}
+
+async function drawJunction(network, junction, box) {
+  if (!box.isConnected) return; // the page was left before its turn
+  box.replaceChildren(waiting(`drawing junction ${junction.id}…`));
+  try {
+    const geometry = await get(`/networks/${encodeURIComponent(network.id)}/junctions/${encodeURIComponent(junction.id)}/geometry`);
+    box.replaceChildren(junctionDrawing(geometry, junction.id));
+  } catch (error) {
+    box.replaceChildren(h("p", { class: "error" }, `junction ${junction.id}: ${error.message || error}`));
+  }
+}
+
+function junctionDrawing(geometry, id) { // the junction and its approaches, north up: roads, area, connecting lanes by turn, stop lines
+  const [ax0, ay0, ax1, ay1] = boundsOf(geometry.area.flat());
+  const side = Math.max(ax1 - ax0, ay1 - ay0) * 1.8 + 10; // the approaches in view
+  const x0 = (ax0 + ax1 - side) / 2, y1 = (ay0 + ay1 + side) / 2;
+  const at = (points) => points.map(([x, y]) => `${(x - x0).toFixed(2)},${(y1 - y).toFixed(2)}`).join(" ");
+  const drawing = svg("svg", { viewBox: `0 0 ${side.toFixed(2)} ${side.toFixed(2)}`, class: "junction-drawing", "data-junction": id, role: "img", "aria-label": `junction ${id}` });
+  for (const road of geometry.roads) for (const ring of road.polygon) drawing.append(svg("polygon", { points: at(ring), fill: "#dcdee2" }));
+  for (const ring of geometry.area) drawing.append(svg("polygon", { points: at(ring), fill: "#c6c9ce" }));
+  for (const path of geometry.paths) {
+    drawing.append(svg("polyline", { points: at(path.line), fill: "none", stroke: TURN_COLOURS[path.turn] || "#6b7280", "stroke-width": 1.4, "vector-effect": "non-scaling-stroke", class: "route" },
+      svg("title", {}, `${path.route} (${path.turn})`)));
+  }
+  for (const stop of geometry.stop_lines) {
+    drawing.append(svg("polyline", { points: at(stop.line), stroke: stop.stop_sign ? "#b91c1c" : "#6b7280", "stroke-width": stop.stop_sign ? 3 : 1.5, "vector-effect": "non-scaling-stroke", class: "stop-line" }));
+  }
+  return drawing;
 }
 
 async function networkPage(network) {
@@ -332,26 +413,60 @@ function egoTrack(testcase, samples, label, colour, ghost) {
   return { id: label, label, colour, length: testcase.ego.length, width: testcase.ego.width, samples, ghost };
 }
 
+// The time-distance panel: every shown track's distance over time, metres on the y axis,
+// seconds on the x axis, each curve named in a gutter right of the plot (at its end's
+// height, moved apart so that no two names overlap, a thin line back to its curve when
+// moved), so that no name is cut off at the panel's edge.
+const TD_FONT = 10, TD_CHAR = 6.2, TD_LINE = 13; // px: the names' font, a character's width (at most), a row
+
+function niceStep(span, ticks) { // 1, 2, 2.5 or 5 times a power of ten: about `ticks` steps over span
+  const raw = span / Math.max(1, ticks), power = 10 ** Math.floor(Math.log10(raw));
+  return power * [1, 2, 2.5, 5, 10].find((f) => f * power >= raw - 1e-9);
+}
+
+function spreadLabels(wanted, top, bottom, gap) { // heights in order kept at least `gap` apart, within [top, bottom]
+  const order = wanted.map((y, i) => [y, i]).sort((a, b) => a[0] - b[0] || a[1] - b[1]);
+  const placed = order.map(([y]) => Math.min(Math.max(y, top), bottom));
+  for (let k = 1; k < placed.length; k++) placed[k] = Math.max(placed[k], placed[k - 1] + gap);
+  if (placed.length) placed[placed.length - 1] = Math.min(placed[placed.length - 1], bottom);
+  for (let k = placed.length - 2; k >= 0; k--) placed[k] = Math.min(placed[k], placed[k + 1] - gap);
+  const result = [];
+  order.forEach(([, i], k) => { result[i] = placed[k]; });
+  return result;
+}
+
 function timeDistance(tracks, duration) {
-  const width = 560, height = 300, left = 48, bottom = 30;
-  const most = Math.max(1, ...tracks.flatMap((t) => t.samples.map((s) => s[5] || 0)));
-  const x = (t) => left + (t / duration) * (width - left - 10);
-  const y = (d) => height - bottom - (d / most) * (height - bottom - 10);
+  const shown = tracks.filter((t) => !t.hidden && t.samples.length);
+  const longest = Math.max(4, ...shown.map((t) => t.id.length));
+  const width = 560, height = 300, left = 56, bottom = 34, top = 12;
+  const right = Math.min(220, 14 + Math.ceil(longest * TD_CHAR)); // the names' gutter
+  const most = Math.max(1, ...shown.flatMap((t) => t.samples.map((s) => s[5] || 0)));
+  const step = niceStep(most, 6), high = Math.max(step, Math.ceil(most / step - 1e-9) * step);
+  const plotRight = width - right, plotBottom = height - bottom;
+  const x = (t) => left + (t / duration) * (plotRight - left);
+  const y = (d) => plotBottom - (d / high) * (plotBottom - top);
   const plot = svg("svg", { width, height, id: "time-distance", viewBox: `0 0 ${width} ${height}` });
-  plot.append(svg("line", { x1: left, y1: height - bottom, x2: width - 10, y2: height - bottom, stroke: "#6b7280" }),
-    svg("line", { x1: left, y1: 10, x2: left, y2: height - bottom, stroke: "#6b7280" }),
-    svg("text", { x: width / 2, y: height - 4, "font-size": 12, "text-anchor": "middle" }, "time (s)"),
-    svg("text", { x: 12, y: height / 2, "font-size": 12, transform: `rotate(-90 12 ${height / 2})`, "text-anchor": "middle" }, "distance driven (m)"));
-  for (let t = 0; t <= duration + 1e-9; t += Math.max(1, Math.round(duration / 10))) {
-    plot.append(svg("text", { x: x(t), y: height - bottom + 14, "font-size": 10, "text-anchor": "middle" }, t.toFixed(0)));
+  for (let d = 0; d <= high + 1e-9; d += step) {
+    plot.append(svg("line", { x1: left, y1: y(d), x2: plotRight, y2: y(d), stroke: "#eceef2" }),
+      svg("text", { x: left - 6, y: y(d) + 3.5, "font-size": TD_FONT, "text-anchor": "end", class: "y-tick" }, String(Math.round(d * 100) / 100)));
   }
-  for (const track of tracks) {
-    if (track.hidden) continue;
+  const every = niceStep(duration, 9);
+  for (let t = 0; t <= duration + 1e-9; t += every) {
+    plot.append(svg("text", { x: x(t), y: plotBottom + 14, "font-size": TD_FONT, "text-anchor": "middle", class: "x-tick" }, String(Math.round(t * 100) / 100)));
+  }
+  plot.append(svg("line", { x1: left, y1: plotBottom, x2: plotRight, y2: plotBottom, stroke: "#6b7280" }),
+    svg("line", { x1: left, y1: top, x2: left, y2: plotBottom, stroke: "#6b7280" }),
+    svg("text", { x: (left + plotRight) / 2, y: height - 4, "font-size": 12, "text-anchor": "middle" }, "time (s)"),
+    svg("text", { x: 14, y: (top + plotBottom) / 2, "font-size": 12, transform: `rotate(-90 14 ${(top + plotBottom) / 2})`, "text-anchor": "middle" }, "distance driven (m)"));
+  const ends = shown.map((track) => track.samples[track.samples.length - 1]);
+  const heights = spreadLabels(ends.map((end) => y(end[5] || 0) + 3.5), top + 8, plotBottom, TD_LINE);
+  shown.forEach((track, i) => {
     const points = track.samples.map((s) => `${x(s[0]).toFixed(1)},${y(s[5] || 0).toFixed(1)}`).join(" ");
     plot.append(svg("polyline", { points, fill: "none", stroke: track.colour, "stroke-width": track.highlight ? 3 : 1.6, "stroke-dasharray": track.ghost ? "5 3" : "none" }));
-    const end = track.samples[track.samples.length - 1];
-    plot.append(svg("text", { x: Math.min(width - 40, x(end[0]) + 2), y: y(end[5] || 0), "font-size": 10, fill: track.colour }, track.id));
-  }
+    const [endX, endY] = [x(ends[i][0]), y(ends[i][5] || 0)];
+    plot.append(svg("line", { x1: endX + 2, y1: endY, x2: plotRight + 6, y2: heights[i] - 3.5, stroke: track.colour, "stroke-width": 0.6, "stroke-opacity": 0.7 }),
+      svg("text", { x: plotRight + 8, y: heights[i], "font-size": TD_FONT, fill: track.colour, class: "curve-name" }, track.id));
+  });
   return plot;
 }
 
