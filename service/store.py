@@ -12,7 +12,7 @@ import hashlib
 import json
 import re
 import secrets
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -28,6 +28,7 @@ from service.core.testcase import (
     check_samples,
     dump_testcase,
     parse_testcase,
+    testcase_level,
     without_network_path,
 )
 
@@ -69,6 +70,9 @@ testcases = sa.Table(
     sa.Column("nonegos", sa.Integer, nullable=False),
     sa.Column("document", sa.Text, nullable=False),
     sa.Column("created_at", sa.DateTime(timezone=True), nullable=False),
+    # added later: NULL in a row an older version stored, filled in when it is first read
+    sa.Column("level", sa.Integer, nullable=True),
+    sa.Column("duration", sa.Float, nullable=True),
 )
 
 evaluations = sa.Table(
@@ -101,6 +105,35 @@ def now() -> datetime:
 def utc(moment: datetime) -> datetime:
     """SQLite hands back naive datetimes; every stored time is UTC."""
     return moment if moment.tzinfo is not None else moment.replace(tzinfo=UTC)
+
+
+def add_missing_columns(engine: sa.Engine) -> None:
+    """Add the columns a newer version added to a table of an older database (each such
+    column is nullable: the rows stored before hold NULL there). Safe when several
+    processes start at once: a column another one added meanwhile is fine."""
+    inspector = sa.inspect(engine)
+    for table in metadata.sorted_tables:
+        present = {column["name"] for column in inspector.get_columns(table.name)}
+        for column in table.columns:
+            if column.name in present:
+                continue
+            kind = column.type.compile(engine.dialect)
+            try:
+                with engine.begin() as connection:
+                    connection.exec_driver_sql(
+                        f"ALTER TABLE {table.name} ADD COLUMN {column.name} {kind}"
+                    )
+            except sa.exc.DBAPIError:
+                added = {c["name"] for c in sa.inspect(engine).get_columns(table.name)}
+                if column.name not in added:
+                    raise
+
+
+def summary_of(document: str) -> tuple[int, float]:
+    """The level and the duration of a stored test-case document (read, not validated)."""
+    data = json.loads(document)
+    level = max((int(car["added_in"]) for car in data.get("nonegos", [])), default=0)
+    return level, float(data.get("duration", 20.0))
 
 
 def testcase_id(document: str) -> str:
@@ -156,6 +189,8 @@ class TestCaseRecord:
     nonegos: int
     document: str
     created_at: datetime
+    level: int  # of the extension that added its last cars; 0: the ego alone
+    duration: float  # seconds
 
     @property
     def testcase(self) -> TestCase:
@@ -193,6 +228,7 @@ class Store:
         )
         self.engine = sa.create_engine(url, connect_args=connect_args, pool_pre_ping=True)
         metadata.create_all(self.engine)
+        add_missing_columns(self.engine)
 
     def ping(self) -> None:
         with self.engine.connect() as connection:
@@ -305,6 +341,11 @@ class Store:
         """The local file of a test-case's network, which must be bundled or uploaded: by
         its id, or (a test-case made from a file, which names it by file name) by the
         content hash of an uploaded network."""
+        return self.network_file(self.network_id_for(testcase))
+
+    def network_id_for(self, testcase: TestCase) -> str:
+        """The id of a test-case's network here (``network_file_for``); UnknownNetwork
+        when it is neither bundled nor uploaded."""
         ident = testcase.network.ref
         if self.network(ident) is None:
             with self.engine.connect() as connection:
@@ -322,15 +363,20 @@ class Store:
                     network=ident,
                 )
             ident = same.id
-        return self.network_file(ident)
+        return str(ident)
 
-    def keep_inline(self, document: dict[str, Any]) -> TestCaseRecord:
-        """Store a test-case a client sent inline (nothing submitted is lost), after checking
-        that its network is one this service has."""
+    def check_inline(self, document: dict[str, Any]) -> TestCase:
+        """A test-case a client sent inline, validated, within this server's limits, on a
+        network this service has (InvalidTestCase or UnknownNetwork otherwise)."""
         testcase = parse_testcase(document)
         check_samples(testcase.duration, testcase.timestep, self.max_samples)
-        self.network_file_for(testcase)
-        return self.add_testcase(testcase)
+        self.network_id_for(testcase)
+        return testcase
+
+    def keep_inline(self, document: dict[str, Any]) -> TestCaseRecord:
+        """Store a test-case a client sent inline (nothing submitted is lost), after
+        ``check_inline``."""
+        return self.add_testcase(self.check_inline(document))
 
     def delete_network(self, ident: str) -> None:
         with self.engine.begin() as connection:
@@ -357,6 +403,8 @@ class Store:
             "nonegos": len(testcase.nonegos),
             "document": document,
             "created_at": now(),
+            "level": testcase_level(testcase),
+            "duration": testcase.duration,
         }
         try:
             with self.engine.begin() as connection:
@@ -367,10 +415,47 @@ class Store:
         assert found is not None
         return found
 
+    def stored_testcases(self, idents: Collection[str]) -> set[str]:
+        """Which of ``idents`` are stored test-cases (one query, no document read)."""
+        if not idents:
+            return set()
+        with self.engine.connect() as connection:
+            query = sa.select(testcases.c.id).where(testcases.c.id.in_(sorted(idents)))
+            return set(connection.execute(query).scalars())
+
     def testcase(self, ident: str) -> TestCaseRecord | None:
         with self.engine.connect() as connection:
             row = connection.execute(sa.select(testcases).where(testcases.c.id == ident)).first()
-        return None if row is None else _testcase_record(row._mapping)
+        if row is None:
+            return None
+        found = dict(row._mapping)
+        if found["level"] is None or found["duration"] is None:  # stored by an older version
+            found["level"], found["duration"] = self._fill_summary(ident, found["document"])
+        return _testcase_record(found)
+
+    def _fill_summary(self, ident: str, document: str) -> tuple[int, float]:
+        """The level and duration of a row an older version stored, written into it."""
+        level, duration = summary_of(document)
+        with self.engine.begin() as connection:
+            connection.execute(
+                testcases.update()
+                .where(testcases.c.id == ident)
+                .values(level=level, duration=duration)
+            )
+        return level, duration
+
+    def _fill_summaries(self, idents: list[str]) -> dict[str, tuple[int, float]]:
+        if not idents:
+            return {}
+        with self.engine.connect() as connection:
+            rows = list(
+                connection.execute(
+                    sa.select(testcases.c.id, testcases.c.document).where(
+                        testcases.c.id.in_(idents)
+                    )
+                )
+            )
+        return {row.id: self._fill_summary(row.id, row.document) for row in rows}
 
     def list_testcases(
         self,
@@ -394,7 +479,13 @@ class Store:
         with self.engine.connect() as connection:
             total = connection.execute(counted).scalar_one()
             rows = connection.execute(ordered.limit(limit).offset(offset))
-            return Page([_testcase_record({**row._mapping, "document": ""}) for row in rows], total)
+            found = [dict(row._mapping) for row in rows]
+        missing = [row["id"] for row in found if row["level"] is None or row["duration"] is None]
+        filled = self._fill_summaries(missing)  # rows an older version stored
+        for row in found:
+            if row["id"] in filled:
+                row["level"], row["duration"] = filled[row["id"]]
+        return Page([_testcase_record({**row, "document": ""}) for row in found], total)
 
     def children(self, ident: str) -> list[TestCaseRecord]:
         return self.list_testcases(parent=ident, limit=1000).items

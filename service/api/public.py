@@ -48,6 +48,8 @@ def testcase_summary(record: TestCaseRecord) -> TestCaseSummary:
         junction=record.junction,
         parent=record.parent,
         nonegos=record.nonegos,
+        level=record.level,
+        duration=record.duration,
         created_at=record.created_at,
         links=testcase_links(record),
     )

@@ -32,9 +32,10 @@ EXAMPLE_NEW_ROUTE = "S2C_1:C2N_1"  # south arm, straight on to the north
 def example_document() -> str:
     """An ego-only test-case on the bundled four-way stop (its real network hash): what
     the POST /testcases example creates, and what the /extend example sends inline."""
-    from service.core.testcase import dump_testcase, new_testcase
+    from service.core.testcase import dump_testcase, new_testcase, readable_name, renamed
 
-    return dump_testcase(new_testcase(EXAMPLE_NETWORK, EXAMPLE_EGO))
+    testcase = new_testcase(EXAMPLE_NETWORK, EXAMPLE_EGO)
+    return dump_testcase(renamed(testcase, readable_name(testcase)))
 
 
 def example_testcase() -> dict[str, Any]:
@@ -109,11 +110,17 @@ class TestCaseCreate(_Body):
 
 class TestCaseSummary(BaseModel):
     id: str = Field(description="content address: the first 16 hex digits of its sha256")
-    name: str
+    name: str = Field(
+        description="the test-case's name: by default its network, junction, ego route and "
+        "level, as in '4way-stop C E2C_1:C2S_1 level 2' (empty for a document sent inline "
+        "without one)"
+    )
     network: str
     junction: str
     parent: str | None
     nonegos: int
+    level: int = Field(description="the extension level that added its last cars; 0: ego only")
+    duration: float = Field(description="how long the test-case lasts (s)")
     created_at: datetime
     links: Links
 

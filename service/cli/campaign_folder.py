@@ -94,21 +94,21 @@ def run_folder_campaign(
         item = jobs.item(job.id, 0)
         assert item is not None
         if item.state != "succeeded":
-            _raise_failure(item.error or f"the campaign's item ended {item.state}")
+            _raise_failure(item.error or f"the campaign's item ended {item.state}",
+                           item.error_kind)  # fmt: skip
         return write_results(store, settings, job.id, folder)
     finally:
         store.close()
         lock.close()  # and with it the lock
 
 
-def _raise_failure(error: str) -> None:
-    """The item's error (``Class: message``) raised again as that error of the core; an
+def _raise_failure(error: str, kind: str | None) -> None:
+    """The item's error raised again as the error of the core it was (``kind``); an
     internal fault as a plain ScengenError (exit 3), never as the user's bad input."""
-    name, _, message = error.partition(": ")
-    found = getattr(errors, name, None)
-    if isinstance(found, type) and issubclass(found, ScengenError):
-        raise found(f"the campaign stopped: {message}; run the same command to resume")
-    raise ScengenError(f"the campaign stopped: {error}; run the same command to resume")
+    found = getattr(errors, kind or "", None)
+    if not (isinstance(found, type) and issubclass(found, ScengenError)):
+        found = ScengenError
+    raise found(f"the campaign stopped: {error}; run the same command to resume")
 
 
 def _run(store: Store, settings: Settings, job: str, say: Callable[[str], None]) -> None:

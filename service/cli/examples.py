@@ -13,7 +13,15 @@ from pathlib import Path
 from service.cli.output import write_output
 from service.core.errors import ScengenError
 from service.core.generator.extension import extend_testcase
-from service.core.testcase import TestCase, dump_testcase, new_testcase
+from service.core.testcase import (
+    TestCase,
+    dump_testcase,
+    name_stem,
+    new_testcase,
+    readable_name,
+    renamed,
+    testcase_level,
+)
 
 
 @dataclass(frozen=True)
@@ -68,13 +76,11 @@ def run_example(
     progress: Callable[[str], None] | None = None,
     on_level: Callable[[TestCase], None] | None = None,
 ) -> list[TestCase]:
-    """The chain of test-cases: the ego-only start, then one per step. ``on_level`` hears
-    of each level as soon as it is verified; a level that fails names itself in its error."""
-    chain = [
-        new_testcase(
-            example.network, example.ego, duration=example.duration, name=f"{example.name}-0"
-        )
-    ]
+    """The chain of test-cases: the ego-only start, then one per step, named after the
+    example and the level (``four-way level 2``). ``on_level`` hears of each level as soon
+    as it is verified; a level that fails names itself in its error."""
+    start = new_testcase(example.network, example.ego, duration=example.duration)
+    chain = [renamed(start, readable_name(start, example.name))]
     if on_level is not None:
         on_level(chain[0])
     for level, routes in enumerate(example.steps, start=1):
@@ -83,7 +89,7 @@ def run_example(
         except ScengenError as error:
             message = f"{example.name} level {level}: {error.message}"
             raise type(error)(message, **error.context) from error
-        document = extension.testcase.model_copy(update={"name": f"{example.name}-{level}"})
+        document = renamed(extension.testcase, readable_name(extension.testcase, example.name))
         chain.append(document)
         if on_level is not None:
             on_level(document)
@@ -91,7 +97,8 @@ def run_example(
 
 
 def write_testcase(testcase: TestCase, folder: Path) -> Path:
-    """``folder/NAME.json``, the folder made when missing."""
-    path = folder / f"{testcase.name}.json"
+    """``folder/EXAMPLE-LEVEL.json`` (``four-way-2.json`` for ``four-way level 2``), the
+    folder made when missing."""
+    path = folder / f"{name_stem(testcase.name)}-{testcase_level(testcase)}.json"
     write_output(path, dump_testcase(testcase))
     return path

@@ -24,7 +24,7 @@ from service.cli.output import (
     write_output,
 )
 from service.cli.table import arg, command
-from service.core.checker.check import check_testcase
+from service.core.checker.check import check_testcase, testcase_label
 from service.core.checker.verdict import Verdict, junit_report
 from service.core.errors import InvalidInput, ScengenError
 from service.core.motion.trajectory import read_trajectory
@@ -104,10 +104,9 @@ def evaluate(args: argparse.Namespace) -> int:
         junction = testcase_intersection(testcase, args, files[0])
         verdict = evaluate_controller(testcase, controllers[0], junction,
                                       args.budget).verdict  # fmt: skip
-        verdict = dataclasses.replace(verdict, testcase=files[0].stem)
-        return _report_evaluations(args, [verdict], [], [], [])
-    rows = [["test-case", *controllers]]
-    verdicts: list[Verdict] = []
+        return _report_evaluations(args, [(verdict, files[0])], [], [], [])
+    rows = [["test-case", "file", *controllers]]
+    verdicts: list[tuple[Verdict, Path]] = []
     skipped: list[tuple[str, str]] = []  # (test-case, controller): a certificate it lacks
     problems: list[tuple[str, str, ScengenError]] = []  # (test-case, controller, why)
     steps = StepProgress(len(files) * len(controllers), "evaluations")
@@ -116,32 +115,38 @@ def evaluate(args: argparse.Namespace) -> int:
             testcase = read_input(path)
             junction = testcase_intersection(testcase, args, path)
         except ScengenError as error:  # this file cannot be evaluated: its row says why
-            rows.append([path.stem, *(["ERROR (below)"] * len(controllers))])
-            problems.append((path.stem, "", error))
+            rows.append(["-", str(path), *(["ERROR (below)"] * len(controllers))])
+            problems.append((str(path), "", error))
             for name in controllers:
-                steps.step(f"{path.stem} / {name}: error")
+                steps.step(f"{path} / {name}: error")
             continue
-        row = [path.stem]
+        label = _label(testcase_label(testcase), path)
+        row = [testcase_label(testcase), str(path)]
         for name, driver in zip(controllers, drivers, strict=True):
             if isinstance(driver, CertificateDriver) and testcase.certificates is None:
                 row.append("(none)")
-                skipped.append((path.stem, name))
-                steps.step(f"{path.stem} / {name}: (none)")
+                skipped.append((label, name))
+                steps.step(f"{label} / {name}: (none)")
                 continue
             try:
                 verdict = evaluate_controller(testcase, name, junction, args.budget).verdict
             except ScengenError as error:
                 row.append("ERROR (below)")
-                problems.append((path.stem, name, error))
-                steps.step(f"{path.stem} / {name}: error")
+                problems.append((label, name, error))
+                steps.step(f"{label} / {name}: error")
                 continue
-            verdict = dataclasses.replace(verdict, testcase=path.stem)
-            verdicts.append(verdict)
+            verdicts.append((verdict, path))
             row.append("pass" if verdict.passed else "FAIL: " + short(verdict))
-            steps.step(f"{path.stem} / {name}: {'pass' if verdict.passed else 'FAIL'}")
+            steps.step(f"{label} / {name}: {'pass' if verdict.passed else 'FAIL'}")
         rows.append(row)
     steps.close()
     return _report_evaluations(args, verdicts, skipped, problems, rows)
+
+
+def _label(name: str, path: Path) -> str:
+    """A test-case as the table's rows, JUnit and progress name it: by its name, its file
+    beside it (``four-way level 1 (chain/four-way-1.json)``)."""
+    return f"{name} ({path})"
 
 
 def _testcase_files(paths: Sequence[Path]) -> list[Path]:
@@ -161,20 +166,25 @@ def _testcase_files(paths: Sequence[Path]) -> list[Path]:
 
 def _report_evaluations(
     args: argparse.Namespace,
-    verdicts: Sequence[Verdict],
+    judged: Sequence[tuple[Verdict, Path]],
     skipped: Sequence[tuple[str, str]],
     problems: Sequence[tuple[str, str, ScengenError]],
     rows: Sequence[Sequence[str]],
 ) -> int:
     """Print the verdicts (one, a table, or JSON), write JUnit, and the overall exit code:
     0 all passed (cells without a certificate to replay do not count), 1 some failed, and,
-    when some could not be evaluated at all, 2 if each of those was bad input, else 3."""
+    when some could not be evaluated at all, 2 if each of those was bad input, else 3.
+    Verdicts name their test-case by its name; JUnit and JSON give its file beside it."""
+    verdicts = [verdict for verdict, _ in judged]
     if args.junit:
+        labelled = [dataclasses.replace(v, testcase=_label(v.testcase, path))
+                    for v, path in judged]  # fmt: skip
         errors = [(f"{t} / {c}" if c else t, str(e)) for t, c, e in problems]
         skips = [f"{t} / {c}" for t, c in skipped]
-        write_output(args.junit, junit_report(verdicts, errors=errors, skipped=skips))
+        write_output(args.junit, junit_report(labelled, errors=errors, skipped=skips))
     if args.json:
-        json.dump([v.to_dict() for v in verdicts], sys.stdout, indent=2)
+        json.dump([{**v.to_dict(), "file": str(path)} for v, path in judged], sys.stdout,
+                  indent=2)  # fmt: skip
         print()
     elif not rows:
         print_verdict(verdicts[0])

@@ -201,8 +201,10 @@ def _summary(job: dict[str, Any]) -> str:
 
 
 def download(client: Client, job: dict[str, Any], junit: Path | None, folder: Path | None) -> None:
-    """The JUnit report, and with ``folder`` every result: job.json, junit.xml, the
-    test-case documents, a zip of all SUMO bundles and one of all OpenSCENARIO exports."""
+    """The JUnit report (a campaign's cases in it, named by chain and level), and with
+    ``folder`` every result: job.json, junit.xml, the test-case documents, a zip of all
+    SUMO bundles and one of all OpenSCENARIO exports; for a campaign also campaign.json
+    and report.html."""
     report = client.call("GET", f"/jobs/{job['id']}/junit")[2]
     if junit is not None:
         junit.write_bytes(report)
@@ -211,6 +213,8 @@ def download(client: Client, job: dict[str, Any], junit: Path | None, folder: Pa
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "job.json").write_text(json.dumps(job, indent=2) + "\n")
     (folder / "junit.xml").write_bytes(report)
+    if any(item["kind"] == "campaign" for item in job["items"]):
+        _download_campaign(client, job, folder)
     documents = folder / "testcases"
     documents.mkdir(exist_ok=True)
     made = [ident for item in job["items"] for ident in item["testcases"]]
@@ -222,6 +226,21 @@ def download(client: Client, job: dict[str, Any], junit: Path | None, folder: Pa
         (folder / "bundles.zip").write_bytes(client.call("GET", f"/jobs/{job['id']}/bundles")[2])
         scenarios = client.call("GET", f"/jobs/{job['id']}/openscenario")[2]
         (folder / "openscenario.zip").write_bytes(scenarios)
+
+
+def _download_campaign(client: Client, job: dict[str, Any], folder: Path) -> None:
+    """campaign.json and report.html of the job's campaign; a campaign that stopped before
+    its first level has neither (said on stderr)."""
+    try:
+        outcome = client.json("GET", f"/jobs/{job['id']}/campaign")
+    except ServerRefused:  # 404: no level finished
+        print(f"scengen: job {job['id']} has no campaign outcome: no campaign.json or "
+              "report.html", file=sys.stderr)  # fmt: skip
+        return
+    (folder / "campaign.json").write_text(json.dumps(outcome, indent=1) + "\n")  # as campaign -o
+    client.timeout = max(client.timeout, 300.0)
+    report = client.call("GET", f"/jobs/{job['id']}/campaign/report")[2]
+    (folder / "report.html").write_bytes(report)
 
 
 def outcome(job: dict[str, Any]) -> int:

@@ -22,10 +22,10 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
-from xml.etree import ElementTree as ET
 
+from service.core.checker.verdict import JUnitCase, junit_document
 from service.core.errors import BudgetExceeded, NoMoreComplexTestCase, NoneFound
-from service.core.testcase import TestCase
+from service.core.testcase import TestCase, name_stem, readable_name
 
 CAMPAIGN_SCHEMA = "scengen/campaign/1"
 REAR_END_RULE = "rearEnd"  # a complexity certificate that runs into a new car ahead of it
@@ -80,10 +80,11 @@ class CampaignSteps(Protocol):
         ...
 
     def grow(
-        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...]
+        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...], stem: str
     ) -> tuple[str, TestCase, str]:
-        """The next level: id, test-case and the route added; routes in ``last`` are
-        tried after the others of their group. A chain ends at one of CHAIN_ENDS."""
+        """The next level: id, test-case (named ``STEM level N``) and the route added;
+        routes in ``last`` are tried after the others of their group. A chain ends at one
+        of CHAIN_ENDS."""
         ...
 
     def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
@@ -125,14 +126,16 @@ def run_campaign(
             tell(f"{ego}: level 0 / {controller}")
         for chain in range(plan.chains):
             seed = plan.seed + chain
+            stem = chain_name(root, chain)
             record: dict[str, Any] = {"ego": ego, "chain": chain, "seed": seed, "end": None}
+            record["name"] = stem
             record["levels"] = [_level(0, root_id, root, None, root_verdicts)]
             chains.append(record)
             parent_id, parent = root_id, root
             for level in range(1, plan.depth + 1):
                 last = _covered_routes(chains, ego, rules)
                 try:
-                    parent_id, parent, route = steps.grow(parent_id, parent, seed, last)
+                    parent_id, parent, route = steps.grow(parent_id, parent, seed, last, stem)
                 except CHAIN_ENDS as end:
                     record["end"] = f"level {level}: {end.message}"
                     done += (plan.depth - level + 1) * (1 + len(plan.controllers))
@@ -152,6 +155,13 @@ def run_campaign(
     return outcome
 
 
+def chain_name(root: TestCase, chain: int) -> str:
+    """What the levels of chain ``chain`` (from 0) grown from ``root`` are named before
+    their level: the root's name without its level, and the chain, as in
+    ``4way-stop C S2C_0:C2N_0 chain 2`` (its level 3: ``... chain 2 level 3``)."""
+    return f"{name_stem(root.name or readable_name(root))} chain {chain + 1}"
+
+
 def _level(
     level: int, ident: str, testcase: TestCase, route: str | None, verdicts: dict[str, Any]
 ) -> dict[str, Any]:
@@ -161,6 +171,7 @@ def _level(
         "level": level,
         "testcase": ident,
         "name": testcase.name,
+        "duration": testcase.duration,
         "route": route,
         "new_cars": list(provenance.get("new_nonegos", [])),
         "breaks": _broken(testcase),
@@ -264,6 +275,7 @@ def _chain_outcome(plan: CampaignPlan, chain: dict[str, Any]) -> dict[str, Any]:
         "ego": chain["ego"],
         "chain": chain["chain"],
         "seed": chain["seed"],
+        "name": chain.get("name") or f"{chain['ego']} chain {chain['chain'] + 1}",
         "reached": len(chain["levels"]) - 1,
         "end": chain["end"],
         "first_failure": first,
@@ -297,26 +309,29 @@ def _coverage(
 
 def campaign_junit(outcome: dict[str, Any], suite_name: str = "scengen.campaign") -> str:
     """JUnit XML: one test case per chain, level and controller (failure: the reasons)."""
-    suite = ET.Element("testsuite", name=suite_name)
-    tests = failures = 0
+    return junit_document(campaign_cases(outcome, suite_name), suite_name)
+
+
+def campaign_cases(
+    outcome: dict[str, Any], suite_name: str = "scengen.campaign"
+) -> list[JUnitCase]:
+    """The campaign's JUnit test cases: one per chain, level and controller, named by the
+    chain's name, the level and the test-case's id beside them, and the controller
+    (``4way-stop C S2C_0:C2N_0 chain 2 level 3 (491d462c96ddb575) / sumo``)."""
+    cases = []
     for chain in outcome["chains"]:
         classname = f"{suite_name}.{chain['ego']}.chain{chain['chain'] + 1}"
+        stem = chain.get("name") or f"{chain['ego']} chain {chain['chain'] + 1}"
         for level in chain["levels"]:
             for controller, verdict in level["verdicts"].items():
-                tests += 1
-                name = f"level {level['level']} ({level['testcase']}) / {controller}"
-                case = ET.SubElement(suite, "testcase", classname=classname, name=name)
-                if not verdict["passed"]:
-                    failures += 1
-                    reasons = verdict["reasons"] or ["failed"]
-                    failure = ET.SubElement(case, "failure", message="; ".join(reasons))
-                    failure.text = "\n".join(reasons)
-    suite.set("tests", str(tests))
-    suite.set("failures", str(failures))
-    root = ET.Element("testsuites")
-    root.append(suite)
-    ET.indent(root)
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, "unicode") + "\n"
+                name = f"{stem} level {level['level']} ({level['testcase']}) / {controller}"
+                if verdict["passed"]:
+                    cases.append(JUnitCase(classname, name))
+                    continue
+                reasons = verdict["reasons"] or ["failed"]
+                cases.append(JUnitCase(classname, name, "failure", "; ".join(reasons),
+                                       "\n".join(reasons)))  # fmt: skip
+    return cases
 
 
 def failure_table(outcome: dict[str, Any]) -> list[list[str]]:

@@ -315,13 +315,15 @@ def testcase_level(testcase: TestCase) -> int:
     return max((n.added_in for n in testcase.nonegos), default=0)
 
 
-def readable_name(testcase: TestCase, stem: str = "") -> str:
+def readable_name(testcase: TestCase, stem: str = "", network: str = "") -> str:
     """A name a test engineer reads at a glance: ``STEM level N``, or without a stem the
     network's short name (a bundled name, or the file name without ``.net.xml``), the
-    junction, the ego's route and the level: ``Town05 396 -44_1:-9_1 level 2``."""
+    junction, the ego's route and the level: ``Town05 396 -44_1:-9_1 level 2``. ``network``
+    names the network's file where the reference does not say it (a server's network id):
+    the short name is then made from it."""
     if not stem:
-        network = PurePosixPath(testcase.network.ref).name.removesuffix(".xml")
-        stem = f"{network.removesuffix('.net')} {testcase.junction} {testcase.ego.route.id}"
+        short = PurePosixPath(network or testcase.network.ref).name.removesuffix(".xml")
+        stem = f"{short.removesuffix('.net')} {testcase.junction} {testcase.ego.route.id}"
     suffix = f" level {testcase_level(testcase)}"
     return stem[: MAX_NAME_LENGTH - len(suffix)] + suffix
 

@@ -147,7 +147,7 @@ class Batch(BaseModel):
                     "items": [
                         {
                             "kind": "chain",
-                            "testcase_id": "132282f84a7020de",
+                            "testcase_id": "c2de5a280aab66bd",
                             "levels": 2,
                             "seed": 1,
                         },

@@ -118,11 +118,11 @@ class JobCampaign:
         return ident, self._testcase(ident)
 
     def grow(
-        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...]
+        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...], stem: str
     ) -> tuple[str, TestCase, str]:
         def compute() -> dict[str, str]:
             args = (dump_testcase(testcase), self.network_file, self.work.settings.cache_dir,
-                    seed, self.budget_per_level, last)  # fmt: skip
+                    seed, self.budget_per_level, last, stem)  # fmt: skip
             try:
                 result = self.work.call(tasks.extend_any, args, self.budget_per_level + 5.0,
                                         f"growing a level on {parent}")  # fmt: skip

@@ -16,11 +16,12 @@ import subprocess
 import sys
 import threading
 import time
+import traceback
 from collections.abc import Callable
 from typing import Any
 
 from service.core.budget import decode_outcome, encode_call
-from service.core.errors import BudgetExceeded, ScengenError
+from service.core.errors import BudgetExceeded, InvalidInput, ScengenError
 from service.core.testcase import parse_testcase
 from service.jobs import tasks
 from service.jobs.batch import CampaignItem, ChainItem, EvaluateItem, ExtendItem
@@ -72,11 +73,12 @@ def run_item(
     except Stopped:
         return  # cancelled (already marked) or taken over by another worker
     except ScengenError as error:
-        jobs.finish(job, position, owner, "failed", f"{type(error).__name__}: {error}")
+        kind = type(error).__name__
+        jobs.finish(job, position, owner, "failed", error.message, error_kind=kind)
     except Exception as error:  # a bug must not leave the item running forever
-        jobs.finish(
-            job, position, owner, "failed", f"internal error: {type(error).__name__}: {error}"
-        )
+        traceback.print_exc()  # for the worker's log
+        why = f"internal error (a bug; the worker's log has the details): {error!r}"
+        jobs.finish(job, position, owner, "failed", why)
     else:
         jobs.finish(job, position, owner, "succeeded")
     finally:
@@ -139,7 +141,7 @@ class Work:
             ident = str(spec.testcase_id)
         record = self.store.testcase(ident)
         if record is None:
-            raise ScengenError(f"no stored test-case {ident!r}")
+            raise _gone(ident)
         return record
 
     def _extend(self, spec: ExtendItem) -> None:
@@ -201,7 +203,7 @@ class Work:
         if spec.testcase_id is not None:
             record = self.store.testcase(spec.testcase_id)
             if record is None:
-                raise ScengenError(f"no stored test-case {spec.testcase_id!r}")
+                raise _gone(spec.testcase_id)
             return [record]
         found = []
         for position in spec.items or []:
@@ -232,6 +234,14 @@ class Work:
         self, function: Callable[..., Any], args: tuple[Any, ...], budget: float, what: str
     ) -> Any:
         return run_stoppable(function, args, budget, what, self.stop)
+
+
+def _gone(ident: str) -> InvalidInput:
+    """A test-case the batch names that is not stored (any more: a batch naming one that
+    was never stored is refused when it is submitted)."""
+    return InvalidInput(
+        f"testcase_id: no stored test-case {ident!r} (deleted since the job was submitted?)"
+    )
 
 
 def run_stoppable(

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import secrets
 import time
 from dataclasses import dataclass
@@ -19,6 +20,7 @@ from typing import Any
 
 import sqlalchemy as sa
 
+from service.core import errors
 from service.jobs.batch import Batch, dependencies
 from service.store import Page, Store, metadata, now, utc
 
@@ -52,9 +54,11 @@ items = sa.Table(
     sa.Column("progress", sa.Text, nullable=False),
     sa.Column("testcases", sa.Text, nullable=False),  # JSON list of ids, in order made
     sa.Column("evaluations", sa.Text, nullable=False),  # JSON list of ids
-    sa.Column("error", sa.Text, nullable=True),
+    sa.Column("error", sa.Text, nullable=True),  # why it failed, in plain words
     sa.Column("started_at", sa.DateTime(timezone=True), nullable=True),
     sa.Column("finished_at", sa.DateTime(timezone=True), nullable=True),
+    # added later: the class of service.core.errors that failed it (None: none of them)
+    sa.Column("error_kind", sa.String(64), nullable=True),
 )
 
 # What an item remembers of its steps beyond test-cases and evaluations (a campaign's
@@ -69,6 +73,11 @@ memos = sa.Table(
 )
 
 FINISHED = ("succeeded", "failed", "cancelled")
+ERROR_KINDS = frozenset(
+    name
+    for name, value in vars(errors).items()
+    if isinstance(value, type) and issubclass(value, errors.ScengenError)
+)
 SWEEP_PERIOD = 10.0  # seconds between looks for jobs left unfinished with finished items
 
 
@@ -88,6 +97,7 @@ class ItemRecord:
     error: str | None
     started_at: datetime | None
     finished_at: datetime | None
+    error_kind: str | None = None  # the class of service.core.errors behind ``error``
 
     def evaluation_id(self, testcase: str, controller: str) -> str:
         """The same item, test-case and controller: the same stored evaluation, once."""
@@ -124,7 +134,7 @@ class JobStore:
         """The new job (True), or the job an earlier request with ``key`` made (False)."""
         fingerprint = batch.fingerprint()
         if key is not None:
-            existing = self._by_key(key)
+            existing = self.by_key(key)
             if existing is not None:
                 if existing.fingerprint != fingerprint:
                     raise IdempotencyConflict(key)
@@ -169,7 +179,8 @@ class JobStore:
                     )
                 )
 
-    def _by_key(self, key: str) -> JobRecord | None:
+    def by_key(self, key: str) -> JobRecord | None:
+        """The job an earlier request with this Idempotency-Key made, or None."""
         with self.engine.connect() as connection:
             ident = connection.execute(
                 sa.select(jobs.c.id).where(jobs.c.idempotency_key == key)
@@ -287,9 +298,11 @@ class JobStore:
         state: str,
         error: str | None = None,
         expired_before: float | None = None,
+        error_kind: str | None = None,
     ) -> None:
         """Finish an item (only its owner's, and only while unfinished) and, in the same
-        transaction, its job when this was the last item."""
+        transaction, its job when this was the last item. ``error`` says why it failed in
+        plain words; ``error_kind`` names the class of service.core.errors behind it."""
         where = [items.c.job == job, items.c.position == position, items.c.state.not_in(FINISHED)]
         if owner is not None:
             where.append(items.c.owner == owner)
@@ -299,7 +312,8 @@ class JobStore:
             connection.execute(
                 items.update()
                 .where(*where)
-                .values(state=state, error=error, finished_at=now(), lease_until=None)
+                .values(state=state, error=error, error_kind=error_kind)
+                .values(finished_at=now(), lease_until=None)
             )
             _refresh(connection, job)
 
@@ -346,6 +360,7 @@ class JobStore:
                     lease_until=None,
                     sent_at=None,
                     error=None,
+                    error_kind=None,
                     attempts=0,
                     finished_at=None,
                 )
@@ -461,12 +476,16 @@ class JobStore:
 
 
 def _item(row: Any) -> ItemRecord:
+    error, kind = row["error"], row["error_kind"]
+    legacy = re.match(r"([A-Z][A-Za-z]+): (.*)", error or "", re.S)
+    if kind is None and legacy and legacy[1] in ERROR_KINDS:  # "Class: message", stored before
+        kind, error = legacy[1], legacy[2]
     return ItemRecord(
         job=row["job"], position=row["position"], kind=row["kind"],
         spec=json.loads(row["spec"]), needs=json.loads(row["needs"]), state=row["state"],
         attempts=row["attempts"], owner=row["owner"], progress=row["progress"],
         testcases=json.loads(row["testcases"]), evaluations=json.loads(row["evaluations"]),
-        error=row["error"],
+        error=error, error_kind=kind,
         started_at=utc(row["started_at"]) if row["started_at"] else None,
         finished_at=utc(row["finished_at"]) if row["finished_at"] else None,
     )  # fmt: skip

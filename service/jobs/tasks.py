@@ -26,10 +26,14 @@ from service.core.network.load import SUPPORTED, junction_arms, read_network
 from service.core.testcase import (
     NetworkRef,
     Params,
+    TestCase,
     dump_testcase,
     load_testcase_intersection,
+    name_stem,
     new_testcase,
     parse_testcase,
+    readable_name,
+    renamed,
 )
 
 
@@ -123,7 +127,8 @@ def create_testcase(
     cache_dir: Path,
     request: dict[str, Any],
 ) -> str:
-    """A new ego-only test-case on a stored network; its JSON document."""
+    """A new ego-only test-case on a stored network; its JSON document. Without a name in
+    ``request`` it gets the readable default (the network's short name from its file's)."""
     params = request.pop("params", None)
     testcase = new_testcase(
         network_file,
@@ -131,7 +136,17 @@ def create_testcase(
         params=None if params is None else Params.model_validate(params),
         **request,
     )
+    if not testcase.name:
+        testcase = renamed(testcase, readable_name(testcase, network=network_file.name))
     return dump_testcase(testcase.model_copy(update={"network": network}))
+
+
+def named_extension(new: TestCase, old: TestCase, network_file: Path, stem: str | None) -> str:
+    """The document of an extension of ``old``, named ``STEM level N``: by default the old
+    name without its level (``... level 1`` after ``... level 0``), or for an old test-case
+    without a name, the readable default."""
+    chosen = name_stem(old.name) if stem is None else stem
+    return dump_testcase(renamed(new, readable_name(new, chosen, network=network_file.name)))
 
 
 def extend(
@@ -144,9 +159,10 @@ def extend(
     start_distance: float | list[float | None] | None,
     deadline: float | None = None,
 ) -> dict[str, Any]:
-    """The extension of a test-case: the new document, the attempts and the step timings.
-    ``start_distance`` is one for all new cars, one (or None) per route, or None: automatic.
-    With ``deadline`` (a Unix time), the generator gets only what is left of ``budget``."""
+    """The extension of a test-case: the new document (named as ``named_extension`` says),
+    the attempts and the step timings. ``start_distance`` is one for all new cars, one (or
+    None) per route, or None: automatic. With ``deadline`` (a Unix time), the generator gets
+    only what is left of ``budget``."""
     from service.core.generator.extension import extend_testcase
 
     old = parse_testcase(document)
@@ -162,7 +178,7 @@ def extend(
         message = error.message.replace(f"{max(0.1, left):g} s", f"{budget:g} s", 1)
         raise NoneFound(message, **error.context) from None
     return {
-        "document": dump_testcase(extension.testcase),
+        "document": named_extension(extension.testcase, old, network_file, None),
         "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],
         "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
     }
@@ -259,11 +275,13 @@ def extend_any(
     seed: int,
     budget: float,
     last: tuple[str, ...] = (),
+    stem: str | None = None,
 ) -> dict[str, Any]:
     """An extension by one car on a route the service chooses (service.core.generator.chain.grow):
     the routes that conflict with the ego's or start ahead of it, from forks no car uses
     first, then from forks in use (the new car joins the queue), in an order drawn from
-    ``seed`` (routes in ``last`` after the others); the budget only stops the call."""
+    ``seed`` (routes in ``last`` after the others); the budget only stops the call. The new
+    test-case is named ``STEM level N`` (default: as ``named_extension`` says)."""
     from service.core.generator.chain import grow
 
     old = parse_testcase(document)
@@ -271,7 +289,7 @@ def extend_any(
     growth = grow(old, seed, budget, intersection, last=last)
     extension = growth.extension
     return {
-        "document": dump_testcase(extension.testcase),
+        "document": named_extension(extension.testcase, old, network_file, stem),
         "route": growth.route,
         "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],
         "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},

@@ -19,6 +19,7 @@ from typing import Any
 import httpx2 as httpx
 import pytest
 
+from service.api.schemas import EXAMPLE_EGO, EXAMPLE_NEW_ROUTE
 from service.core.checker.check import check_testcase
 from service.core.motion.poses import PoseSample
 from service.core.network import load_intersection
@@ -130,6 +131,41 @@ def test_stored_testcases_and_lineage(api: httpx.Client, chain: list[dict[str, A
     assert on_town05["next"] is not None
     rest = api.get(on_town05["next"]).json()
     assert {i["id"] for i in on_town05["items"] + rest["items"]} == {c["id"] for c in chain}
+
+
+def test_names_say_network_junction_route_and_level(
+    api: httpx.Client, chain: list[dict[str, Any]]
+) -> None:
+    """Made through the API, every test-case has the readable default name (the uploaded
+    file's short name, not the server's network id); the summaries give level and duration."""
+    names = [f"Town05 396 {EGO} level {level}" for level in range(3)]
+    assert [level["name"] for level in chain] == names
+    assert [level["testcase"]["name"] for level in chain] == names
+    listed = api.get("/testcases", params={"network": chain[0]["network"]}).json()["items"]
+    mine = {t["id"]: (t["name"], t["level"], t["duration"]) for t in listed}
+    assert [mine[level["id"]] for level in chain] == [(n, i, 20.0) for i, n in enumerate(names)]
+    lineage = api.get(f"/testcases/{chain[2]['id']}/lineage").json()
+    assert [(a["level"], a["duration"]) for a in lineage["ancestors"]] == [(1, 20.0), (0, 20.0)]
+
+
+def test_a_given_name_is_kept_and_extensions_carry_it(api: httpx.Client) -> None:
+    """A name given to POST /testcases is kept, and its extensions add the level; an
+    extension of a document sent inline without a name gets the readable default."""
+    named = api.post(
+        "/testcases", json={"network": "4way-stop", "ego_route": EXAMPLE_EGO, "name": "left"}
+    )
+    assert named.status_code == 201, named.text
+    assert named.json()["name"] == "left" and named.json()["level"] == 0
+    body = {"testcase_id": named.json()["id"], "routes": [EXAMPLE_NEW_ROUTE], "seed": 1}
+    extended = api.post("/extend", json=body)
+    assert extended.status_code == 201, extended.text
+    assert extended.json()["name"] == "left level 1" and extended.json()["level"] == 1
+    unnamed = json.loads(dump_testcase(new_testcase("4way-stop", EXAMPLE_EGO)))
+    assert unnamed["name"] == ""
+    body = {"testcase": unnamed, "routes": [EXAMPLE_NEW_ROUTE], "seed": 1}
+    inline = api.post("/extend", json=body)
+    assert inline.status_code == 201, inline.text
+    assert inline.json()["name"] == "4way-stop C E2C_1:C2S_1 level 1"
 
 
 def test_extending_is_deterministic(api: httpx.Client, chain: list[dict[str, Any]]) -> None:

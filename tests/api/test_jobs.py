@@ -47,6 +47,14 @@ def test_junit_and_bundles(api: httpx.Client, finished: dict[str, Any]) -> None:
     suite = ET.fromstring(api.get(finished["links"]["junit"]).text).find("testsuite")
     assert suite is not None and suite.get("tests") == "6"
     assert int(suite.get("failures") or 0) == finished["evaluations"]["failed"]
+    # named by the test-case's name, which says the level, the id beside it
+    levels = {t: lv for item in finished["items"][:2] for lv, t in enumerate(item["testcases"], 1)}
+    names = sorted(case.get("name", "") for case in suite.findall("testcase"))
+    assert names == sorted(
+        f"4way-stop C E2C_1:C2S_1 level {level} ({ident}) / {controller}"
+        for ident, level in levels.items()
+        for controller in ("sumo", "certificate:solvability")
+    )
     archive = zipfile.ZipFile(io.BytesIO(api.get(finished["links"]["bundles"]).content))
     made = [t for item in finished["items"] for t in item["testcases"]]
     assert {name.split("/")[0] for name in archive.namelist()} == set(made)
@@ -56,36 +64,85 @@ def test_junit_and_bundles(api: httpx.Client, finished: dict[str, Any]) -> None:
     assert {f"{made[0]}/testcase.xosc", f"{made[0]}/testcase.xodr"} <= set(scenarios.namelist())
 
 
-def test_the_same_idempotency_key_gives_the_same_job(api: httpx.Client) -> None:
-    batch = {"items": [{"kind": "evaluate", "testcase_id": "nope", "controllers": ["sumo"]}]}
+def test_the_same_idempotency_key_gives_the_same_job(
+    api: httpx.Client, finished: dict[str, Any]
+) -> None:
+    root = finished["items"][0]["testcases"][0]
+    batch = {"items": [{"kind": "evaluate", "testcase_id": root, "controllers": ["sumo"]}]}
     first = api.post("/jobs", json=batch, headers={"Idempotency-Key": "ci-run-7"})
     again = api.post("/jobs", json=batch, headers={"Idempotency-Key": "ci-run-7"})
     assert first.status_code == 202 and again.status_code == 200
     assert again.json()["id"] == first.json()["id"]
-    other = {
-        "items": [{"kind": "evaluate", "testcase_id": "nope", "controllers": ["sumo-cautious"]}]
-    }
+    other = {"items": [{"kind": "evaluate", "testcase_id": root, "controllers": ["sumo-cautious"]}]}
     clash = api.post("/jobs", json=other, headers={"Idempotency-Key": "ci-run-7"})
     assert clash.status_code == 409 and "another batch" in clash.json()["detail"]
 
 
-def test_a_failing_item_fails_the_job_with_its_reason(server: Server) -> None:
-    batch = {"items": [{"kind": "evaluate", "testcase_id": "nope", "controllers": ["sumo"]},
-                       {"kind": "extend", "testcase_id": "nope", "routes": ["a:b"]}]}  # fmt: skip
-    job = server.wait_for_job(server.client.post("/jobs", json=batch).json()["id"])
-    assert job["state"] == "failed"
-    assert all("no stored test-case 'nope'" in item["error"] for item in job["items"])
+def test_a_batch_naming_unknown_things_is_refused(api: httpx.Client) -> None:
+    """Every unknown test-case id, network and controller is named, with the valid choices,
+    and no job is made (they used to be accepted, then fail with an internal class name)."""
+    before = api.get("/jobs").json()["total"]
+    batch = {"items": [
+        {"kind": "evaluate", "testcase_id": "nope", "controllers": ["sumo", "autopilot"]},
+        {"kind": "extend", "testcase_id": "gone", "routes": ["a:b"]},
+        {"kind": "campaign", "network": "nowhere", "egos": ["a:b"], "depth": 1, "chains": 1,
+         "controllers": ["sumo"]},
+    ]}  # fmt: skip
+    reply = api.post("/jobs", json=batch)
+    assert reply.status_code == 422 and reply.headers["content-type"] == "application/problem+json"
+    problem = reply.json()
+    assert problem["type"] == "/problems/invalid-input"
+    assert [line.split(":")[0] for line in problem["errors"]] == [
+        "items[0].testcase_id", "items[0].controllers", "items[1].testcase_id", "items[2].network"
+    ]  # fmt: skip
+    detail = problem["detail"]
+    assert "no stored test-case 'nope'" in detail and "no stored test-case 'gone'" in detail
+    assert "'autopilot' is not a controller installed here" in detail and "sumo-cautious" in detail
+    assert "no network 'nowhere' (known networks: 4way-stop" in detail
+    assert api.get("/jobs").json()["total"] == before
 
 
-def test_an_extend_item_passes_a_start_distance_per_route(server: Server) -> None:
+def test_the_readme_batch_on_a_fresh_server_is_refused(tmp_path: Path) -> None:
+    """examples/regression.yaml names the README's first test-case: a server that has not
+    made it refuses the batch at once, naming the id (twice: two items name it)."""
+    from fastapi.testclient import TestClient
+
+    from service.api import create_app
+    from service.cli.submit import read_batch
+    from service.settings import Settings
+
+    batch = read_batch(Path(__file__).parents[2] / "examples" / "regression.yaml")
+    with TestClient(create_app(Settings(data_dir=tmp_path))) as fresh:
+        reply = fresh.post("/jobs", json=batch.model_dump(mode="json"))
+    assert reply.status_code == 422
+    assert reply.json()["errors"] == [
+        f"items[{i}].testcase_id: no stored test-case 'c2de5a280aab66bd' (POST /testcases "
+        "makes one, GET /testcases lists them)"
+        for i in (0, 1)
+    ]
+
+
+def test_a_failing_item_is_an_error_in_the_junit(server: Server) -> None:
     """The second car, on the ego's fork, would start behind the ego: the item's error says
-    so, naming that car, so the list reached the generator in the order of the routes."""
+    so in plain words, naming that car (so the list reached the generator in the order of
+    the routes); the item that needs it fails too; the JUnit has an error for each."""
     item = {"kind": "extend", "testcase": regression_batch()["items"][0]["testcase"],
             "routes": ["S2C_1:C2N_1", "E2C_1:C2W_1"], "start_distance": [None, 40]}  # fmt: skip
-    job = server.wait_for_job(server.client.post("/jobs", json={"items": [item]}).json()["id"])
+    after = {"kind": "chain", "after": 0, "levels": 1}
+    batch = {"name": "all fail", "items": [item, after]}
+    job = server.wait_for_job(server.client.post("/jobs", json=batch).json()["id"])
     assert job["state"] == "failed"
     error = job["items"][0]["error"]
-    assert "new car 2 (E2C_1:C2W_1) would start 40 m" in error and "behind the ego" in error
+    assert (
+        error.startswith("new car 2 (E2C_1:C2W_1) would start 40 m") and "behind the ego" in error
+    )
+    assert job["items"][1]["error"] == "item 0 it depends on did not succeed"
+    suite = ET.fromstring(server.client.get(job["links"]["junit"]).text).find("testsuite")
+    assert suite is not None and (suite.get("tests"), suite.get("errors")) == ("2", "2")
+    errors = [(case.get("name"), case.find("error")) for case in suite.findall("testcase")]
+    assert [name for name, _ in errors] == ["item 0 (extend)", "item 1 (chain)"]
+    messages = [found.get("message") for _, found in errors if found is not None]
+    assert messages == [error, job["items"][1]["error"]]
 
 
 def test_a_bad_start_distance_list_is_refused_before_the_job(api: httpx.Client) -> None:
@@ -152,6 +209,33 @@ def test_submit_waits_and_downloads(server: Server, tmp_path: Path) -> None:
     assert ET.parse(tmp_path / "report.xml").getroot().tag == "testsuites"
 
 
+def test_submit_gives_a_campaign_its_own_junit_and_report(server: Server, tmp_path: Path) -> None:
+    """A campaign job's JUnit names each case by chain and level; --out also holds the
+    campaign's outcome and its self-contained report."""
+    campaign = {"kind": "campaign", "network": "t-stop", "egos": ["S2C_0:C2E_0"], "depth": 1,
+                "chains": 1, "controllers": ["sumo"], "seed": 0}  # fmt: skip
+    (tmp_path / "campaign.json").write_text(json.dumps({"items": [campaign]}))
+    done = scengen("submit", "campaign.json", "--server", server.url, "--junit", "report.xml",
+                   "--out", "results", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    outcome = json.loads((tmp_path / "results" / "campaign.json").read_text())
+    assert outcome["schema"] == "scengen/campaign/1" and outcome["finished"]
+    levels = outcome["chains"][0]["levels"]
+    suite = ET.parse(tmp_path / "report.xml").getroot().find("testsuite")
+    assert suite is not None
+    assert [case.get("name") for case in suite.findall("testcase")] == [
+        f"t-stop C S2C_0:C2E_0 chain 1 level {lv} ({levels[lv]['testcase']}) / sumo"
+        for lv in (0, 1)
+    ]
+    assert [level["name"] for level in levels] == [
+        "t-stop C S2C_0:C2E_0 level 0", "t-stop C S2C_0:C2E_0 chain 1 level 1"
+    ]  # fmt: skip
+    assert (tmp_path / "results" / "junit.xml").read_bytes() == (
+        tmp_path / "report.xml"
+    ).read_bytes()
+    assert "window.SCENGEN_REPORT" in (tmp_path / "results" / "report.html").read_text()
+
+
 def test_submit_exit_codes(server: Server, tmp_path: Path) -> None:
     failing = regression_batch()
     judge = {"kind": "evaluate", "items": [0], "controllers": ["sumo-aggressive"]}
@@ -162,10 +246,20 @@ def test_submit_exit_codes(server: Server, tmp_path: Path) -> None:
     (tmp_path / "broken.json").write_text('{"items": [{"kind": "grow"}]}')
     bad = scengen("submit", "broken.json", "--server", server.url, cwd=tmp_path)
     assert bad.returncode == 2 and "invalid batch" in bad.stderr
-    job_fails = {"items": [{"kind": "extend", "testcase_id": "nope", "routes": ["a:b"]}]}
-    (tmp_path / "nope.json").write_text(json.dumps(job_fails))
-    failed = scengen("submit", "nope.json", "--server", server.url, "--wait", cwd=tmp_path)
-    assert failed.returncode == 3 and "no stored test-case" in failed.stderr
+    unknown = {"items": [{"kind": "extend", "testcase_id": "nope", "routes": ["a:b"]}]}
+    (tmp_path / "nope.json").write_text(json.dumps(unknown))
+    refused = scengen("submit", "nope.json", "--server", server.url, "--wait", cwd=tmp_path)
+    assert refused.returncode == 2 and "no stored test-case 'nope'" in refused.stderr
+    assert "ScengenError" not in refused.stderr and "Traceback" not in refused.stderr
+    item = {"kind": "extend", "testcase": regression_batch()["items"][0]["testcase"],
+            "routes": ["S2C_1:C2N_1", "E2C_1:C2W_1"], "start_distance": [None, 40]}  # fmt: skip
+    (tmp_path / "fails.json").write_text(json.dumps({"items": [item]}))
+    failed = scengen("submit", "fails.json", "--server", server.url, "--junit", "fails.xml",
+                     cwd=tmp_path)  # fmt: skip
+    assert failed.returncode == 3
+    assert "item 0 (extend) failed: new car 2 (E2C_1:C2W_1) would start 40 m" in failed.stderr
+    suite = ET.parse(tmp_path / "fails.xml").getroot().find("testsuite")
+    assert suite is not None and (suite.get("tests"), suite.get("errors")) == ("1", "1")
     away = scengen("submit", "nope.json", "--server", "http://127.0.0.1:9", cwd=tmp_path)
     assert away.returncode == 3 and "cannot reach" in away.stderr
 

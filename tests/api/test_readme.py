@@ -68,7 +68,8 @@ def test_the_batch_example_runs_as_the_readme_shows(server: Server, tmp_path: Pa
     created = server.client.post(
         "/testcases", json={"network": "4way-stop", "ego_route": "E2C_1:C2S_1"}
     )
-    assert created.json()["id"] == "132282f84a7020de"  # the id the batch file names
+    assert created.json()["id"] == "c2de5a280aab66bd"  # the id the batch file names
+    assert created.json()["name"] == "4way-stop C E2C_1:C2S_1 level 0"
     readme = (ROOT / "README.md").read_text()
     example = (ROOT / "examples" / "regression.yaml").read_text()
     assert example.split("name:", 1)[1] in readme  # the README shows the file as it is

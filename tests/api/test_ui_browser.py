@@ -51,6 +51,11 @@ def served(
         finished = server.wait_for_job(job)
         assert finished["state"] == "succeeded", finished["items"][0]["error"]
         outcome = server.client.get(f"/jobs/{job}/campaign").json()
+        longer = server.client.post(  # a second root on the campaign's route: 30 s, not 20
+            "/testcases", json={"network": "t-stop", "ego_route": "S2C_0:C2E_0", "duration": 30},
+            headers={"Authorization": f"Bearer {TOKEN}"},
+        )  # fmt: skip
+        assert longer.status_code == 201, longer.text
         yield server, job, outcome
     finally:
         server.stop()
@@ -117,6 +122,51 @@ def test_lineage_tree_filters_by_ego_and_level(
     page.wait_for_selector("table")
     assert page.locator(f"a[href='#/testcases/{made[2]}']").count() == 1
     assert page.locator(f"a[href='#/testcases/{made[1]}']").count() == 0
+
+
+def test_roots_on_one_route_are_told_apart_and_names_say_the_level(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    """Two ego-only roots on the same route (20 s and 30 s): their headings differ; every
+    entry of the tree, the level listing, the evaluation matrix and the campaign's matrix
+    names its test-case with the level, its duration beside it."""
+    server, job, outcome = served
+    page, _ = browser_page
+    page.goto(f"{server.url}/ui/#/testcases?ego=S2C_0:C2E_0")
+    page.wait_for_selector("#lineage")
+    headings = page.locator("#lineage strong.root").all_inner_texts()
+    assert len(headings) == 2 and len(set(headings)) == 2
+    assert sorted(h.split(" · ")[3] for h in headings) == ["20 s", "30 s"]
+    entries = page.locator("#lineage li[data-testcase]")
+    assert entries.count() == 4  # the campaign's root and its two levels, the longer root
+    made = [level["testcase"] for level in outcome["chains"][0]["levels"]]
+    for level, ident in enumerate(made):
+        link = page.locator(f"#lineage li[data-testcase='{ident}'] > a")
+        assert link.inner_text() == outcome["chains"][0]["levels"][level]["name"]
+    names = page.locator("#lineage li[data-testcase] > a").all_inner_texts()
+    assert sorted(names) == sorted(
+        ["t-stop C S2C_0:C2E_0 level 0", "t-stop C S2C_0:C2E_0 level 0",
+         "t-stop C S2C_0:C2E_0 chain 1 level 1", "t-stop C S2C_0:C2E_0 chain 1 level 2"]
+    )  # fmt: skip
+    page.screenshot(path=str(SCREENSHOTS / "ui-roots.png"), full_page=True)
+    page.goto(f"{server.url}/ui/#/testcases?level=0")
+    page.wait_for_selector("#listing table")
+    rows = [row.split("\t") for row in page.locator("#listing tbody tr").all_inner_texts()]
+    assert sorted((r[0], r[1], r[2]) for r in rows) == [
+        ("t-stop C S2C_0:C2E_0 level 0", "0", "20 s"), ("t-stop C S2C_0:C2E_0 level 0", "0", "30 s")
+    ]  # fmt: skip
+    page.goto(f"{server.url}/ui/#/evaluations")
+    page.wait_for_selector("#evaluation-matrix td.cell")
+    head = page.locator("#evaluation-matrix th").all_inner_texts()
+    assert head[:3] == ["test-case", "level", "duration"]
+    for level, ident in enumerate(made):
+        cells = page.locator(f"#evaluation-matrix tr[data-testcase='{ident}'] td").all_inner_texts()
+        name = outcome["chains"][0]["levels"][level]["name"]
+        assert cells[:3] == [f"{name} {ident[:8]}", str(level), "20 s"]
+    page.goto(f"{server.url}/ui/#/jobs/{job}")
+    page.wait_for_selector("#verdict-matrix td.cell")
+    first = page.locator(f"#verdict-matrix tr[data-testcase='{made[2]}'] td").all_inner_texts()
+    assert first[:3] == [f"t-stop C S2C_0:C2E_0 chain 1 level 2 {made[2][:8]}", "2", "20 s"]
 
 
 def test_the_animation_moves_the_cars(

@@ -68,8 +68,19 @@ def test_a_killed_campaign_resumes_and_ends_as_an_uninterrupted_one(tmp_path: Pa
     assert cases == [f"S2C_0-C2N_0.chain{c}.level{lv}.json" for c in (1, 2) for lv in (0, 1)]
     check = scengen("evaluate", str(fresh / "testcases"), "--controller", "sumo", "--json")
     assert check.returncode == 0, check.stderr  # the files are test-cases a user can replay
+    stem = "4way-stop C S2C_0:C2N_0"  # each level is named by its chain and level
+    assert {v["testcase"] for v in json.loads(check.stdout)} == {
+        f"{stem} level 0", f"{stem} chain 1 level 1", f"{stem} chain 2 level 1"
+    }  # fmt: skip
+    assert outcome["chains"][1]["levels"][1]["name"] == f"{stem} chain 2 level 1"
     suite = ET.parse(fresh / "junit.xml").getroot().find("testsuite")
     assert suite is not None and suite.get("tests") == str(2 * 2 * 2)
+    names = [case.get("name", "") for case in suite.findall("testcase")]
+    assert len(set(names)) == len(names)
+    assert all(
+        re.fullmatch(rf"{stem} chain [12] level [01] \([0-9a-f]{{16}}\) / sumo(-rolling-stop)?", n)
+        for n in names
+    ), names
 
     report = tmp_path / "report.html"
     written = scengen("report", str(fresh), "-o", str(report))

@@ -7,6 +7,7 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+from xml.etree import ElementTree as ET
 
 import pytest
 
@@ -292,7 +293,7 @@ def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
     assert sorted(tmp_path.glob("*.json")) == sorted(files)
     for level in range(1, levels + 1):
         document = json.loads(files[level].read_text())
-        assert document["name"] == f"{name}-{level}"
+        assert document["name"] == f"{name} level {level}"
         assert document["provenance"]["level"] == level
         added = [n for n in document["nonegos"] if n["added_in"] == level]
         assert len(added) == len(EXAMPLES[name].steps[level - 1])
@@ -320,7 +321,8 @@ def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
         if verdict["controller"] == "certificate:solvability":
             assert verdict["passed"], verdict["reasons"]
         else:
-            level = int(verdict["testcase"].rsplit("-", 1)[1])
+            level = int(verdict["testcase"].removeprefix(f"{name} level "))
+            assert verdict["file"] == str(files[level])
             document = json.loads(files[level].read_text())
             new_ids = {n["id"] for n in document["nonegos"] if n["added_in"] == level}
             assert not verdict["passed"] and verdict["goal"]["reached"]
@@ -329,6 +331,8 @@ def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
 
 
 def test_evaluate_prints_a_table_and_writes_junit(tmp_path: Path) -> None:
+    """Rows and JUnit cases are named by the test-case's name (which says the level), the
+    file beside it, as `check` names them."""
     first = tmp_path / "a.json"
     assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(first)]) == 0
     (tmp_path / "b.json").write_text(first.read_text())
@@ -339,11 +343,18 @@ def test_evaluate_prints_a_table_and_writes_junit(tmp_path: Path) -> None:
     )  # fmt: skip
     assert result.returncode == 1, result.stderr
     lines = result.stdout.splitlines()
-    assert lines[0].split() == ["test-case", "sumo", "sumo-aggressive"]
-    assert lines[1].split() == ["a", "pass", "FAIL:", "stopAtSign"]
-    assert lines[2].split() == ["b", "pass", "FAIL:", "stopAtSign"]
-    report = junit.read_text()
-    assert 'tests="4"' in report and 'failures="2"' in report
+    name = "4way-stop C S2C_1:C2W_1 level 0"
+    assert lines[0].split() == ["test-case", "file", "sumo", "sumo-aggressive"]
+    assert lines[1].split() == [*name.split(), str(first), "pass", "FAIL:", "stopAtSign"]
+    assert lines[2].split() == [*name.split(), str(tmp_path / "b.json"), "pass", "FAIL:",
+                                "stopAtSign"]  # fmt: skip
+    suite = ET.parse(junit).getroot().find("testsuite")
+    assert suite is not None and suite.get("tests") == "4" and suite.get("failures") == "2"
+    assert [case.get("name") for case in suite.findall("testcase")] == [
+        f"{name} ({tmp_path / file}) / {controller}"
+        for file in ("a.json", "b.json")
+        for controller in ("sumo", "sumo-aggressive")
+    ]
 
 
 def test_an_evaluation_table_finishes_whatever_its_cells(tmp_path: Path) -> None:
@@ -357,12 +368,14 @@ def test_an_evaluation_table_finishes_whatever_its_cells(tmp_path: Path) -> None
     certificates = ["--controller", "sumo", "--controller", "certificate:solvability"]
     result = run("evaluate", str(y0), str(y1), *certificates)
     assert result.returncode == 0, result.stdout + result.stderr
+    named = ["y-uncontrolled", "C", "N2C_0:C2SE_0", "level"]
     assert [line.split() for line in result.stdout.splitlines()] == [
-        ["test-case", "sumo", "certificate:solvability"],
-        ["y0", "pass", "(none)"],
-        ["y1", "pass", "pass"],
+        ["test-case", "file", "sumo", "certificate:solvability"],
+        [*named, "0", str(y0), "pass", "(none)"],
+        [*named, "1", str(y1), "pass", "pass"],
     ]
-    assert "[" in result.stderr and "4/4 y1 / certificate:solvability: pass" in result.stderr
+    last = f"4/4 y-uncontrolled C N2C_0:C2SE_0 level 1 ({y1}) / certificate:solvability: pass"
+    assert "[" in result.stderr and last in result.stderr
     assert "3 passed, 0 failed, 1 without a certificate to replay" in result.stderr
 
     broken = tmp_path / "broken.json"
@@ -377,13 +390,13 @@ def test_an_evaluation_table_finishes_whatever_its_cells(tmp_path: Path) -> None
     assert result.returncode == 2, result.stdout + result.stderr
     rows = [line.split() for line in result.stdout.splitlines()]
     assert rows[1:5] == [
-        ["y0", "pass", "(none)"],
-        ["broken", "ERROR", "(below)", "ERROR", "(below)"],
-        ["town07", "pass", "(none)"],
-        ["y1", "pass", "pass"],
+        [*named, "0", str(y0), "pass", "(none)"],
+        ["-", str(broken), "ERROR", "(below)", "ERROR", "(below)"],
+        ["Town07", "358", "-40_0:35_0", "level", "0", str(upstream), "pass", "(none)"],
+        [*named, "1", str(y1), "pass", "pass"],
     ]
     below = result.stdout.splitlines()[5:]
-    assert below[0].startswith("ERROR broken: invalid test-case")
+    assert below[0].startswith(f"ERROR {broken}: invalid test-case")
     assert len(below) == 1
     report = junit.read_text()
     assert 'tests="7"' in report and 'errors="1"' in report and 'skipped="2"' in report
@@ -435,7 +448,7 @@ def test_evaluate_one_passing_controller_exits_0(tmp_path: Path) -> None:
     assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0
     result = run("evaluate", str(testcase), "--controller", "sumo-cautious")
     assert result.returncode == 0, result.stdout + result.stderr
-    assert result.stdout.startswith("PASS  left / sumo-cautious")
+    assert result.stdout.startswith("PASS  4way-stop C S2C_1:C2W_1 level 0 / sumo-cautious")
 
 
 @pytest.mark.parametrize(

@@ -25,15 +25,17 @@ class FakeSteps:
         self.base = new_testcase("4way-stop", "S2C_0:C2N_0")
         self.grown: list[tuple[str, int, tuple[str, ...]]] = []
         self.evaluated: list[tuple[str, str]] = []
+        self.stems: list[str] = []
         self.end_at = end_at
 
     def root(self, ego: str) -> tuple[str, TestCase]:
         return f"root-{ego}", self.base
 
     def grow(
-        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...]
+        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...], stem: str
     ) -> tuple[str, TestCase, str]:
         self.grown.append((parent, seed, last))
+        self.stems.append(stem)
         level = (testcase.provenance or {}).get("level", 0) + 1
         if self.end_at is not None and level >= self.end_at:
             raise NoMoreComplexTestCase("no new car makes this test-case more complex")
@@ -44,7 +46,10 @@ class FakeSteps:
             "complexity_certificate_violates": [{"car": f"car{level}", "rule": BREAKS[route]}],
             "complexity_certificate": {"rear_end": []},
         }
-        return f"{parent}/{route}", testcase.model_copy(update={"provenance": provenance}), route
+        grown = testcase.model_copy(
+            update={"provenance": provenance, "name": f"{stem} level {level}"}
+        )
+        return f"{parent}/{route}", grown, route
 
     def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
         self.evaluated.append((ident, controller))
@@ -119,6 +124,36 @@ def test_junit_has_a_case_per_chain_level_and_controller() -> None:
     failed = [c for c in cases if c.find("failure") is not None]
     assert len(failed) == int(suite.get("failures", "0")) == 2 * 2  # weak at levels 2 and 3
     assert all("/ weak" in c.get("name", "") for c in failed)
+    names = [c.get("name") for c in cases]
+    # every case says the chain and the level, with the test-case's id beside them; the
+    # shared root is level 0 of each chain
+    assert names[:3] == [
+        "4way-stop C S2C_0:C2N_0 chain 1 level 0 (root-S2C_0:C2N_0) / strong",
+        "4way-stop C S2C_0:C2N_0 chain 1 level 0 (root-S2C_0:C2N_0) / weak",
+        "4way-stop C S2C_0:C2N_0 chain 1 level 1 (root-S2C_0:C2N_0/r1) / strong",
+    ]
+    assert names[-1] == "4way-stop C S2C_0:C2N_0 chain 2 level 3 (root-S2C_0:C2N_0/r1/r1/r1) / weak"
+    assert len(set(names)) == len(names)
+
+
+def test_levels_are_named_by_chain_and_level() -> None:
+    """The root keeps its own name (it is level 0 of every chain); each level grown is named
+    after the root, its chain and its level."""
+    steps = FakeSteps()
+    outcome = run_campaign(plan(), steps, RULES)
+    assert (
+        steps.stems
+        == ["4way-stop C S2C_0:C2N_0 chain 1"] * 3 + ["4way-stop C S2C_0:C2N_0 chain 2"] * 3
+    )
+    second = outcome["chains"][1]
+    assert second["name"] == "4way-stop C S2C_0:C2N_0 chain 2"
+    assert [level["name"] for level in second["levels"]] == [
+        "",  # the fake root has no name of its own
+        "4way-stop C S2C_0:C2N_0 chain 2 level 1",
+        "4way-stop C S2C_0:C2N_0 chain 2 level 2",
+        "4way-stop C S2C_0:C2N_0 chain 2 level 3",
+    ]
+    assert all(level["duration"] == 20.0 for level in second["levels"])
 
 
 def test_held_back_routes_are_tried_after_the_others(four_way: Intersection) -> None:

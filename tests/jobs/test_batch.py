@@ -11,7 +11,7 @@ from service.cli.submit import read_batch
 from service.core.errors import InvalidInput
 from service.jobs.batch import CampaignItem, ChainItem, ExtendItem, dependencies, parse_batch
 
-ROOT = {"testcase_id": "132282f84a7020de"}
+ROOT = {"testcase_id": "c2de5a280aab66bd"}
 CAMPAIGN = {"kind": "campaign", "network": "4way-stop", "egos": ["S2C_0:C2N_0"], "depth": 2,
             "chains": 1, "controllers": ["sumo"]}  # fmt: skip
 

@@ -3,6 +3,7 @@ and on the machine's PostgreSQL."""
 
 from __future__ import annotations
 
+import secrets
 import threading
 import time
 from collections.abc import Iterator
@@ -178,3 +179,73 @@ def test_the_same_key_at_the_same_moment_gives_one_job(jobs: JobStore) -> None:
 def test_older_jobs_run_first(jobs: JobStore) -> None:
     created = [jobs.create(BATCH)[0].id for _ in range(4)]
     assert [i.job for i in jobs.runnable(2)] == [created[0], created[0]]
+
+
+OLD_SCHEMA = [  # the two tables as a version before test-case levels and error kinds made them
+    """CREATE TABLE testcases (id VARCHAR(32) PRIMARY KEY, network VARCHAR(80) NOT NULL,
+       junction VARCHAR(255) NOT NULL, parent VARCHAR(32), name TEXT NOT NULL,
+       nonegos INTEGER NOT NULL, document TEXT NOT NULL,
+       created_at TIMESTAMP WITH TIME ZONE NOT NULL)""",
+    """CREATE TABLE job_items (job VARCHAR(32), position INTEGER, kind VARCHAR(16) NOT NULL,
+       spec TEXT NOT NULL, needs TEXT NOT NULL, state VARCHAR(16) NOT NULL,
+       attempts INTEGER NOT NULL, owner VARCHAR(255), lease_until FLOAT, sent_at FLOAT,
+       progress TEXT NOT NULL, testcases TEXT NOT NULL, evaluations TEXT NOT NULL,
+       error TEXT, started_at TIMESTAMP WITH TIME ZONE, finished_at TIMESTAMP WITH TIME ZONE,
+       PRIMARY KEY (job, position))""",
+]
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def empty_database(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[str]:
+    """The URL of a database of its own, empty."""
+    if request.param == "sqlite":
+        yield f"sqlite:///{tmp_path}/old.sqlite3"
+        return
+    import psycopg
+
+    from tests.jobs.conftest import POSTGRES
+
+    name = f"scengen_old_{secrets.token_hex(4)}"
+    with psycopg.connect(POSTGRES, autocommit=True) as admin:
+        admin.execute(f"CREATE DATABASE {name}")
+    base = POSTGRES.rsplit("/", 1)[0].replace("postgresql://", "postgresql+psycopg://")
+    yield f"{base}/{name}"
+    with psycopg.connect(POSTGRES, autocommit=True) as admin:
+        admin.execute(f"DROP DATABASE IF EXISTS {name} WITH (FORCE)")
+
+
+def test_a_database_of_an_older_version_is_read(empty_database: str, tmp_path: Path) -> None:
+    """The columns added since (a test-case's level and duration, an item's error kind) are
+    added when a store opens the database; the rows stored before read as if stored now:
+    the level and duration from the document, the class name out of the error's words."""
+    import sqlalchemy as sa
+
+    from service.core.testcase import dump_testcase, new_testcase
+
+    document = dump_testcase(new_testcase("4way-stop", "E2C_1:C2S_1", duration=31.5))
+    old = sa.create_engine(empty_database)
+    with old.begin() as connection:
+        for statement in OLD_SCHEMA:
+            connection.exec_driver_sql(statement)
+        connection.execute(
+            sa.text("INSERT INTO testcases VALUES ('t0', '4way-stop', 'C', NULL, '', 0, :doc, "
+                    "CURRENT_TIMESTAMP)"), {"doc": document},
+        )  # fmt: skip
+        connection.execute(
+            sa.text("INSERT INTO job_items VALUES ('j', 0, 'extend', '{}', '[]', 'failed', 1, "
+                    "NULL, NULL, NULL, '', '[]', '[]', :error, NULL, NULL)"),
+            {"error": "ScengenError: no stored test-case 'nope'"},
+        )  # fmt: skip
+    old.dispose()
+    store = Store(empty_database, tmp_path / "cache")
+    try:
+        Store(empty_database, tmp_path / "cache").close()  # a second process: nothing to add
+        listed = store.list_testcases().items
+        assert [(t.id, t.level, t.duration) for t in listed] == [("t0", 0, 31.5)]
+        fetched = store.testcase("t0")
+        assert fetched is not None and (fetched.level, fetched.duration) == (0, 31.5)
+        item = JobStore(store).item("j", 0)
+        assert item is not None
+        assert (item.error, item.error_kind) == ("no stored test-case 'nope'", "ScengenError")
+    finally:
+        store.close()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import asyncio
-import dataclasses
 import time
 from typing import Annotated, Any
 
@@ -17,11 +16,12 @@ from service.api.routes.networks import junction_geometry
 from service.api.schemas import MAX_OFFSET, JobPage, JobPublic
 from service.api.state import AppState, State, Token, json_answer
 from service.core.campaign import campaign_junit
-from service.core.checker.verdict import Verdict, junit_report
 from service.core.export import Flavour
 from service.jobs import tasks
 from service.jobs.batch import Batch, CampaignItem
 from service.jobs.campaign_steps import outcome_of
+from service.jobs.junit import job_junit
+from service.jobs.references import check_references
 from service.jobs.store import FINISHED, IdempotencyConflict, JobRecord, JobStore
 from service.pictures.report import campaign_paths, campaign_title, report_html
 
@@ -59,7 +59,11 @@ async def create_job(
         Header(max_length=255, description="the same key and batch: the same job, not a new one"),
     ] = None,
 ) -> Response:
-    """Submit a batch; it runs in the background (202, Location: the job)."""
+    """Submit a batch; it runs in the background (202, Location: the job).
+
+    A batch that names a test-case id, a network or a controller this server does not have,
+    or an inline test-case it cannot take, is refused at once (422 `invalid-input`, its
+    `errors` naming each, with the valid choices)."""
     limit = state.settings.max_budget
     for position, item in enumerate(batch.items):
         budgets = {"budget": item.budget}
@@ -74,8 +78,11 @@ async def create_job(
                 )
 
     def create() -> Response:
+        jobs = _jobs(state)
+        if idempotency_key is None or jobs.by_key(idempotency_key) is None:
+            check_references(batch, state.store)  # a repeated key gets its job back as it was
         try:
-            job, created = _jobs(state).create(batch, idempotency_key)
+            job, created = jobs.create(batch, idempotency_key)
         except IdempotencyConflict:
             raise Problem(
                 409, f"Idempotency-Key {idempotency_key!r} was used with another batch"
@@ -152,21 +159,14 @@ async def cancel_job(state: State, job: str) -> Response:
     responses={200: {"content": {"application/xml": {}}, "description": "JUnit XML"}},
 )
 async def get_job_junit(state: State, job: str) -> Response:
-    """Every evaluation of the job so far as one JUnit XML report."""
+    """The job so far as one JUnit XML report.
 
-    def report() -> str:
-        found = _job_or_404(state, job)
-        verdicts = []
-        for item in found.items:
-            for ident in item.evaluations:
-                record = state.store.evaluation(ident)
-                if record is not None:
-                    verdict = Verdict.from_dict(record.verdict)
-                    label = f"{record.testcase} {verdict.testcase}"
-                    verdicts.append(dataclasses.replace(verdict, testcase=label))
-        return junit_report(verdicts, suite_name=f"scengen job {found.name or found.id}")
-
-    return Response(await asyncio.to_thread(report), media_type="application/xml")
+    A test case per evaluation (`NAME (ID) / CONTROLLER`, the name saying the level), a
+    campaign's own cases (chain and level in each name), and an error for every item that
+    failed, with its reason."""
+    found = await asyncio.to_thread(_job_or_404, state, job)
+    report = await asyncio.to_thread(job_junit, state.store, found)
+    return Response(report, media_type="application/xml")
 
 
 def _campaign_or_404(state: AppState, job: str) -> dict[str, Any]:

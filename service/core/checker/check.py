@@ -40,7 +40,7 @@ from service.core.motion.events import EventKind, LaneEvent, compute_events
 from service.core.motion.poses import PoseSample, centre_to_front, start_front
 from service.core.motion.queues import QueueCar, follows, line_distance
 from service.core.network import Intersection
-from service.core.testcase import NonEgo, TestCase, load_testcase_intersection
+from service.core.testcase import NonEgo, TestCase, load_testcase_intersection, readable_name
 
 EGO = "ego"
 START_TOLERANCE = 2.0  # metres between the trajectory's first front bumper and the start
@@ -66,8 +66,9 @@ class Car:
 
 
 def testcase_label(testcase: TestCase) -> str:
-    route = testcase.ego.route.id
-    return testcase.name or f"{testcase.network.ref} {testcase.junction} {route}"
+    """What a verdict calls a test-case: its name, or for a document without one the
+    readable default (network, junction, ego route and level)."""
+    return testcase.name or readable_name(testcase)
 
 
 def check_testcase(

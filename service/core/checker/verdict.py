@@ -1,4 +1,4 @@
-"""The checker's verdict as data: JSON and a JUnit XML test case."""
+"""The checker's verdict as data: JSON, and JUnit XML test cases and reports."""
 
 from __future__ import annotations
 
@@ -119,6 +119,33 @@ class Verdict:
         return junit_report([self])
 
 
+OUTCOMES = ("failure", "error", "skipped")  # of a JUnit test case that did not pass
+
+
+@dataclass(frozen=True)
+class JUnitCase:
+    """One JUnit test case: ``outcome`` passed, failure (the ego failed), error (it could not
+    be judged) or skipped, with ``message`` saying why in plain words."""
+
+    classname: str
+    name: str
+    outcome: str = "passed"
+    message: str = ""
+    details: str = ""  # the element's text (default: the message)
+
+
+def verdict_case(
+    verdict: Verdict, name: str | None = None, classname: str = "scengen.check"
+) -> JUnitCase:
+    """The test case of a verdict: named ``name``, by default ``test-case / controller``;
+    a failure lists the reasons."""
+    label = name or f"{verdict.testcase} / {verdict.controller}"
+    if verdict.passed:
+        return JUnitCase(classname, label)
+    reasons = verdict.reasons
+    return JUnitCase(classname, label, "failure", "; ".join(reasons), "\n".join(reasons))
+
+
 def junit_report(
     verdicts: Sequence[Verdict],
     suite_name: str = "scengen",
@@ -127,31 +154,32 @@ def junit_report(
 ) -> str:
     """One JUnit test suite with a test case per verdict (test-case / controller), one per
     evaluation that could not run (``errors``: name and why) and one per skipped cell."""
-    failed = sum(1 for v in verdicts if not v.passed)
+    cases = [verdict_case(verdict) for verdict in verdicts]
+    cases += [JUnitCase("scengen.check", name, "error", why) for name, why in errors]
+    cases += [
+        JUnitCase("scengen.check", name, "skipped", "the test-case has no certificate to replay")
+        for name in skipped
+    ]
+    return junit_document(cases, suite_name)
+
+
+def junit_document(cases: Sequence[JUnitCase], suite_name: str) -> str:
+    """JUnit XML: one test suite of ``cases``, counted by outcome."""
+    counts = {kind: sum(1 for c in cases if c.outcome == kind) for kind in OUTCOMES}
     suite = ET.Element(
         "testsuite",
         name=suite_name,
-        tests=str(len(verdicts) + len(errors) + len(skipped)),
-        failures=str(failed),
-        errors=str(len(errors)),
-        skipped=str(len(skipped)),
+        tests=str(len(cases)),
+        failures=str(counts["failure"]),
+        errors=str(counts["error"]),
+        skipped=str(counts["skipped"]),
     )
-    for verdict in verdicts:
-        case = ET.SubElement(
-            suite,
-            "testcase",
-            classname="scengen.check",
-            name=f"{verdict.testcase} / {verdict.controller}",
-        )
-        if not verdict.passed:
-            failure = ET.SubElement(case, "failure", message="; ".join(verdict.reasons))
-            failure.text = "\n".join(verdict.reasons)
-    for name, why in errors:
-        case = ET.SubElement(suite, "testcase", classname="scengen.check", name=name)
-        ET.SubElement(case, "error", message=why).text = why
-    for name in skipped:
-        case = ET.SubElement(suite, "testcase", classname="scengen.check", name=name)
-        ET.SubElement(case, "skipped", message="the test-case has no certificate to replay")
+    for case in cases:
+        element = ET.SubElement(suite, "testcase", classname=case.classname, name=case.name)
+        if case.outcome != "passed":
+            detail = ET.SubElement(element, case.outcome, message=case.message)
+            if case.outcome != "skipped":
+                detail.text = case.details or case.message
     root = ET.Element("testsuites")
     root.append(suite)
     ET.indent(root)

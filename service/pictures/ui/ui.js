@@ -246,6 +246,11 @@ async function listAll(path) { // every page of a listing, up to 2000 items
   return found;
 }
 
+// a test-case as lists, trees and matrices name it: its name (by default network, junction,
+// ego route and level), else those parts; its level and duration beside it
+function nameOf(t, ego) { return t.name || [t.network, t.junction, ego, `level ${t.level}`].filter(Boolean).join(" "); }
+function seconds(duration) { return duration === undefined || duration === null ? "" : `${Number(duration).toFixed(duration % 1 ? 1 : 0)} s`; }
+
 async function testcasesPage(query) {
   const filters = new URLSearchParams(query || "");
   const found = await listAll("/testcases");
@@ -259,9 +264,8 @@ async function testcasesPage(query) {
     const route = record.testcase.ego.route;
     egos[root.id] = `${route.fork}:${route.exit}`;
   }));
-  const level = {};
-  const visit = (t, depth, root) => { level[t.id] = depth; egos[t.id] = egos[root.id]; (children[t.id] || []).forEach((c) => visit(c, depth + 1, root)); };
-  roots.forEach((r) => visit(r, 0, r));
+  const visit = (t, root) => { egos[t.id] = egos[root.id]; (children[t.id] || []).forEach((c) => visit(c, root)); };
+  roots.forEach((r) => visit(r, r));
 
   const choices = (key, values) => h("label", {}, key, h("select", { name: key },
     h("option", { value: "" }, "any"), [...new Set(values)].sort().map((v) => h("option", { value: v, selected: filters.get(key) === String(v) ? true : null }, v))));
@@ -270,23 +274,28 @@ async function testcasesPage(query) {
     const chosen = new URLSearchParams([...new FormData(form)].filter(([, v]) => v));
     location.hash = `#/testcases?${chosen}`;
   } }, choices("network", found.map((t) => t.network)), choices("junction", found.map((t) => t.junction)),
-  choices("ego", Object.values(egos)), choices("level", Object.values(level).map(String)), h("button", { type: "submit" }, "Filter"));
+  choices("ego", Object.values(egos)), choices("level", found.map((t) => String(t.level))), h("button", { type: "submit" }, "Filter"));
   const keep = (t) => (!filters.get("network") || t.network === filters.get("network"))
     && (!filters.get("junction") || t.junction === filters.get("junction"))
     && (!filters.get("ego") || egos[t.id] === filters.get("ego"));
   render(h("h1", {}, "Test-cases"), form);
   if (filters.get("level")) {
     const wanted = Number(filters.get("level"));
-    const rows = found.filter((t) => keep(t) && level[t.id] === wanted).map((t) => [link(t.name || t.id, `#/testcases/${t.id}`), t.network, t.junction, egos[t.id], String(t.nonegos)]);
-    main.append(h("p", { class: "muted" }, `${rows.length} test-cases at level ${wanted}`), table(["test-case", "network", "junction", "ego route", "other cars"], rows));
+    const rows = found.filter((t) => keep(t) && t.level === wanted).map((t) => [link(nameOf(t, egos[t.id]), `#/testcases/${t.id}`),
+      String(t.level), seconds(t.duration), t.network, t.junction, egos[t.id], String(t.nonegos), short(t.id)]);
+    main.append(h("p", { class: "muted" }, `${rows.length} test-cases at level ${wanted}`),
+      h("div", { id: "listing" }, table(["test-case", "level", "duration", "network", "junction", "ego route", "other cars", "id"], rows)));
     return;
   }
-  const item = (t) => h("li", {}, link(t.name || t.id, `#/testcases/${t.id}`), " ",
-    h("span", { class: "badge" }, `level ${level[t.id]}`), " ", h("span", { class: "muted" }, `${t.nonegos} other cars · ${short(t.id)}`),
+  const item = (t) => h("li", { "data-testcase": t.id }, link(nameOf(t, egos[t.id]), `#/testcases/${t.id}`), " ",
+    h("span", { class: "badge" }, `level ${t.level}`), " ", h("span", { class: "muted" }, `${seconds(t.duration)} · ${t.nonegos} other cars · ${short(t.id)}`),
     children[t.id] ? h("ul", { class: "tree" }, children[t.id].map(item)) : null);
   const shown = roots.filter(keep);
+  // roots on the same route are told apart by their duration and id in the heading
+  const heading = (root) => h("strong", { class: "root" }, `${root.network} · junction ${root.junction} · ego ${egos[root.id]}`,
+    h("span", { class: "muted" }, ` · ${seconds(root.duration)} · root ${short(root.id)}`));
   main.append(h("p", { class: "muted" }, `${shown.length} ${shown.length === 1 ? "root" : "roots"} (ego-only or uploaded test-cases); their extensions below them, siblings side by side.`),
-    shown.length ? h("ul", { class: "tree", id: "lineage" }, shown.map((root) => h("li", {}, h("strong", {}, `${root.network} · junction ${root.junction} · ego ${egos[root.id]}`), h("ul", { class: "tree" }, item(root))))) : h("p", {}, "No test-case matches."));
+    shown.length ? h("ul", { class: "tree", id: "lineage" }, shown.map((root) => h("li", {}, heading(root), h("ul", { class: "tree" }, item(root))))) : h("p", {}, "No test-case matches."));
 }
 
 // ---------- drawing: junction and cars ----------
@@ -588,17 +597,23 @@ async function evaluationsPage() {
   const testcases = [...new Set(found.map((e) => e.testcase))];
   const cell = {};
   for (const e of found) { const key = `${e.testcase}|${e.controller}`; if (!(key in cell)) cell[key] = e; } // newest first
-  const names = {};
-  await Promise.all(testcases.slice(0, 300).map(async (t) => { try { const r = await get(`/testcases/${t}`); names[t] = r.name || t; } catch (e) { names[t] = t; } }));
+  const summaries = Object.fromEntries((await listAll("/testcases")).map((t) => [t.id, t]));
+  await Promise.all(testcases.filter((t) => !summaries[t]).slice(0, 300).map(async (t) => {
+    try { summaries[t] = await get(`/testcases/${t}`); } catch (e) { /* deleted since */ }
+  }));
+  const rows = testcases.map((t) => (summaries[t] ? { id: t, name: nameOf(summaries[t]), level: summaries[t].level, duration: summaries[t].duration } : { id: t, name: t }));
   render(h("h1", {}, "Evaluations"), h("p", { class: "muted" }, "Test-cases by controllers: pass, or the rule that failed; each cell opens that drive."),
-    found.length ? matrix(testcases.map((t) => ({ id: t, label: names[t] || t })), controllers, (t, c) => cell[`${t}|${c}`]) : h("p", {}, "No evaluation yet."));
+    found.length ? h("div", { id: "evaluation-matrix" }, matrix(rows, controllers, (t, c) => cell[`${t.id}|${c}`])) : h("p", {}, "No evaluation yet."));
 }
 
+// rows: [{id, name, level, duration}], lookup(row, controller): its evaluation; a row per
+// test-case, its name (the id beside it), level and duration first
 function matrix(testcases, controllers, lookup) {
-  return table(["test-case", ...controllers], testcases.map((t) => h("tr", {},
-    h("td", {}, link(t.label, `#/testcases/${t.id}`)),
+  return table(["test-case", "level", "duration", ...controllers], testcases.map((t) => h("tr", { "data-testcase": t.id },
+    h("td", {}, link(t.name, `#/testcases/${t.id}`), h("span", { class: "muted" }, ` ${short(t.id)}`)),
+    h("td", {}, t.level === undefined ? "" : String(t.level)), h("td", {}, seconds(t.duration)),
     controllers.map((c) => {
-      const e = lookup(t.id, c);
+      const e = lookup(t, c);
       if (!e) return h("td", { class: "muted" }, "—");
       const passed = e.passed;
       const text = passed ? "pass" : (e.rules && e.rules.length ? e.rules.join(", ") : (e.verdict ? failureOf(e.verdict) : "failed"));
@@ -650,7 +665,10 @@ function campaignView(outcome) {
   const chainRows = outcome.chains.map((c) => [c.ego, String(c.chain + 1), String(c.reached), ...controllers.map((k) => (c.first_failure[k] === null ? "—" : `level ${c.first_failure[k]}`)),
     c.end ? h("span", { title: c.end }, c.end.length > 140 ? `${c.end.slice(0, 140)}…` : c.end) : `reached depth ${plan.depth}`]);
   const cases = [];
-  for (const chain of outcome.chains) for (const level of chain.levels) cases.push({ id: level.testcase, label: `${chain.ego} · chain ${chain.chain + 1} · level ${level.level}`, level });
+  for (const chain of outcome.chains) {
+    const stem = chain.name || `${chain.ego} chain ${chain.chain + 1}`;
+    for (const level of chain.levels) cases.push({ id: level.testcase, name: `${stem} level ${level.level}`, level: level.level, duration: level.duration, record: level });
+  }
   return [
     h("p", { class: "muted" }, `ego routes ${plan.egos.join(", ")} · depth ${plan.depth} · ${plan.chains} chains each · seed ${plan.seed} · ${outcome.finished ? "finished" : "in progress"}`),
     h("h2", {}, "Share of test-cases each controller fails, by level"),
@@ -663,7 +681,7 @@ function campaignView(outcome) {
     table(["ego route", "chain", "levels", ...controllers, "ended"], chainRows),
     h("h2", {}, "Verdicts"),
     h("p", { class: "muted" }, "Every level of every chain by controller; a cell opens the replay of that drive with its verdict."),
-    h("div", { id: "verdict-matrix" }, matrix(cases, controllers, (t, c) => { const found = cases.find((x) => x.id === t); return found ? found.level.verdicts[c] : null; })),
+    h("div", { id: "verdict-matrix" }, matrix(cases, controllers, (t, c) => t.record.verdicts[c])),
   ];
 }
 
