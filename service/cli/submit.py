@@ -19,6 +19,7 @@ from typing import Any, TextIO
 
 import yaml
 
+from service.cli.output import make_folder, write_output
 from service.core.errors import InvalidInput, ScengenError
 from service.jobs.batch import Batch, parse_batch
 
@@ -207,25 +208,24 @@ def download(client: Client, job: dict[str, Any], junit: Path | None, folder: Pa
     and report.html."""
     report = client.call("GET", f"/jobs/{job['id']}/junit")[2]
     if junit is not None:
-        junit.write_bytes(report)
+        write_output(junit, report)
     if folder is None:
         return
-    folder.mkdir(parents=True, exist_ok=True)
-    (folder / "job.json").write_text(json.dumps(job, indent=2) + "\n")
-    (folder / "junit.xml").write_bytes(report)
+    make_folder(folder)
+    write_output(folder / "job.json", json.dumps(job, indent=2) + "\n")
+    write_output(folder / "junit.xml", report)
     if any(item["kind"] == "campaign" for item in job["items"]):
         _download_campaign(client, job, folder)
     documents = folder / "testcases"
-    documents.mkdir(exist_ok=True)
     made = [ident for item in job["items"] for ident in item["testcases"]]
     for ident in made:
         content = client.call("GET", f"/testcases/{ident}/document")[2]
-        (documents / f"{ident}.json").write_bytes(content)
+        write_output(documents / f"{ident}.json", content)
     if made:
         client.timeout = max(client.timeout, 300.0)
-        (folder / "bundles.zip").write_bytes(client.call("GET", f"/jobs/{job['id']}/bundles")[2])
+        write_output(folder / "bundles.zip", client.call("GET", f"/jobs/{job['id']}/bundles")[2])
         scenarios = client.call("GET", f"/jobs/{job['id']}/openscenario")[2]
-        (folder / "openscenario.zip").write_bytes(scenarios)
+        write_output(folder / "openscenario.zip", scenarios)
 
 
 def _download_campaign(client: Client, job: dict[str, Any], folder: Path) -> None:
@@ -237,10 +237,10 @@ def _download_campaign(client: Client, job: dict[str, Any], folder: Path) -> Non
         print(f"scengen: job {job['id']} has no campaign outcome: no campaign.json or "
               "report.html", file=sys.stderr)  # fmt: skip
         return
-    (folder / "campaign.json").write_text(json.dumps(outcome, indent=1) + "\n")  # as campaign -o
+    write_output(folder / "campaign.json", json.dumps(outcome, indent=1) + "\n")  # as campaign -o
     client.timeout = max(client.timeout, 300.0)
     report = client.call("GET", f"/jobs/{job['id']}/campaign/report")[2]
-    (folder / "report.html").write_bytes(report)
+    write_output(folder / "report.html", report)
 
 
 def outcome(job: dict[str, Any]) -> int:
