@@ -77,7 +77,7 @@ function render(...nodes) { main.replaceChildren(...nodes.flat(Infinity).filter(
 let stopPage = () => {};
 
 const PAGES = [
-  [/^#\/?$/, home],
+  [/^#(?:\/(?:networks\/?)?)?$/, home],  // the start page lists the networks
   [/^#\/networks\/([^/]+)$/, networkPage],
   [/^#\/testcases(?:\?(.*))?$/, testcasesPage],
   [/^#\/testcases\/([0-9a-f]+)$/, testcasePage],
