@@ -143,21 +143,13 @@ def plan_drive(
     junction = intersection.junction
     fork_lane = net.getLane(route.fork)
     connection = next(c for c in fork_lane.getOutgoing() if c.getToLane().getID() == route.exit)
-    lanes = [fork_lane]
-    behind = fork_lane.getLength()  # metres from the first lane's start to the stop line
-    upstream: list[str] = []  # internal lanes between the first lane and the next
-    while behind < start_distance:
-        incoming = straightest_predecessor(net, lanes[0], junction)
-        if incoming is None:
-            raise InvalidInput(
-                f"start distance {start_distance:g} m is longer than the road before fork "
-                f"{route.fork!r} ({behind:.1f} m)",
-                route=route.id,
-            )
-        upstream = via_chain(net, incoming)
-        behind += sum(net.getLane(v).getLength() for v in upstream)
-        lanes.insert(0, incoming.getFromLane())
-        behind += lanes[0].getLength()
+    lanes, behind, upstream = _walk_upstream(net, fork_lane, junction, start_distance)
+    if behind < start_distance:
+        raise InvalidInput(
+            f"start distance {start_distance:g} m is longer than the road before fork "
+            f"{route.fork!r} ({behind:.1f} m)",
+            route=route.id,
+        )
     chain = via_chain(net, connection)
     to_exit = start_distance + sum(net.getLane(v).getLength() for v in chain)
     ahead = to_exit + connection.getToLane().getLength()
@@ -206,6 +198,38 @@ def plan_drive(
         skip=skip,
         start_on=start_on,
     )
+
+
+def _walk_upstream(
+    net: Any, fork_lane: Any, junction: str, distance: float
+) -> tuple[list[Any], float, list[str]]:
+    """The lanes a start ``distance`` before the stop line needs, up to the fork, along the
+    straightest predecessors (as far as the road goes): the lanes, the metres from the
+    first lane's start to the stop line, and the internal lanes between the first lane and
+    the next."""
+    lanes = [fork_lane]
+    behind = fork_lane.getLength()
+    upstream: list[str] = []
+    while behind < distance:
+        incoming = straightest_predecessor(net, lanes[0], junction)
+        if incoming is None:
+            break
+        upstream = via_chain(net, incoming)
+        behind += sum(net.getLane(v).getLength() for v in upstream)
+        lanes.insert(0, incoming.getFromLane())
+        behind += lanes[0].getLength()
+    return lanes, behind, upstream
+
+
+def longest_start(intersection: Intersection, route: Route, up_to: float) -> float:
+    """The longest start distance up to ``up_to`` that lies on the road before the fork:
+    ``up_to`` when the road is that long, else the whole road (to the centimetre below),
+    measured as SUMO drives it (lane lengths) and as the start is placed (the shape)."""
+    path = intersection.network_file
+    net = _cached_network(str(path), path.stat().st_mtime)
+    _, behind, _ = _walk_upstream(net, net.getLane(route.fork), intersection.junction, up_to)
+    road = min(behind, _approach_line(intersection, route, up_to + 1.0).length)
+    return up_to if road >= up_to else min(math.floor(road * 100.0) / 100.0, road)
 
 
 def _internal_start(net: Any, lanes: list[str], into: float) -> tuple[str, float]:
