@@ -25,6 +25,7 @@ from service.core.generator.extension import StartDistances, extend_testcase
 from service.core.motion.events import compute_events
 from service.core.motion.poses import generate_poses
 from service.core.testcase import (
+    DEFAULT_START_DISTANCE,
     TestCase,
     name_stem,
     new_testcase,
@@ -42,9 +43,9 @@ from service.core.testcase import (
     arg(
         "--start-distance",
         type=float,
-        default=30.0,
         metavar="M",
-        help="ego front bumper before the stop line (default 30 m)",
+        help=f"ego front bumper before the stop line (default {DEFAULT_START_DISTANCE:g} m, or "
+        "the whole road before the fork where it is shorter)",
     ),
     arg(
         "--start-speed",
@@ -74,7 +75,15 @@ def new(args: argparse.Namespace) -> int:
         args.duration,
         args.timestep,
         name=args.name,
+        major_road=args.major,
     )
+    start = testcase.ego.start.distance
+    if args.start_distance is None and start < DEFAULT_START_DISTANCE:
+        print(
+            f"ego start: {start:g} m before the stop line, the whole road before fork "
+            f"{testcase.ego.route.fork} (the default {DEFAULT_START_DISTANCE:g} m does not fit)",
+            file=sys.stderr,
+        )
     if not args.name:
         testcase = renamed(testcase, readable_name(testcase))
     return emit(testcase, args.output)
