@@ -22,7 +22,7 @@ from shapely.geometry import Point as ShapelyPoint
 
 from service.core.budget import WarmWorker
 from service.core.errors import InvalidInput, SimulationFailed
-from service.core.network import Intersection, Route, read_network
+from service.core.network import Intersection, Route, parsed_network
 from service.core.network.lanes import (
     approach_polyline,
     is_internal,
@@ -118,9 +118,10 @@ def interpolate_heading(a: float, b: float, share: float) -> float:
     return 0.0 if heading >= 360.0 else heading  # -1e-15 % 360.0 is 360.0 in floats
 
 
-@functools.lru_cache(maxsize=8)
 def _cached_network(path: str, mtime: float) -> Any:
-    return read_network(Path(path))
+    """The network at ``path``, parsed once per version of the file (``mtime`` is the
+    caller's view of that version; parsed_network checks it again)."""
+    return parsed_network(Path(path))
 
 
 def plan_drive(

@@ -113,10 +113,10 @@ def _read_version(path: Path, version: tuple[int, int]) -> Any:
     return read_network(path)
 
 
-def _parsed(path: Path) -> Any:
-    """``read_network(path)``, parsed once per version of the file: a junction's model
-    reads its network and the rebuilt copy, and many junctions share one network. The
-    parsed network is only read, never changed."""
+def parsed_network(path: Path) -> Any:
+    """``read_network(path)``, parsed once per version of the file (its modification time
+    and size) in this process: a junction's model reads its network and the rebuilt copy,
+    Step 1 reads it again, and many junctions share one network. Callers only read it."""
     return _read_version(path, _version(path))
 
 
@@ -256,7 +256,7 @@ def load_intersection(
     """
     source = resolve_network(network)
     wanted = _parse_control(control)
-    net = _parsed(source)
+    net = parsed_network(source)
     named = Path(network) if str(network) not in bundled_networks() else Path(source.name)
     junction_id = _choose_junction(net, named, junction, wanted)
     node = net.getNode(junction_id)
@@ -268,7 +268,7 @@ def load_intersection(
     if target != current or major_road is not None:
         priorities = lifted_priorities(node, major) if major else None
         effective = rebuild_with_control(source, junction_id, target, cache_dir, priorities)
-        net = _parsed(effective)
+        net = parsed_network(effective)
         current = net.getNode(junction_id).getType()
     if current not in SUPPORTED:
         raise UnsupportedIntersection(
@@ -293,7 +293,9 @@ def _model(
 ) -> Intersection:
     """The model of ``junction`` in (this ``version`` of) ``effective``, built once per
     process: commands and workers load one junction many times. Nobody changes a model."""
-    intersection = _build(_parsed(effective), source, effective, junction, control, sliver_radius)
+    intersection = _build(
+        parsed_network(effective), source, effective, junction, control, sliver_radius
+    )
     _check_conflicts(intersection)
     return intersection
 
