@@ -28,7 +28,11 @@ from service.core.sim.controllers import controller_names, resolve_driver
                 metavar="FORK_LANE:EXIT_LANE",
                 help="an ego route (repeatable)",
             ),
-            arg("--all-egos", action="store_true", help="every route of the junction"),
+            arg(
+                "--all-egos",
+                action="store_true",
+                help="every route the junction offers (side lanes left out)",
+            ),
         ),
         required=True,
     ),
