@@ -184,7 +184,8 @@ def drive(args: argparse.Namespace) -> int:
         metavar="M",
         help="a new car's front before its stop line at t = 0 (m), or 'auto'; once for every "
         "new car, or once per --add in the same order (default auto: behind the last car on "
-        "its fork, ahead of the ego on the ego's fork, where the ego starts on a free fork)",
+        "its fork, ahead of the ego on the ego's fork, where the ego starts on a free fork; "
+        "never further back than the road before the fork goes)",
     ),
     arg(
         "--name",
