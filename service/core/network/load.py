@@ -32,12 +32,7 @@ from service.core.network.lanes import (
     side_lane_reason,
     via_chain,
 )
-from service.core.network.major import (
-    check_major_road,
-    lifted_priorities,
-    same_priority,
-    straightest_pair,
-)
+from service.core.network.major import choose_major_road, lifted_priorities
 from service.core.network.model import (
     ConnectingLane,
     ControlType,
@@ -206,25 +201,6 @@ def _check_approaches(node: Any) -> None:
         )
 
 
-def _major_road(
-    net: Any, node: Any, target: str, current: str, major_road: Sequence[str] | None
-) -> tuple[str, str] | None:
-    """The major road of a ``priority_stop`` junction rebuilt with netconvert: the one
-    given, else, when every road in has the same priority, the straightest pair
-    (service.core.network.major). None leaves the choice to the network."""
-    if major_road is not None:
-        if target != ControlType.PRIORITY_STOP:
-            raise InvalidInput(
-                f"a major road applies to a priority_stop junction; junction "
-                f"{node.getID()!r} is {target} (give --control priority_stop)",
-                junction=str(node.getID()),
-            )
-        return check_major_road(node, major_road)
-    if target == ControlType.PRIORITY_STOP and current != target and same_priority(node):
-        return straightest_pair(net, node)
-    return None
-
-
 def _parse_control(control: ControlType | str | None) -> ControlType | None:
     if control is None or isinstance(control, ControlType):
         return control
@@ -263,7 +239,7 @@ def load_intersection(
     _check_approaches(node)
     current = node.getType()
     target = wanted.value if wanted is not None else current
-    major = _major_road(net, node, target, current, major_road)
+    major = choose_major_road(net, node, target, current, major_road)
     effective = source
     if target != current or major_road is not None:
         priorities = lifted_priorities(node, major) if major else None

@@ -25,9 +25,30 @@ from service.core.network.lanes import (
     heading_of,
     roads_in,
 )
+from service.core.network.model import ControlType
 
 STRAIGHT_MARGIN = 10.0  # degrees: pairs this close to the straightest count as straight too
 HEADING_WINDOW = 10.0  # metres of approach whose chord gives a road's heading
+
+
+def choose_major_road(
+    net: Any, node: Any, target: str, current: str, major_road: Sequence[str] | None
+) -> tuple[str, str] | None:
+    """The major road of ``node`` made a ``target`` junction (its type now ``current``):
+    the one given (for a priority_stop junction only), else, when it becomes priority_stop
+    with netconvert and every road in has the same priority, the straightest pair. None
+    leaves the choice to the network's priorities."""
+    if major_road is not None:
+        if target != ControlType.PRIORITY_STOP:
+            raise InvalidInput(
+                f"a major road applies to a priority_stop junction; junction "
+                f"{node.getID()!r} is {target} (give --control priority_stop)",
+                junction=str(node.getID()),
+            )
+        return check_major_road(node, major_road)
+    if target == ControlType.PRIORITY_STOP and current != target and same_priority(node):
+        return straightest_pair(net, node)
+    return None
 
 
 def check_major_road(node: Any, major_road: Sequence[str]) -> tuple[str, str]:
