@@ -19,7 +19,8 @@ DESCRIPTION = (
     "metres from each new car's front to its stop line at t = 0: one number for every new "
     "car, or a list with one number or null per route (in the order of `routes`); null "
     "means automatic: behind the last car on its fork, ahead of the ego on the ego's fork, "
-    "where the ego starts on a free fork"
+    "where the ego starts on a free fork; never further back than the road before the fork "
+    "goes (a number given must fit on that road)"
 )
 
 

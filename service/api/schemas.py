@@ -95,7 +95,12 @@ class TestCaseCreate(_Body):
         strict=False,
         description="override the junction's control type (default: the network's)",
     )
-    start_distance: float = Field(30.0, ge=0, description="ego front before the stop line (m)")
+    start_distance: float | None = Field(
+        None,
+        ge=0,
+        description="ego front before the stop line (m); default 30 m, or the whole road "
+        "before the fork where that is shorter (a start given here is never shortened)",
+    )
     start_speed: float = Field(8.0, ge=0, description="ego speed at t = 0 (m/s)")
     duration: float = Field(20.0, gt=0, le=MAX_DURATION, description="length of the test (s)")
     timestep: float = Field(0.1, ge=MIN_TIMESTEP, le=MAX_TIMESTEP, description="sample spacing (s)")

@@ -45,7 +45,27 @@ NETWORK = (
         metavar="TYPE",
         help=f"override the control type, rebuilt with netconvert: {', '.join(CONTROLS)}",
     ),
+    arg(
+        "--major",
+        type=lambda text: edge_pair(text),
+        metavar="EDGE,EDGE",
+        help="priority_stop: the two roads into the junction (edge ids) that keep the right "
+        "of way, the others stop (default: the network's; for a junction made priority_stop "
+        "whose roads all have the same priority, the two closest to straight across)",
+    ),
 )
+
+
+def edge_pair(text: str) -> list[str]:
+    """A --major value: two edge ids, comma-separated."""
+    edges = [edge.strip() for edge in text.split(",")]
+    if len(edges) != 2 or not all(edges):
+        raise argparse.ArgumentTypeError(
+            f"two edge ids separated by a comma (EDGE,EDGE), not {text!r}"
+        )
+    return edges
+
+
 NETWORK_FILE = arg(
     "--network",
     type=Path,
@@ -108,7 +128,9 @@ def testcase_intersection(
 ) -> Intersection:
     """The test-case's intersection, its network found by ``locate_network``."""
     path = locate_network(testcase, args, read_from)
-    return load_intersection(path, testcase.junction, testcase.control)  # hash checked above
+    return load_intersection(  # the hash was checked above
+        path, testcase.junction, testcase.control, major_road=testcase.major_road
+    )
 
 
 def distance_or_auto(text: str) -> float | None:

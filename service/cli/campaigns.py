@@ -28,7 +28,11 @@ from service.core.sim.controllers import controller_names, resolve_driver
                 metavar="FORK_LANE:EXIT_LANE",
                 help="an ego route (repeatable)",
             ),
-            arg("--all-egos", action="store_true", help="every route of the junction"),
+            arg(
+                "--all-egos",
+                action="store_true",
+                help="every route the junction offers (side lanes left out)",
+            ),
         ),
         required=True,
     ),
@@ -76,6 +80,11 @@ def campaign(args: argparse.Namespace) -> int:
     from service.cli.campaign_folder import elapsed_printer, run_folder_campaign
     from service.core.campaign import failure_table
 
+    if args.major is not None:
+        args.usage.error(
+            "--major: a campaign takes the junction's own major road (or scengen's choice); "
+            "to choose it, make the test-cases with `scengen new --major` and `extend`"
+        )
     for name in args.controller:
         resolve_driver(name)  # a bad name fails before any work
     spec = {

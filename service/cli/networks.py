@@ -35,7 +35,7 @@ def networks(args: argparse.Namespace) -> int:
     ),
 )
 def intersection(args: argparse.Namespace) -> int:
-    junction = load_intersection(args.network, args.junction, args.control)
+    junction = load_intersection(args.network, args.junction, args.control, major_road=args.major)
     description = describe_intersection(junction)
     if args.plot:
         from service.pictures.plot import plot_intersection
@@ -45,13 +45,16 @@ def intersection(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(description, indent=2))
     else:
-        _print_intersection(description)
+        _print_intersection(description, major_given=args.major is not None)
     return EXIT_OK
 
 
-def _print_intersection(d: dict[str, Any]) -> None:
+def _print_intersection(d: dict[str, Any], major_given: bool) -> None:
     overridden = " (overridden)" if d["control_overridden"] else ""
     print(f"junction {d['junction']}  control {d['control']}{overridden}  network {d['network']}")
+    if d["major_road"]:
+        how = "given" if major_given else "the roads closest to straight across; --major to choose"
+        print(f"major road {' '.join(d['major_road'])} ({how})")
     print()
     rows = [["fork", "heading", "stop", "to its right", "opposite"]]
     for f in d["forks"]:
@@ -70,3 +73,7 @@ def _print_intersection(d: dict[str, Any]) -> None:
     for r in d["routes"]:
         rows.append([r["id"], r["turn"], " ".join(r["conflicts"]) or "-"])
     print_table(rows)
+    if d["side_lanes"]:
+        print()
+        print("side lanes, not offered (a route on one works when named):")
+        print_table([[s["lane"], s["reason"]] for s in d["side_lanes"]])

@@ -28,6 +28,7 @@ from service.core.motion.events import compute_events
 from service.core.motion.poses import generate_poses
 from service.core.network import bundled_networks, load_intersection
 from service.core.testcase import (
+    DEFAULT_START_DISTANCE,
     TestCase,
     name_stem,
     new_testcase,
@@ -44,9 +45,9 @@ from service.core.testcase import (
     arg(
         "--start-distance",
         type=float,
-        default=30.0,
         metavar="M",
-        help="ego front bumper before the stop line (default 30 m)",
+        help=f"ego front bumper before the stop line (default {DEFAULT_START_DISTANCE:g} m, or "
+        "the whole road before the fork where it is shorter)",
     ),
     arg(
         "--start-speed",
@@ -76,7 +77,15 @@ def new(args: argparse.Namespace) -> int:
         args.duration,
         args.timestep,
         name=args.name,
+        major_road=args.major,
     )
+    start = testcase.ego.start.distance
+    if args.start_distance is None and start < DEFAULT_START_DISTANCE:
+        print(
+            f"ego start: {start:g} m before the stop line, the whole road before fork "
+            f"{testcase.ego.route.fork} (the default {DEFAULT_START_DISTANCE:g} m does not fit)",
+            file=sys.stderr,
+        )
     if not args.name:
         testcase = renamed(testcase, readable_name(testcase))
     network_file = None if args.network in bundled_networks() else Path(args.network)
@@ -179,7 +188,8 @@ def drive(args: argparse.Namespace) -> int:
         metavar="M",
         help="a new car's front before its stop line at t = 0 (m), or 'auto'; once for every "
         "new car, or once per --add in the same order (default auto: behind the last car on "
-        "its fork, ahead of the ego on the ego's fork, where the ego starts on a free fork)",
+        "its fork, ahead of the ego on the ego's fork, where the ego starts on a free fork; "
+        "never further back than the road before the fork goes)",
     ),
     arg(
         "--name",
@@ -195,7 +205,9 @@ def extend(args: argparse.Namespace) -> int:
     if args.name is not None:
         renamed(old, args.name)  # a name that cannot be stored fails before the search
     network_file = locate_network(old, args)
-    intersection = load_intersection(network_file, old.junction, old.control)
+    intersection = load_intersection(
+        network_file, old.junction, old.control, major_road=old.major_road
+    )
     started = time.monotonic()
     extension = extend_testcase(
         old, args.add, args.seed, args.budget, start_distance, progress(started), intersection

@@ -28,7 +28,7 @@ from pydantic import (
 from service.core.errors import InvalidTestCase, UnknownNetwork
 from service.core.motion.events import EventKind
 from service.core.motion.plausibility import first_jump
-from service.core.motion.poses import plan_drive
+from service.core.motion.poses import longest_start, plan_drive
 from service.core.network import (
     Intersection,
     bundled_networks,
@@ -195,6 +195,13 @@ class TestCase(_Model):
     network: NetworkRef
     junction: str = Field(min_length=1)
     control: Literal["allway_stop", "priority_stop", "right_before_left"]
+    major_road: list[Annotated[str, Field(min_length=1)]] | None = Field(
+        None,
+        min_length=2,
+        max_length=2,
+        description="the two roads (edge ids) into a priority_stop junction that keep the "
+        "right of way, as the user named them; absent: the network's, or scengen's choice",
+    )
     rules: str
     timestep: float = Field(0.1, ge=MIN_TIMESTEP, le=MAX_TIMESTEP)
     duration: float = Field(20.0, gt=0, le=MAX_DURATION)
@@ -220,6 +227,12 @@ class TestCase(_Model):
                 f"rules {self.rules!r} do not match the control type {self.control!r}; the "
                 "rule set is chosen by the control type"
             )
+        if self.major_road is not None and self.control != "priority_stop":
+            raise ValueError(
+                f"major_road applies to a priority_stop junction, not to {self.control}"
+            )
+        if self.major_road is not None and self.major_road[0] == self.major_road[1]:
+            raise ValueError("major_road must name two different roads")
         if self.duration < self.timestep:
             raise ValueError("duration must be at least one time step")
         if self.duration / self.timestep > MAX_SAMPLES:
@@ -458,44 +471,57 @@ def _network_candidates(
     return list(unique.values())
 
 
+DEFAULT_START_DISTANCE = 30.0  # m: the ego's automatic start, where the road is that long
+
+
 def new_testcase(
     network: str | Path,
     ego_route: str,
     junction: str | None = None,
     control: str | None = None,
-    start_distance: float = 30.0,
+    start_distance: float | None = None,
     start_speed: float = 8.0,
     duration: float = 20.0,
     timestep: float = 0.1,
     params: Params | None = None,
     cache_dir: Path | None = None,
     name: str = "",
+    major_road: Sequence[str] | None = None,
 ) -> TestCase:
-    """An ego-only test-case; checks that the route exists and the start lies on the map."""
-    intersection = load_intersection(network, junction, control, cache_dir)
+    """An ego-only test-case; checks that the route exists and the start lies on the map.
+
+    ``start_distance`` None is automatic: DEFAULT_START_DISTANCE, or the whole road before
+    the fork where it is shorter (a start given is refused when the road is shorter).
+    ``major_road``: two roads into a priority_stop junction that keep the right of way
+    (service.core.network.load_intersection); the test-case keeps it (``major_road``), so
+    every later command rebuilds the same network."""
+    intersection = load_intersection(network, junction, control, cache_dir, major_road=major_road)
     route = intersection.route(ego_route)
     chosen = params or Params()
     if start_speed > chosen.v_max:
         raise InvalidTestCase(
             f"ego start speed {start_speed:g} m/s exceeds v_max {chosen.v_max:g} m/s"
         )
-    testcase = parse_testcase(
-        {
-            "schema": SCHEMA,
-            "name": name,
-            "network": network_ref(network).model_dump(),
-            "junction": intersection.junction,
-            "control": intersection.control.value,
-            "rules": intersection.control.value,
-            "timestep": timestep,
-            "duration": duration,
-            "params": chosen.model_dump(),
-            "ego": {
-                "route": {"fork": route.fork, "exit": route.exit},
-                "start": {"distance": start_distance, "speed": start_speed},
-            },
-        }
-    )
+    if start_distance is None:
+        start_distance = longest_start(intersection, route, DEFAULT_START_DISTANCE)
+    document: dict[str, Any] = {
+        "schema": SCHEMA,
+        "name": name,
+        "network": network_ref(network).model_dump(),
+        "junction": intersection.junction,
+        "control": intersection.control.value,
+        "rules": intersection.control.value,
+        "timestep": timestep,
+        "duration": duration,
+        "params": chosen.model_dump(),
+        "ego": {
+            "route": {"fork": route.fork, "exit": route.exit},
+            "start": {"distance": start_distance, "speed": start_speed},
+        },
+    }
+    if major_road is not None:
+        document["major_road"] = list(major_road)
+    testcase = parse_testcase(document)
     # Fails with a clear message when the start lies beyond the mapped road.
     plan_drive(intersection, route, start_distance, max(start_speed, 1.0), duration, timestep)
     return testcase
@@ -512,7 +538,9 @@ def load_testcase_intersection(
     the test-case names a network that only a server knows; ``near`` is the folder the
     test-case was read from)."""
     path, _ = find_network_file(testcase, network_file, near)
-    return load_intersection(path, testcase.junction, testcase.control, cache_dir)
+    return load_intersection(
+        path, testcase.junction, testcase.control, cache_dir, major_road=testcase.major_road
+    )
 
 
 def check_samples(duration: float, timestep: float, limit: int) -> None:

@@ -9,7 +9,9 @@ from typing import Any
 import pytest
 
 from service.core.errors import InvalidInput, InvalidTestCase, UnknownRoute
+from service.core.network import load_intersection
 from service.core.testcase import (
+    DEFAULT_START_DISTANCE,
     SCHEMA,
     TestCase,
     dump_testcase,
@@ -18,7 +20,7 @@ from service.core.testcase import (
     parse_testcase,
     read_testcase,
 )
-from tests.conftest import TOWN05
+from tests.conftest import TOWN05, TOWN07
 
 
 @pytest.fixture(scope="module")
@@ -183,3 +185,50 @@ def test_changed_network_is_detected(ego_only: TestCase, tmp_path: Path) -> None
     document["network"]["sha256"] = "0" * 64
     with pytest.raises(InvalidTestCase, match="the network has changed since"):
         load_testcase_intersection(parse_testcase(document))
+
+
+def test_the_major_road_is_kept_only_when_named(cache_dir: Path) -> None:
+    chosen = new_testcase(TOWN05, "4_1:-46_0", "1882", "priority_stop", cache_dir=cache_dir)
+    assert chosen.major_road is None and "major_road" not in _document(chosen)
+    named = new_testcase(TOWN05, "4_1:-46_0", "1882", "priority_stop", cache_dir=cache_dir,
+                         major_road=["46", "4"])  # fmt: skip
+    document = _document(named)
+    assert document["major_road"] == ["46", "4"]
+    assert list(document).index("major_road") == list(document).index("control") + 1
+    assert dump_testcase(parse_testcase(dump_testcase(named))) == dump_testcase(named)
+    # every later command rebuilds the network the test-case was made on
+    again = load_testcase_intersection(parse_testcase(document), cache_dir)
+    made = load_intersection(TOWN05, "1882", "priority_stop", cache_dir, major_road=["46", "4"])
+    assert again.network_file == made.network_file
+    assert {f.edge for f in again.forks.values() if f.stop_sign} == {"-45"}
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"major_road": ["46"]}, r"major_road: List should have at least 2 items"),
+        ({"major_road": ["46", "4", "-45"]}, r"major_road: List should have at most 2 items"),
+        ({"major_road": ["46", "46"]}, r"major_road must name two different roads"),
+        ({"major_road": ["46", ""]}, r"major_road\.1: String should have at least 1 character"),
+        ({"major_road": "46,4"}, r"major_road: Input should be a valid list"),
+        ({"major_road": ["46", "4"], "control": "allway_stop", "rules": "allway_stop"},
+         r"major_road applies to a priority_stop junction, not to allway_stop"),
+    ],
+)  # fmt: skip
+def test_a_bad_major_road_is_refused(
+    ego_only: TestCase, change: dict[str, Any], message: str
+) -> None:
+    document = {**_document(ego_only), "control": "priority_stop", "rules": "priority_stop"}
+    with pytest.raises(InvalidTestCase, match=message):
+        parse_testcase({**document, **change})
+
+
+def test_the_automatic_start_fits_the_road(cache_dir: Path) -> None:
+    """Town07 725: the road before fork -26#1_0 is 17.91 m long. The automatic start (no
+    start distance) is the whole road; a start the user gives must fit."""
+    fitted = new_testcase(TOWN07, "-26#1_0:14_0", "725", "allway_stop", cache_dir=cache_dir)
+    assert fitted.ego.start.distance == 17.91
+    full = new_testcase(TOWN07, "15_0:14_0", "725", "allway_stop", cache_dir=cache_dir)
+    assert full.ego.start.distance == DEFAULT_START_DISTANCE == 30.0
+    with pytest.raises(InvalidInput, match=r"start distance 30 m is longer than the road"):
+        new_testcase(TOWN07, "-26#1_0:14_0", "725", "allway_stop", 30.0, cache_dir=cache_dir)

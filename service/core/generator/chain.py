@@ -33,12 +33,14 @@ ROUTE_ORDERS = 20  # answer sets one route gets in the first round (a count)
 
 
 def candidate_routes(old: TestCase, intersection: Intersection) -> list[str]:
-    """Routes a new car may take: they conflict with the ego's or start on its fork (a car
-    ahead of the ego), sorted by id; a car on a fork in use joins the queue there."""
+    """Routes a new car may take: routes the junction offers (no parking lane or bay,
+    service.core.network.lanes.side_lane_reason) that conflict with the ego's or start on
+    its fork (a car ahead of the ego), sorted by id; a car on a fork in use joins the
+    queue there."""
     ego = old.ego.route
     return sorted(
         route
-        for route in intersection.routes
+        for route in intersection.offered_routes
         if route in intersection.conflicts[ego.id] or intersection.routes[route].fork == ego.fork
     )
 

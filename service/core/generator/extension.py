@@ -61,7 +61,13 @@ from service.core.motion.collisions import Motion, first_collision
 from service.core.motion.events import EventKind, LaneEvent, compute_events
 from service.core.motion.invariants import ROUNDING, motion_fault
 from service.core.motion.kinematics import Bounds
-from service.core.motion.poses import DRIVE_BUDGET, PoseSample, PoseTrack, generate_poses
+from service.core.motion.poses import (
+    DRIVE_BUDGET,
+    PoseSample,
+    PoseTrack,
+    generate_poses,
+    longest_start,
+)
 from service.core.motion.queues import (
     Follow,
     Places,
@@ -160,7 +166,13 @@ def extend_testcase(
     new_routes = _validate(old, junction, routes)
     ego_route = junction.route(old.ego.route.id)
     ids = _new_ids(old, len(new_routes))
-    starts = automatic_starts(old, old_judge, new_routes, start_distance)
+    starts, shortened = automatic_starts(old, old_judge, new_routes, start_distance, junction)
+    for cut in shortened:
+        say(
+            f"{ids[cut.index]} ({cut.route}): the road before its fork is {cut.start:g} m "
+            f"long, so its automatic start is {cut.start:g} m before the line, not "
+            f"{cut.automatic:g} m"
+        )
 
     clock = time.monotonic()
     attempts: list[Attempt] = []
@@ -244,6 +256,7 @@ def extend_testcase(
             )
             seconds["verification"] += time.monotonic() - clock
             if candidate is not None:
+                _note_shortened(candidate, shortened, ids)
                 attempts.append(Attempt(number, f"verified ({result.method})"))
                 say(f"step 2/3 answer set {number + 1}: verified ({result.method})")
                 return Extension(candidate, attempts, seconds, problem)
@@ -252,6 +265,18 @@ def extend_testcase(
         if not exhausted:
             break
     raise _not_found(old, junction, cars, queue.bounds, seed, routes, attempts, exhausted)
+
+
+def _note_shortened(
+    testcase: TestCase, shortened: Sequence[ShortenedStart], ids: Sequence[str]
+) -> None:
+    """Say in the provenance which automatic starts the road made shorter."""
+    if shortened and testcase.provenance is not None:
+        testcase.provenance["shortened_starts"] = [
+            {"car": ids[cut.index], "route": cut.route, "automatic": cut.automatic,
+             "start": cut.start}
+            for cut in shortened
+        ]  # fmt: skip
 
 
 def _limits(old: TestCase, margin: float | None = None, share: float = 1.0) -> Limits:
@@ -408,14 +433,32 @@ def _new_ids(old: TestCase, count: int) -> list[str]:
     return ids
 
 
+@dataclass(frozen=True)
+class ShortenedStart:
+    """An automatic start that did not fit on the road before its fork: the new car (by
+    its place among the new routes) starts at the road's far end instead."""
+
+    index: int
+    route: str
+    automatic: float  # where the car would have started on a longer road
+    start: float  # where it starts: the whole road before its fork
+
+
 def automatic_starts(
-    old: TestCase, judge: Judge, routes: Sequence[Route], start: StartDistances
-) -> list[float]:
-    """Each new car's start distance: the one given, else automatic. Automatically, a car
-    on a fork no one uses starts where the ego does; on the ego's fork, ahead of the first
-    car there; on a fork with other cars, behind the last one; with room for the gap and
-    the headway at the start speed, and QUEUE_SPACING more. InvalidInput when a car would
-    start behind the ego or too close to a car already on its fork."""
+    old: TestCase,
+    judge: Judge,
+    routes: Sequence[Route],
+    start: StartDistances,
+    junction: Intersection,
+) -> tuple[list[float], list[ShortenedStart]]:
+    """Each new car's start distance: the one given, else automatic, and the automatic
+    starts that were shortened. Automatically, a car on a fork no one uses starts where the
+    ego does; on the ego's fork, ahead of the first car there; on a fork with other cars,
+    behind the last one; with room for the gap and the headway at the start speed, and
+    QUEUE_SPACING more; and never further back than the road before its fork goes (the
+    longest start up to that which fits). InvalidInput when a car would start behind the
+    ego or too close to a car already on its fork (for an automatic start: when the road
+    has no room for it)."""
     given = _given_starts(routes, start)
     ego, params = old.ego, old.params
     ego_fork = ego.route.fork
@@ -427,10 +470,12 @@ def automatic_starts(
         on_fork.setdefault(car.fork, []).append(
             _Placed(car.in_queue.start, car.length, car.id, speed)
         )
-    starts = []
+    starts: list[float] = []
+    shortened: list[ShortenedStart] = []
     for k, (route, wanted) in enumerate(zip(routes, given, strict=True)):
         there = on_fork.setdefault(route.fork, [])
         name = f"new car {k + 1} ({route.id})"
+        cut = False
         if wanted is None:
             wanted = _automatic(old, there, route.fork == ego_fork)
             if wanted is None:
@@ -439,6 +484,11 @@ def automatic_starts(
                     f"{name}: no room ahead of the cars on the ego's fork {route.fork} (the "
                     f"first starts {first:g} m before the line); give its start distance"
                 )
+            wanted = round(wanted, 6)
+            fitted = longest_start(junction, route, wanted)
+            if fitted < wanted:
+                shortened.append(ShortenedStart(k, route.id, wanted, fitted))
+                wanted, cut = fitted, True
         wanted = round(wanted, 6)
         if route.fork == ego_fork and wanted > ego.start.distance:
             raise InvalidInput(
@@ -451,16 +501,23 @@ def automatic_starts(
         for other in there:
             ahead, behind = (other, placed) if other.start < wanted else (placed, other)
             room = ahead.length + needed_gap(params.gap, params.headway, behind.speed)
-            if behind.start - ahead.start < room:
+            if behind.start - ahead.start >= room:
+                continue
+            if cut:
                 raise InvalidInput(
-                    f"{name} would start {wanted:g} m before the line, "
-                    f"{abs(wanted - other.start):g} m from {other.name} ({other.start:g} m) "
-                    f"on fork {route.fork}: the car behind needs a car length plus its gap "
-                    f"({room:g} m) to the one ahead"
+                    f"{name}: no room on the road before fork {route.fork} ({wanted:g} m "
+                    f"long) behind {other.name} ({other.start:g} m before the line): the car "
+                    f"behind needs a car length plus its gap ({room:g} m) to the one ahead"
                 )
+            raise InvalidInput(
+                f"{name} would start {wanted:g} m before the line, "
+                f"{abs(wanted - other.start):g} m from {other.name} ({other.start:g} m) "
+                f"on fork {route.fork}: the car behind needs a car length plus its gap "
+                f"({room:g} m) to the one ahead"
+            )
         there.append(placed)
         starts.append(wanted)
-    return starts
+    return starts, shortened
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ from shapely.geometry import Point as ShapelyPoint
 
 from service.core.budget import WarmWorker
 from service.core.errors import InvalidInput, SimulationFailed
-from service.core.network import Intersection, Route, read_network
+from service.core.network import Intersection, Route, parsed_network
 from service.core.network.lanes import (
     approach_polyline,
     is_internal,
@@ -118,9 +118,10 @@ def interpolate_heading(a: float, b: float, share: float) -> float:
     return 0.0 if heading >= 360.0 else heading  # -1e-15 % 360.0 is 360.0 in floats
 
 
-@functools.lru_cache(maxsize=8)
 def _cached_network(path: str, mtime: float) -> Any:
-    return read_network(Path(path))
+    """The network at ``path``, parsed once per version of the file (``mtime`` is the
+    caller's view of that version; parsed_network checks it again)."""
+    return parsed_network(Path(path))
 
 
 def plan_drive(
@@ -143,21 +144,13 @@ def plan_drive(
     junction = intersection.junction
     fork_lane = net.getLane(route.fork)
     connection = next(c for c in fork_lane.getOutgoing() if c.getToLane().getID() == route.exit)
-    lanes = [fork_lane]
-    behind = fork_lane.getLength()  # metres from the first lane's start to the stop line
-    upstream: list[str] = []  # internal lanes between the first lane and the next
-    while behind < start_distance:
-        incoming = straightest_predecessor(net, lanes[0], junction)
-        if incoming is None:
-            raise InvalidInput(
-                f"start distance {start_distance:g} m is longer than the road before fork "
-                f"{route.fork!r} ({behind:.1f} m)",
-                route=route.id,
-            )
-        upstream = via_chain(net, incoming)
-        behind += sum(net.getLane(v).getLength() for v in upstream)
-        lanes.insert(0, incoming.getFromLane())
-        behind += lanes[0].getLength()
+    lanes, behind, upstream = _walk_upstream(net, fork_lane, junction, start_distance)
+    if behind < start_distance:
+        raise InvalidInput(
+            f"start distance {start_distance:g} m is longer than the road before fork "
+            f"{route.fork!r} ({behind:.1f} m)",
+            route=route.id,
+        )
     chain = via_chain(net, connection)
     to_exit = start_distance + sum(net.getLane(v).getLength() for v in chain)
     ahead = to_exit + connection.getToLane().getLength()
@@ -206,6 +199,38 @@ def plan_drive(
         skip=skip,
         start_on=start_on,
     )
+
+
+def _walk_upstream(
+    net: Any, fork_lane: Any, junction: str, distance: float
+) -> tuple[list[Any], float, list[str]]:
+    """The lanes a start ``distance`` before the stop line needs, up to the fork, along the
+    straightest predecessors (as far as the road goes): the lanes, the metres from the
+    first lane's start to the stop line, and the internal lanes between the first lane and
+    the next."""
+    lanes = [fork_lane]
+    behind = fork_lane.getLength()
+    upstream: list[str] = []
+    while behind < distance:
+        incoming = straightest_predecessor(net, lanes[0], junction)
+        if incoming is None:
+            break
+        upstream = via_chain(net, incoming)
+        behind += sum(net.getLane(v).getLength() for v in upstream)
+        lanes.insert(0, incoming.getFromLane())
+        behind += lanes[0].getLength()
+    return lanes, behind, upstream
+
+
+def longest_start(intersection: Intersection, route: Route, up_to: float) -> float:
+    """The longest start distance up to ``up_to`` that lies on the road before the fork:
+    ``up_to`` when the road is that long, else the whole road (to the centimetre below),
+    measured as SUMO drives it (lane lengths) and as the start is placed (the shape)."""
+    path = intersection.network_file
+    net = _cached_network(str(path), path.stat().st_mtime)
+    _, behind, _ = _walk_upstream(net, net.getLane(route.fork), intersection.junction, up_to)
+    road = min(behind, _approach_line(intersection, route, up_to + 1.0).length)
+    return up_to if road >= up_to else min(math.floor(road * 100.0) / 100.0, road)
 
 
 def _internal_start(net: Any, lanes: list[str], into: float) -> tuple[str, float]:

@@ -3,6 +3,7 @@
 from service.core.network.load import (
     bundled_networks,
     load_intersection,
+    parsed_network,
     read_network,
     resolve_network,
 )
@@ -29,6 +30,7 @@ __all__ = [
     "bundled_networks",
     "file_sha256",
     "load_intersection",
+    "parsed_network",
     "read_network",
     "resolve_network",
     "route_id",

@@ -8,27 +8,37 @@ from service.core.network.model import Intersection
 
 
 def describe_intersection(intersection: Intersection) -> dict[str, Any]:
-    """JSON-ready description: junction, control, forks with relations, routes with conflicts."""
+    """JSON-ready description: junction, control, the forks and routes it offers with their
+    relations and conflicts, the side lanes it does not offer (each with the reason; a
+    route on one works when named), and the major road when scengen chose or was given it."""
+    routes = intersection.offered_routes
+    forks = intersection.offered_forks
+
+    def offered(lanes: frozenset[str]) -> list[str]:
+        return sorted(lane for lane in lanes if lane in forks)
+
     return {
         "network": str(intersection.source_file),
         "junction": intersection.junction,
         "control": intersection.control.value,
         "control_overridden": intersection.overridden,
+        "major_road": list(intersection.major_road) if intersection.major_road else None,
         "forks": [
             {
                 "lane": fork.lane,
                 "edge": fork.edge,
                 "heading": round(fork.heading, 2),
                 "stop_sign": fork.stop_sign,
-                "to_its_right": sorted(intersection.to_its_right[fork.lane]),
-                "opposite": sorted(intersection.opposite[fork.lane]),
-                "same_direction": sorted(intersection.same_direction[fork.lane]),
+                "to_its_right": offered(intersection.to_its_right[fork.lane]),
+                "opposite": offered(intersection.opposite[fork.lane]),
+                "same_direction": offered(intersection.same_direction[fork.lane]),
             }
-            for fork in sorted(intersection.forks.values(), key=lambda f: f.lane)
+            for fork in sorted(forks.values(), key=lambda f: f.lane)
         ],
         "exits": [
             {"lane": e.lane, "edge": e.edge, "heading": round(e.heading, 2)}
             for e in sorted(intersection.exits.values(), key=lambda e: e.lane)
+            if e.lane not in intersection.side_lanes
         ],
         "routes": [
             {
@@ -38,8 +48,11 @@ def describe_intersection(intersection: Intersection) -> dict[str, Any]:
                 "turn": route.turn.value,
                 "connecting_lane": route.connecting_lane,
                 "length": round(intersection.connecting_lanes[route.connecting_lane].length, 2),
-                "conflicts": sorted(intersection.conflicts[route.id]),
+                "conflicts": sorted(c for c in intersection.conflicts[route.id] if c in routes),
             }
-            for route in intersection.routes.values()
+            for route in routes.values()
+        ],
+        "side_lanes": [
+            {"lane": lane, "reason": reason} for lane, reason in intersection.side_lanes.items()
         ],
     }

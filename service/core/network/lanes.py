@@ -20,6 +20,16 @@ def is_internal(lane_id: str) -> bool:
     return lane_id.startswith(":")
 
 
+def roads_in(node: Any) -> list[Any]:
+    """The roads cars drive into ``node`` on (internal edges do not count), by id."""
+    edges = [
+        edge
+        for edge in node.getIncoming()
+        if edge.getFunction() != "internal" and edge.allows("passenger")
+    ]
+    return sorted(edges, key=lambda edge: str(edge.getID()))
+
+
 def shape_2d(lane: SumoLane) -> list[Point]:
     return [(float(p[0]), float(p[1])) for p in lane.getShape()]
 
@@ -112,7 +122,7 @@ def approach_polyline(net: SumoNet, lane: SumoLane, junction: str, length: float
         current = connection.getFromLane()
         points = shape_2d(current) + points
         covered += current.getLength()
-    return _dedupe(points)
+    return dedupe(points)
 
 
 def departure_polyline(net: SumoNet, lane: SumoLane, junction: str, length: float) -> list[Point]:
@@ -129,12 +139,50 @@ def departure_polyline(net: SumoNet, lane: SumoLane, junction: str, length: floa
         current = connection.getToLane()
         points = points + shape_2d(current)
         covered += current.getLength()
-    return _dedupe(points)
+    return dedupe(points)
 
 
-def _dedupe(points: list[Point]) -> list[Point]:
+def dedupe(points: Sequence[Point]) -> list[Point]:
+    """``points`` without repeats: SUMO writes zero-length lanes as two equal points."""
+    if not points:
+        return []
     kept = [points[0]]
     for point in points[1:]:
         if math.dist(point, kept[-1]) > 1e-6:
             kept.append(point)
     return kept
+
+
+SIDE_LANE_SPEED_SHARE = 0.5  # a lane slower than half its road's fastest lane is a side lane
+
+
+def side_lane_reason(lane: SumoLane, into_junction: bool) -> str | None:
+    """Why ``lane`` is not for driving through a junction, or None when it is.
+
+    A side lane (a parking lane, a bay) is one whose speed limit is below half of the
+    fastest lane of its own road, or, as a fork (``into_junction``), one no lane leads into
+    while another lane of its road is fed; as an exit, one that leads nowhere while another
+    lane of its road leads on. A road at the map's border (no lane fed, or none leading on)
+    is a road like any other: the comparison is always with the lane's own road.
+    """
+    siblings = [
+        other
+        for other in lane.getEdge().getLanes()
+        if other is not lane and other.allows("passenger")
+    ]
+    fastest = max((other.getSpeed() for other in siblings), default=0.0)
+    if lane.getSpeed() < SIDE_LANE_SPEED_SHARE * fastest:
+        return f"{lane.getSpeed():g} m/s where its road allows {fastest:g} m/s (parking or a bay)"
+    if into_junction and not _fed(lane) and any(_fed(other) for other in siblings):
+        return "no lane leads into it, while its road's other lanes are fed"
+    if not into_junction and not _leads_on(lane) and any(_leads_on(o) for o in siblings):
+        return "it leads nowhere, while its road's other lanes lead on"
+    return None
+
+
+def _fed(lane: SumoLane) -> bool:
+    return any(not is_internal(c.getFromLane().getID()) for c in lane.getIncomingConnections())
+
+
+def _leads_on(lane: SumoLane) -> bool:
+    return any(not is_internal(c.getToLane().getID()) for c in lane.getOutgoing())

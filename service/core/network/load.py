@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,12 +23,16 @@ from service.core.errors import (
 from service.core.network.convert import convert_network, source_format
 from service.core.network.lanes import (
     approach_polyline,
+    dedupe,
     departure_polyline,
     heading_of,
     is_internal,
+    roads_in,
     shape_2d,
+    side_lane_reason,
     via_chain,
 )
+from service.core.network.major import choose_major_road, lifted_priorities
 from service.core.network.model import (
     ConnectingLane,
     ControlType,
@@ -91,6 +98,23 @@ def read_network(path: Path) -> Any:
     return net
 
 
+def _version(path: Path) -> tuple[int, int]:
+    status = path.stat()
+    return status.st_mtime_ns, status.st_size
+
+
+@functools.lru_cache(maxsize=8)
+def _read_version(path: Path, version: tuple[int, int]) -> Any:
+    return read_network(path)
+
+
+def parsed_network(path: Path) -> Any:
+    """``read_network(path)``, parsed once per version of the file (its modification time
+    and size) in this process: a junction's model reads its network and the rebuilt copy,
+    Step 1 reads it again, and many junctions share one network. Callers only read it."""
+    return _read_version(path, _version(path))
+
+
 def _check_geometry(net: Any, path: Path) -> None:
     """A network a drive can use: lanes, and finite coordinates everywhere (a NaN would only
     surface later, inside SUMO or the checker)."""
@@ -114,34 +138,67 @@ def _check_geometry(net: Any, path: Path) -> None:
 
 
 def junction_arms(node: Any) -> int:
-    """How many roads come into a junction (internal lanes do not count)."""
-    return sum(1 for edge in node.getIncoming() if edge.getFunction() != "internal")
+    """How many roads cars drive into a junction on (its approaches; internal lanes do
+    not count)."""
+    return len(roads_in(node))
 
 
-def _choose_junction(net: Any, path: Path, junction: str | None) -> str:
+def _choose_junction(
+    net: Any, path: Path, junction: str | None, control: ControlType | None
+) -> str:
+    """The junction named; else the only junction with 3 or more approaches, of a
+    supported type unless ``control`` overrides the type."""
     nodes: dict[str, Any] = {
         str(node.getID()): node for node in net.getNodes() if node.getType() != "internal"
     }
+    crossings = [j for j, node in nodes.items() if junction_arms(node) >= 3]
     if junction is not None:
         if junction not in nodes:
-            crossings = [j for j, node in nodes.items() if junction_arms(node) >= 3]
             raise UnknownJunction(
                 f"junction {junction!r} is not in {path.name}; junctions with 3 or more "
                 f"approaches: {choices(crossings)}",
                 network=str(path),
             )
         return junction
-    supported = [j for j, node in nodes.items() if node.getType() in SUPPORTED]
+    if control is not None:
+        if len(crossings) == 1:
+            return crossings[0]
+        reason = "several junctions" if crossings else "no junction"
+        raise UnknownJunction(
+            f"{path.name} has {reason} with 3 or more approaches; name one with --junction: "
+            f"{choices(f'{j} ({nodes[j].getType()})' for j in crossings)}",
+            network=str(path),
+        )
+    supported = [j for j in crossings if nodes[j].getType() in SUPPORTED]
     if len(supported) == 1:
         return supported[0]
-    crossings = [f"{j} ({n.getType()})" for j, n in nodes.items() if junction_arms(n) >= 3]
+    if len(crossings) == 1:
+        only = crossings[0]
+        raise UnsupportedIntersection(
+            f"the only junction of {path.name} with 3 or more approaches, {only!r}, has "
+            f"control type {nodes[only].getType()!r}, which has no traffic-rule set; give "
+            f"--control ({', '.join(SUPPORTED)})",
+            junction=only,
+        )
     reason = "several junctions" if supported else "no junction"
     raise UnknownJunction(
         f"{path.name} has {reason} of a supported control type ({', '.join(SUPPORTED)}); "
         f"name one with --junction (and --control to override its type). Junctions with 3 or "
-        f"more approaches: {choices(crossings)}",
+        f"more approaches: {choices(f'{j} ({nodes[j].getType()})' for j in crossings)}",
         network=str(path),
     )
+
+
+def _check_approaches(node: Any) -> None:
+    """UnsupportedIntersection for a node that is not a junction: fewer than three roads in."""
+    roads = [str(edge.getID()) for edge in roads_in(node)]
+    if len(roads) < 3:
+        raise UnsupportedIntersection(
+            f"node {node.getID()!r} is not a junction to test: {len(roads)} "
+            f"{'road leads' if len(roads) == 1 else 'roads lead'} into it "
+            f"({', '.join(roads) or 'none'}), a junction has 3 or more approaches",
+            junction=str(node.getID()),
+        )
 
 
 def _parse_control(control: ControlType | str | None) -> ControlType | None:
@@ -161,21 +218,33 @@ def load_intersection(
     control: ControlType | str | None = None,
     cache_dir: Path | None = None,
     sliver_radius: float = SLIVER_RADIUS,
+    major_road: Sequence[str] | None = None,
 ) -> Intersection:
-    """Build the intersection model of ``junction`` (default: the only supported one).
+    """Build the intersection model of ``junction`` (default: the only junction with 3 or
+    more approaches, of a supported type unless ``control`` is given).
 
     With ``control``, the junction is rebuilt with netconvert to that control type first
-    (the rebuilt network is cached in ``cache_dir``).
+    (the rebuilt network is cached in ``cache_dir``). ``major_road``: the two roads into a
+    ``priority_stop`` junction that keep the right of way (rebuilt too); by default the
+    network's, or for a junction made priority_stop whose roads all have the same
+    priority, the pair closest to straight across. A node that is not a junction (fewer
+    than three approaches, no two routes that cross or merge) is UnsupportedIntersection.
     """
     source = resolve_network(network)
     wanted = _parse_control(control)
-    net = read_network(source)
-    junction_id = _choose_junction(net, source, junction)
-    current = net.getNode(junction_id).getType()
+    net = parsed_network(source)
+    named = Path(network) if str(network) not in bundled_networks() else Path(source.name)
+    junction_id = _choose_junction(net, named, junction, wanted)
+    node = net.getNode(junction_id)
+    _check_approaches(node)
+    current = node.getType()
+    target = wanted.value if wanted is not None else current
+    major = choose_major_road(net, node, target, current, major_road)
     effective = source
-    if wanted is not None and wanted.value != current:
-        effective = rebuild_with_control(source, junction_id, wanted.value, cache_dir)
-        net = read_network(effective)
+    if target != current or major_road is not None:
+        priorities = lifted_priorities(node, major) if major else None
+        effective = rebuild_with_control(source, junction_id, target, cache_dir, priorities)
+        net = parsed_network(effective)
         current = net.getNode(junction_id).getType()
     if current not in SUPPORTED:
         raise UnsupportedIntersection(
@@ -183,7 +252,39 @@ def load_intersection(
             f"set; supported types: {', '.join(SUPPORTED)} (override with --control)",
             junction=junction_id,
         )
-    return _build(net, source, effective, junction_id, ControlType(current), sliver_radius)
+    intersection = _model(
+        source, effective, _version(effective), junction_id, ControlType(current), sliver_radius
+    )
+    return dataclasses.replace(intersection, major_road=major) if major else intersection
+
+
+@functools.lru_cache(maxsize=32)
+def _model(
+    source: Path,
+    effective: Path,
+    version: tuple[int, int],
+    junction: str,
+    control: ControlType,
+    sliver_radius: float,
+) -> Intersection:
+    """The model of ``junction`` in (this ``version`` of) ``effective``, built once per
+    process: commands and workers load one junction many times. Nobody changes a model."""
+    intersection = _build(
+        parsed_network(effective), source, effective, junction, control, sliver_radius
+    )
+    _check_conflicts(intersection)
+    return intersection
+
+
+def _check_conflicts(intersection: Intersection) -> None:
+    """UnsupportedIntersection when no two routes cross or merge: nobody gives way."""
+    if not any(intersection.conflicts.values()):
+        raise UnsupportedIntersection(
+            f"junction {intersection.junction!r} is not a junction to test: none of its "
+            f"{len(intersection.routes)} routes crosses or merges with another, so no car "
+            "ever gives way",
+            junction=intersection.junction,
+        )
 
 
 def _build(
@@ -240,7 +341,7 @@ def _build(
         junction=junction,
         control=control,
         overridden=effective != source,
-        polygon=Polygon(shape_2d(node)).buffer(0),
+        polygon=_junction_area(node, lanes),
         forks=forks,
         exits=exits,
         connecting_lanes=lanes,
@@ -249,7 +350,25 @@ def _build(
         to_its_right=right,
         opposite=opposite,
         same_direction=same,
+        side_lanes=_side_lanes(net, [*forks, *exits], set(forks)),
     )
+
+
+def _side_lanes(net: Any, lanes: Sequence[str], forks: set[str]) -> dict[str, str]:
+    """The forks and exits that are not for driving through, each with the reason."""
+    found = {lane: side_lane_reason(net.getLane(lane), lane in forks) for lane in sorted(lanes)}
+    return {lane: reason for lane, reason in found.items() if reason is not None}
+
+
+def _junction_area(node: Any, lanes: dict[str, ConnectingLane]) -> Polygon:
+    """The junction's area: its shape, or where its shape has no area (SUMO writes a
+    point for some), the hull of its connecting lanes."""
+    shape = dedupe(shape_2d(node))
+    area = Polygon(shape).buffer(0) if len(shape) >= 3 else Polygon()
+    if area.area > 0:
+        return area
+    hull = unary_union([lane.polygon for lane in lanes.values()]).convex_hull
+    return hull if isinstance(hull, Polygon) else Polygon()
 
 
 def _connecting_lane(net: Any, chain: list[str], fork: Any, exit_lane: Any) -> ConnectingLane:
@@ -257,16 +376,27 @@ def _connecting_lane(net: Any, chain: list[str], fork: Any, exit_lane: Any) -> C
 
     The polygon ends square to the fork at the stop line and square to the exit where the
     exit lane starts; a flat buffer cap would end square to the curve instead and poke out
-    of the junction by a few centimetres on turns.
+    of the junction by a few centimetres on turns. Repeated shape points are dropped; a
+    chain whose shape is one point (the fork runs straight into the exit: SUMO writes a
+    0.1 m lane as two equal points) becomes a straight line as long as SUMO says the
+    chain is, centred on that point, along the direction of travel.
     """
-    points: list[tuple[float, float]] = []
     width = net.getLane(chain[0]).getWidth()
-    for lane_id in chain:
-        shape = shape_2d(net.getLane(lane_id))
-        points.extend(p for p in shape if not points or p != points[-1])
-    fork_shape, exit_shape = shape_2d(fork), shape_2d(exit_lane)
-    into = _unit(fork_shape[-2], fork_shape[-1])
-    out = _unit(exit_shape[0], exit_shape[1])
+    points = dedupe([p for lane_id in chain for p in shape_2d(net.getLane(lane_id))])
+    fork_shape, exit_shape = dedupe(shape_2d(fork)), dedupe(shape_2d(exit_lane))
+    into = _direction(fork_shape, at_end=True) or _direction(points, at_end=False)
+    out = _direction(exit_shape, at_end=False) or _direction(points, at_end=True) or into
+    into = into or out
+    if into is None or out is None:
+        raise UnsupportedIntersection(
+            f"the connection from {fork.getID()!r} to {exit_lane.getID()!r} has no direction: "
+            "its fork, internal lanes and exit are all single points",
+            route=f"{fork.getID()}:{exit_lane.getID()}",
+        )
+    if len(points) < 2:
+        half = max(sum(net.getLane(lane_id).getLength() for lane_id in chain), MIN_LENGTH) / 2
+        (x, y) = points[0]
+        points = [(x - half * into[0], y - half * into[1]), (x + half * out[0], y + half * out[1])]
     start, end = points[0], points[-1]
     extended = [
         (start[0] - EXTENSION * into[0], start[1] - EXTENSION * into[1]),
@@ -286,9 +416,15 @@ def _connecting_lane(net: Any, chain: list[str], fork: Any, exit_lane: Any) -> C
 
 
 EXTENSION = 3.0  # metres the centreline is extended before cutting its ends square
+MIN_LENGTH = 0.1  # metres: SUMO's shortest lane
 
 
-def _unit(a: tuple[float, float], b: tuple[float, float]) -> tuple[float, float]:
+def _direction(points: Sequence[tuple[float, float]], at_end: bool) -> tuple[float, float] | None:
+    """The unit vector of the last (``at_end``) or first segment of deduplicated
+    ``points``; None for a single point."""
+    if len(points) < 2:
+        return None
+    a, b = (points[-2], points[-1]) if at_end else (points[0], points[1])
     length = math.dist(a, b)
     return (b[0] - a[0]) / length, (b[1] - a[1]) / length
 
@@ -321,7 +457,7 @@ def _chord_heading(points: list[tuple[float, float]], at_end: bool) -> float:
 
 
 def _fork(net: Any, lane: Any, junction: str, routes: dict[str, Route]) -> Fork:
-    polyline = approach_polyline(net, lane, junction, DRAWN_LENGTH)
+    polyline = _drawn(approach_polyline(net, lane, junction, DRAWN_LENGTH), lane)
     states = {r.link_state for r in routes.values() if r.fork == lane.getID()}
     return Fork(
         lane=lane.getID(),
@@ -334,6 +470,17 @@ def _fork(net: Any, lane: Any, junction: str, routes: dict[str, Route]) -> Fork:
     )
 
 
+def _drawn(points: list[tuple[float, float]], lane: Any) -> list[tuple[float, float]]:
+    """``points``, the road through ``lane``; UnsupportedIntersection when they are one
+    point (a lane of no length, and no road before or after it)."""
+    if len(points) < 2:
+        raise UnsupportedIntersection(
+            f"lane {lane.getID()!r} and the road before and after it have no length (one "
+            f"point, {points[0] if points else 'none'}): no car can drive on it"
+        )
+    return points
+
+
 def _clip(points: list[tuple[float, float]], length: float, at_end: bool) -> LineString:
     line = LineString(points)
     if line.length <= length:
@@ -344,7 +491,7 @@ def _clip(points: list[tuple[float, float]], length: float, at_end: bool) -> Lin
 
 
 def _exit(net: Any, lane: Any, junction: str) -> Exit:
-    polyline = departure_polyline(net, lane, junction, DRAWN_LENGTH)
+    polyline = _drawn(departure_polyline(net, lane, junction, DRAWN_LENGTH), lane)
     return Exit(
         lane=lane.getID(),
         edge=lane.getEdge().getID(),

@@ -110,6 +110,28 @@ class Intersection:
     to_its_right: dict[str, frozenset[str]]  # fork -> forks whose traffic comes from its right
     opposite: dict[str, frozenset[str]]  # fork -> forks approaching head-on (same highway)
     same_direction: dict[str, frozenset[str]] = field(default_factory=dict)
+    # forks and exits that are not for driving through (parking lanes, bays), each with the
+    # reason (service.core.network.lanes.side_lane_reason): their routes are not offered
+    side_lanes: dict[str, str] = field(default_factory=dict)
+    # the two roads into a priority_stop junction rebuilt with netconvert that keep the
+    # right of way (given or chosen by service.core.network.major); None: the network's
+    major_road: tuple[str, str] | None = None
+
+    def offered(self, route: Route) -> bool:
+        """The route is for driving through: neither its fork nor its exit is a side lane.
+        Routes not offered are never chosen on their own, but work when named."""
+        return route.fork not in self.side_lanes and route.exit not in self.side_lanes
+
+    @property
+    def offered_routes(self) -> dict[str, Route]:
+        """The routes the junction offers (``offered``), by id."""
+        return {key: route for key, route in self.routes.items() if self.offered(route)}
+
+    @property
+    def offered_forks(self) -> dict[str, Fork]:
+        """The forks of the offered routes, by lane."""
+        used = {route.fork for route in self.offered_routes.values()}
+        return {lane: fork for lane, fork in self.forks.items() if lane in used}
 
     def route(self, route_ref: str) -> Route:
         """The route with id ``FORK:EXIT``; raises UnknownRoute naming the valid ids."""
@@ -119,14 +141,14 @@ class Intersection:
         if not sep:
             raise UnknownRoute(
                 f"route {route_ref!r} is not of the form FORK_LANE:EXIT_LANE; "
-                f"valid routes at junction {self.junction!r}: {choices(self.routes)}",
+                f"valid routes at junction {self.junction!r}: {choices(self.offered_routes)}",
                 junction=self.junction,
             )
         self.fork(fork)
         self.exit(exit_lane)
         raise UnknownRoute(
             f"no connection from fork {fork!r} to exit {exit_lane!r} at junction "
-            f"{self.junction!r}; valid routes: {choices(self.routes)}",
+            f"{self.junction!r}; valid routes: {choices(self.offered_routes)}",
             junction=self.junction,
         )
 
@@ -135,7 +157,7 @@ class Intersection:
         if lane not in self.forks:
             raise UnknownLane(
                 f"lane {lane!r} is not a fork (incoming lane) of junction {self.junction!r}; "
-                f"valid forks: {choices(self.forks)}",
+                f"valid forks: {choices(self.offered_forks)}",
                 junction=self.junction,
             )
         return self.forks[lane]
@@ -145,7 +167,7 @@ class Intersection:
         if lane not in self.exits:
             raise UnknownLane(
                 f"lane {lane!r} is not an exit (outgoing lane) of junction {self.junction!r}; "
-                f"valid exits: {choices(self.exits)}",
+                f"valid exits: {choices(e for e in self.exits if e not in self.side_lanes)}",
                 junction=self.junction,
             )
         return self.exits[lane]

@@ -11,6 +11,7 @@ import os
 import re
 import subprocess
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -35,32 +36,46 @@ def default_cache_dir() -> Path:
 
 
 def rebuild_with_control(
-    network_file: Path, junction: str, control: str, cache_dir: Path | None = None
+    network_file: Path,
+    junction: str,
+    control: str,
+    cache_dir: Path | None = None,
+    edge_priorities: Mapping[str, int] | None = None,
 ) -> Path:
-    """A copy of ``network_file`` whose ``junction`` has type ``control``, built once, cached."""
+    """A copy of ``network_file`` whose ``junction`` has type ``control``, built once, cached.
+
+    ``edge_priorities`` gives roads new priorities (how a ``priority_stop`` junction gets
+    the major road the user or service.core.network.major chose); they are part of what the
+    copy is cached by."""
     cache = cache_dir or default_cache_dir()
     cache.mkdir(parents=True, exist_ok=True)
-    key = hashlib.sha256(f"{file_sha256(network_file)}|{junction}|{control}".encode()).hexdigest()
+    priorities = sorted((edge_priorities or {}).items())
+    lifted = ",".join(f"{edge}={value}" for edge, value in priorities)
+    identity = f"{file_sha256(network_file)}|{junction}|{control}"
+    identity += f"|{lifted}" if lifted else ""  # without: the key of a plain override
+    key = hashlib.sha256(identity.encode()).hexdigest()
     target = cache / f"{network_file.name.removesuffix('.net.xml')}-{key[:16]}.net.xml"
     if target.exists():
         return target
+    doing = f"give junction {junction!r} control type {control!r}"
+    if priorities:
+        doing += " with major road " + ",".join(edge for edge, _ in priorities)
     with tempfile.TemporaryDirectory(dir=cache) as work:
-        patch = Path(work) / "override.nod.xml"
-        patch.write_text(
+        nodes, edges = Path(work) / "override.nod.xml", Path(work) / "override.edg.xml"
+        nodes.write_text(
             f"<nodes>\n    <node id={quoteattr(junction)} type={quoteattr(control)}/>\n</nodes>\n"
         )
+        arguments = ["--sumo-net-file", str(network_file), "--node-files", str(nodes)]
+        if priorities:
+            edges.write_text("<edges>\n" + "".join(
+                f"    <edge id={quoteattr(edge)} priority=\"{value:d}\"/>\n"
+                for edge, value in priorities
+            ) + "</edges>\n")  # fmt: skip
+            arguments += ["--edge-files", str(edges)]
         output = Path(work) / "rebuilt.net.xml"
-        failed = run_netconvert(
-            ["--sumo-net-file", str(network_file), "--node-files", str(patch),
-             "--output-file", str(output)],
-            output, f"give junction {junction!r} control type {control!r}", junction,
-        )  # fmt: skip
+        failed = run_netconvert([*arguments, "--output-file", str(output)], output, doing, junction)
         if failed is not None:
-            raise NetworkBuildFailed(
-                f"netconvert failed to give junction {junction!r} control type {control!r}: "
-                f"{failed}",
-                junction=junction,
-            )
+            raise NetworkBuildFailed(f"netconvert failed to {doing}: {failed}", junction=junction)
         output.replace(target)
     return target
 

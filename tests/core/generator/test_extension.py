@@ -30,6 +30,7 @@ from service.core.testcase import (
     new_testcase,
     parse_testcase,
 )
+from tests.conftest import TOWN07
 
 
 def samples(rows: list) -> list[PoseSample]:  # type: ignore[type-arg]
@@ -210,3 +211,23 @@ def test_a_one_second_budget_is_honoured() -> None:
     # The budget is checked between the steps and between answer sets; Step 1 (a SUMO
     # process) takes about half a second alone, more on a loaded machine.
     assert time.monotonic() - started < 0.3 + 4.0
+
+
+def test_an_automatic_start_is_fitted_to_the_road_before_the_fork(cache_dir: Path) -> None:
+    """Town07 725: the ego starts 30 m up 15_0; the new car's automatic start (where the ego
+    starts) does not fit on the 17.91 m before fork -26#1_0, so it starts at the road's
+    far end, and the provenance says so; a start the user gives is still refused."""
+    old = new_testcase(TOWN07, "15_0:14_0", "725", "allway_stop", cache_dir=cache_dir)
+    junction = load_testcase_intersection(old, cache_dir)
+    said: list[str] = []
+    new = extend_testcase(old, ["-26#1_0:14_0"], seed=0, budget=120, intersection=junction,
+                          progress=said.append).testcase  # fmt: skip
+    assert_strictly_more_complex(old, new)
+    assert new.provenance is not None
+    assert new.provenance["shortened_starts"] == [
+        {"car": "car1", "route": "-26#1_0:14_0", "automatic": 30.0, "start": 17.91}
+    ]
+    assert said[0] == ("car1 (-26#1_0:14_0): the road before its fork is 17.91 m long, so its "
+                       "automatic start is 17.91 m before the line, not 30 m")  # fmt: skip
+    with pytest.raises(InvalidInput, match=r"start distance 30 m is longer than the road"):
+        extend_testcase(old, ["-26#1_0:14_0"], start_distance=30.0, intersection=junction)

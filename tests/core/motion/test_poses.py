@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from pathlib import Path
 
 import pytest
 from shapely.geometry import LineString, Point
@@ -15,8 +16,12 @@ from service.core.motion.poses import (
     front_to_centre,
     generate_poses,
     interpolate_heading,
+    longest_start,
+    plan_drive,
+    start_front,
 )
-from service.core.network import Intersection
+from service.core.network import Intersection, load_intersection
+from tests.conftest import TOWN07
 
 
 @pytest.mark.parametrize(
@@ -170,3 +175,21 @@ def test_a_start_at_the_stop_line_is_on_the_fork_lane(
     stop_x, stop_y = four_way.forks["S2C_1"].stop_line
     assert (first.x, first.y) == pytest.approx((stop_x, stop_y - start_distance - 2.5), abs=1e-3)
     assert first.distance == 0.0
+
+
+def test_longest_start_fits_the_road_before_the_fork(cache_dir: Path) -> None:
+    """Town07 725: the road before fork -26#1_0 ends 17.91 m before the line (SUMO's lane
+    lengths and the drawn shape agree to the centimetre); other forks go on far enough."""
+    junction = load_intersection(TOWN07, "725", "allway_stop", cache_dir)
+    short = junction.route("-26#1_0:14_0")
+    assert longest_start(junction, short, 30.0) == 17.91
+    assert longest_start(junction, short, 12.5) == 12.5
+    assert longest_start(junction, junction.route("15_0:14_0"), 30.0) == 30.0
+    plan_drive(junction, short, 17.91, 8.0, 20.0, 0.1)  # the fitted start is driven
+    assert start_front(junction, short, 17.91)  # and placed where the checker expects it
+    with pytest.raises(
+        InvalidInput,
+        match=r"start distance 18 m is longer than the road before "
+        r"fork '-26#1_0' \(17\.9 m\)",
+    ):
+        plan_drive(junction, short, 18.0, 8.0, 20.0, 0.1)  # fmt: skip

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -283,3 +284,74 @@ def test_a_network_without_lanes_or_with_nan_coordinates_is_refused(tmp_path: Pa
                     'intLanes="" shape="0,0 1,1"/>\n</net>\n')  # fmt: skip
     with pytest.raises(InvalidInput, match="has no lanes"):
         load_intersection(bare)
+
+
+def _degenerate_t(folder: Path) -> Path:
+    """The bundled T with CARLA's degenerate shapes: the straight W2C->C2E connection a
+    0.1 m internal lane written as two equal points, the left turn S2C->C2W with its first
+    point repeated, and the junction's own shape a single point."""
+    text = bundled_networks()["t-stop"].read_text()
+    edits = [
+        ('length="14.40" shape="142.80,148.40 157.20,148.40"',
+         'length="0.10" shape="142.80,148.40 142.80,148.40"'),
+        ('shape="151.60,142.80 151.05,146.65', 'shape="151.60,142.80 151.60,142.80 151.05,146.65'),
+    ]  # fmt: skip
+    for old, new in edits:
+        assert text.count(old) == 1, old
+        text = text.replace(old, new)
+    text = re.sub(r'(<junction id="C" [^>]*shape=")[^"]*"', r'\g<1>150.00,150.00"', text)
+    path = folder / "degenerate-t.net.xml"
+    path.write_text(text)
+    return path
+
+
+def test_load_degenerate_lane_shapes(tmp_path: Path) -> None:
+    intersection = load_intersection(_degenerate_t(tmp_path), "C")
+    straight = intersection.connecting_lane_of(intersection.route("W2C_0:C2E_0"))
+    # a straight line as long as SUMO says, centred on the point, along the way of travel
+    coords = [c for point in straight.centreline.coords for c in point]
+    assert coords == pytest.approx([142.75, 148.4, 142.85, 148.4])
+    assert straight.polygon.area == pytest.approx(0.1 * straight.width, rel=1e-6)
+    left = intersection.connecting_lane_of(intersection.route("S2C_0:C2W_0"))
+    assert left.centreline.coords[0] == left.centreline.coords[0] != left.centreline.coords[1]
+    assert left.length == pytest.approx(14.19, abs=0.05)
+    assert intersection.polygon.area > 50.0  # the hull of the paths through it
+    assert "W2C_0:C2E_0" in intersection.conflicts and intersection.conflicts["E2C_0:C2W_0"]
+
+
+@pytest.mark.parametrize(
+    ("network", "node", "roads"),
+    [(TOWN05, "15.14", "2 roads lead into it (-14, 15)"),
+     (TOWN05, "40.18", "2 roads lead into it (-18, 40)"),
+     (TOWN07, "65.64", "1 road leads into it (-64)")],
+)  # fmt: skip
+def test_refuse_a_node_with_fewer_than_three_approaches(
+    network: Path, node: str, roads: str, cache_dir: Path
+) -> None:
+    for control in (None, "allway_stop"):
+        with pytest.raises(
+            UnsupportedIntersection,
+            match=rf"node '{node}' is not a junction to "
+            rf"test: {re.escape(roads)}, a junction has 3 or more approaches",
+        ):
+            load_intersection(network, node, control, cache_dir)  # fmt: skip
+
+
+def test_refuse_a_junction_where_no_routes_cross_or_merge() -> None:
+    network = Path(__file__).parents[2] / "data" / "junctions" / "no-conflicts.net.xml"
+    with pytest.raises(UnsupportedIntersection, match=r"none of its 3 routes crosses or merges"):
+        load_intersection(network, "C")
+
+
+def test_with_control_the_only_junction_of_three_approaches_is_taken(cache_dir: Path) -> None:
+    # y-uncontrolled: its one junction of three approaches; its other nodes are dead ends
+    chosen = load_intersection("y-uncontrolled", control="allway_stop", cache_dir=cache_dir)
+    assert chosen.junction == "C" and chosen.control is ControlType.ALLWAY_STOP
+    with pytest.raises(
+        UnknownJunction,
+        match=r"Town05.net.xml has several junctions with 3 or "
+        r"more approaches; name one with --junction: 1126 \(traffic_light\)",
+    ):
+        load_intersection(TOWN05, control="allway_stop")  # fmt: skip
+    with pytest.raises(UnknownJunction, match=r"no junction of a supported control type"):
+        load_intersection(TOWN05)

@@ -1,0 +1,120 @@
+"""The major road of a ``priority_stop`` junction: the two roads in that keep the right of
+way while the others stop.
+
+netconvert picks it from the roads' priorities and, when they are equal, from a score of
+angles, lane counts and speeds, which on real maps can make the stem of a T the major road
+(more lanes) and put stop signs on the through road. When every road into the junction has
+the same priority, scengen picks by geometry instead: the pair of roads closest to straight
+across (one road through the junction); pairs within STRAIGHT_MARGIN of the straightest
+are told apart by lanes, then speed, then how straight, then their ids. The user can name
+the pair instead (``--major EDGE,EDGE``, the test-case's ``major_road``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from itertools import combinations
+from typing import Any
+
+from shapely.geometry import LineString
+
+from service.core.errors import InvalidInput, choices
+from service.core.network.lanes import (
+    approach_polyline,
+    heading_difference,
+    heading_of,
+    roads_in,
+)
+from service.core.network.model import ControlType
+
+STRAIGHT_MARGIN = 10.0  # degrees: pairs this close to the straightest count as straight too
+HEADING_WINDOW = 10.0  # metres of approach whose chord gives a road's heading
+
+
+def choose_major_road(
+    net: Any, node: Any, target: str, current: str, major_road: Sequence[str] | None
+) -> tuple[str, str] | None:
+    """The major road of ``node`` made a ``target`` junction (its type now ``current``):
+    the one given (for a priority_stop junction only), else, when it becomes priority_stop
+    with netconvert and every road in has the same priority, the straightest pair. None
+    leaves the choice to the network's priorities."""
+    if major_road is not None:
+        if target != ControlType.PRIORITY_STOP:
+            raise InvalidInput(
+                f"a major road applies to a priority_stop junction; junction "
+                f"{node.getID()!r} is {target} (give --control priority_stop)",
+                junction=str(node.getID()),
+            )
+        return check_major_road(node, major_road)
+    if target == ControlType.PRIORITY_STOP and current != target and same_priority(node):
+        return straightest_pair(net, node)
+    return None
+
+
+def check_major_road(node: Any, major_road: Sequence[str]) -> tuple[str, str]:
+    """``major_road`` as two distinct roads into ``node``; InvalidInput naming the roads in
+    otherwise."""
+    valid = [str(edge.getID()) for edge in roads_in(node)]
+    given = [str(edge) for edge in major_road]
+    where = f"junction {node.getID()!r}"
+    if len(given) != 2 or given[0] == given[1]:
+        raise InvalidInput(
+            f"major road {','.join(given) or '(none)'}: name two different roads into {where}, "
+            f"EDGE,EDGE; roads into it: {choices(valid)}",
+            junction=str(node.getID()),
+        )
+    for edge in given:
+        if edge not in valid:
+            raise InvalidInput(
+                f"major road: {edge!r} is not a road into {where}; roads into it: {choices(valid)}",
+                junction=str(node.getID()),
+            )
+    return given[0], given[1]
+
+
+def lifted_priorities(node: Any, major_road: tuple[str, str]) -> dict[str, int]:
+    """New priorities for the two roads of ``major_road``: one above every road into
+    ``node``, so that netconvert makes them the major road."""
+    highest = max((int(edge.getPriority()) for edge in roads_in(node)), default=0)
+    return dict.fromkeys(major_road, highest + 1)
+
+
+def same_priority(node: Any) -> bool:
+    """Every road into ``node`` has the same priority (netconvert then guesses)."""
+    return len({edge.getPriority() for edge in roads_in(node)}) <= 1
+
+
+def straightest_pair(net: Any, node: Any) -> tuple[str, str]:
+    """The two roads into ``node`` closest to straight across (see the module's docstring)."""
+    junction = str(node.getID())
+    heading = {str(edge.getID()): _heading(net, edge, junction) for edge in roads_in(node)}
+    edges = {str(edge.getID()): edge for edge in roads_in(node)}
+    pairs = list(combinations(sorted(heading), 2))
+    if not pairs:
+        raise InvalidInput(f"junction {junction!r} has fewer than two roads into it")
+
+    def bend(pair: tuple[str, str]) -> float:
+        """Degrees away from straight across: 0 when the two approach head-on."""
+        return 180.0 - heading_difference(heading[pair[0]], heading[pair[1]])
+
+    straightest = min(bend(pair) for pair in pairs)
+    straight = [pair for pair in pairs if bend(pair) <= straightest + STRAIGHT_MARGIN]
+
+    def rank(pair: tuple[str, str]) -> tuple[int, float, float, tuple[str, str]]:
+        first, second = edges[pair[0]], edges[pair[1]]
+        lanes = first.getLaneNumber() + second.getLaneNumber()
+        speed = first.getSpeed() + second.getSpeed()
+        return -lanes, -speed, round(bend(pair), 6), pair
+
+    return min(straight, key=rank)
+
+
+def _heading(net: Any, edge: Any, junction: str) -> float:
+    """The heading of ``edge``'s approach over its last HEADING_WINDOW metres (from its
+    start node towards the junction when its lanes have no length)."""
+    points = approach_polyline(net, edge.getLanes()[0], junction, HEADING_WINDOW)
+    if len(points) < 2:
+        return heading_of(edge.getFromNode().getCoord()[:2], net.getNode(junction).getCoord()[:2])
+    line = LineString(points)
+    start = line.interpolate(max(0.0, line.length - HEADING_WINDOW))
+    return heading_of((start.x, start.y), points[-1])

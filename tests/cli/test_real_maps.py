@@ -1,0 +1,154 @@
+"""Real maps through the command line: --major, the automatic start, side lanes, and every
+junction of CARLA's Town05 and Town07 under every control type (works, or exit 2 with a
+one-line reason; never a traceback)."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+
+import pytest
+import sumolib
+
+from service import cli
+from tests.conftest import TOWN05, TOWN07
+
+CONTROLS = (None, "allway_stop", "priority_stop", "right_before_left")
+
+
+@pytest.fixture
+def private_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    return tmp_path
+
+
+def test_major_names_the_road_that_keeps_the_right_of_way(
+    private_cache: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    junction = [str(TOWN05), "--junction", "1882", "--control", "priority_stop"]
+    assert cli.main(["intersection", *junction]) == 0
+    assert "major road -45 46 (the roads closest to straight across" in capsys.readouterr().out
+    assert cli.main(["intersection", *junction, "--major", "46,4", "--json"]) == 0
+    described = json.loads(capsys.readouterr().out)
+    assert described["major_road"] == ["46", "4"]
+    assert {f["edge"] for f in described["forks"] if f["stop_sign"]} == {"-45"}
+    made = private_cache / "t0.json"
+    assert (
+        cli.main(["new", *junction, "--major", "46,4", "--ego=-45_0:-46_0", "-o", str(made)]) == 0
+    )
+    assert json.loads(made.read_text())["major_road"] == ["46", "4"]
+    # a later command rebuilds the same network from the test-case
+    assert cli.main(["drive", str(made), "--network", str(TOWN05)]) == 0
+    capsys.readouterr()
+    assert cli.main(["intersection", *junction, "--major", "46,45"]) == 2
+    assert "'45' is not a road into junction '1882'; roads into it: -45, 4, 46" in (
+        capsys.readouterr().err
+    )
+
+
+def test_major_is_two_edges_and_not_for_a_campaign(
+    private_cache: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(SystemExit) as usage:
+        cli.main(["intersection", "t-stop", "--major", "S2C"])
+    assert usage.value.code == 2
+    assert "two edge ids separated by a comma (EDGE,EDGE), not 'S2C'" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as usage:
+        cli.main(["campaign", "t-stop", "--major", "S2C,E2C", "--ego", "S2C_0:C2E_0",
+                  "--depth", "1", "--chains", "1", "--controller", "sumo",
+                  "-o", str(private_cache / "c")])  # fmt: skip
+    assert usage.value.code == 2 and "--major: a campaign takes" in capsys.readouterr().err
+
+
+def test_new_fits_its_automatic_start_and_says_so(
+    private_cache: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    junction = [str(TOWN07), "--junction", "725", "--control", "allway_stop"]
+    assert cli.main(["new", *junction, "--ego=-26#1_0:14_0"]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["ego"]["start"]["distance"] == 17.91
+    assert "ego start: 17.91 m before the stop line, the whole road before fork -26#1_0" in err
+    assert cli.main(["new", *junction, "--ego=-26#1_0:14_0", "--start-distance", "30"]) == 2
+    assert "start distance 30 m is longer than the road" in capsys.readouterr().err
+
+
+def test_intersection_lists_side_lanes_apart(
+    private_cache: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert cli.main(["intersection", str(TOWN05), "--junction", "53", "--control",
+                     "allway_stop"]) == 0  # fmt: skip
+    out = capsys.readouterr().out
+    routes, _, side = out.partition("side lanes, not offered (a route on one works when named):")
+    assert "-4_0:" not in routes and "-4_0  1.39 m/s where its road allows 13.89 m/s" in side
+
+
+def _a_route(net: object, node: str) -> str:
+    """Some connection through ``node`` from the network itself (for junctions that are
+    refused before they have routes)."""
+    for edge in sorted(net.getNode(node).getIncoming(), key=lambda e: e.getID()):  # type: ignore[attr-defined]
+        for lane in edge.getLanes():
+            for connection in lane.getOutgoing():
+                if not connection.getToLane().getID().startswith(":"):
+                    return f"{lane.getID()}:{connection.getToLane().getID()}"
+    return "X_0:Y_0"
+
+
+def _outcome(code: int, err: str) -> str:
+    """'worked', or 'refused' with exit 2 and one line naming the reason."""
+    if code == 0:
+        return "worked"
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and lines[0].startswith("scengen: error: "), err
+    return "refused"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("town", [TOWN05, TOWN07], ids=["Town05", "Town07"])
+def test_every_junction_works_or_is_refused_with_a_reason(
+    town: Path, private_cache: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`intersection` and `new` on every node of the map under every control type: the
+    command works, or exits 2 with a one-line reason; an exception escaping cli.main fails
+    the test (the user would see its traceback). Where `intersection` works, `new` works
+    on every route tried: under allway_stop every route offered and two on side lanes,
+    named (a route, and the road before and after it, is the same under every control
+    type); under the others, the first route offered. Where it refuses, `new` refuses too.
+    About 25 s of CPU per town, most of it netconvert (one override per junction and
+    control type, as a user's first command runs it)."""
+    net = sumolib.net.readNet(str(town), withInternal=True)
+    nodes = sorted(str(n.getID()) for n in net.getNodes() if n.getType() != "internal")
+    outcomes: Counter[str] = Counter()
+    for node in nodes:
+        for control in CONTROLS:
+            flags = [str(town), "--junction", node, *(["--control", control] if control else [])]
+            code = cli.main(["intersection", *flags, "--json"])
+            out, err = capsys.readouterr()
+            outcome = _outcome(code, err)
+            outcomes[f"intersection {outcome}"] += 1
+            routes = [_a_route(net, node)]
+            if outcome == "worked":
+                described = json.loads(out)
+                routes = [r["id"] for r in described["routes"]]
+                side = sorted(s["lane"] for s in described["side_lanes"])
+                forks = [lane for lane in side if _ends_at(net, lane, node)]
+                routes += [f"{f}:{e}" for f in forks for e in _exits_of(net, f)][:2]
+                routes = routes if control == "allway_stop" else routes[:1]
+            for route in routes:
+                code = cli.main(["new", *flags, f"--ego={route}"])
+                _, err = capsys.readouterr()
+                assert _outcome(code, err) == outcome, (node, control, route, err)
+                outcomes[f"new {outcome}"] += 1
+    junctions = {"Town05": 21, "Town07": 22}[town.name.removesuffix(".net.xml")]
+    assert outcomes["intersection worked"] == 3 * junctions  # every one of 3+ approaches
+    assert outcomes["intersection refused"] == 4 * len(nodes) - 3 * junctions
+    assert outcomes["new worked"] > 5 * junctions
+
+
+def _ends_at(net: object, lane: str, node: str) -> bool:
+    return bool(net.getLane(lane).getEdge().getToNode().getID() == node)  # type: ignore[attr-defined]
+
+
+def _exits_of(net: object, lane: str) -> list[str]:
+    found = net.getLane(lane).getOutgoing()  # type: ignore[attr-defined]
+    return sorted(c.getToLane().getID() for c in found if not c.getToLane().getID().startswith(":"))
