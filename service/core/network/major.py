@@ -3,11 +3,14 @@ way while the others stop.
 
 netconvert picks it from the roads' priorities and, when they are equal, from a score of
 angles, lane counts and speeds, which on real maps can make the stem of a T the major road
-(more lanes) and put stop signs on the through road. When every road into the junction has
-the same priority, scengen picks by geometry instead: the pair of roads closest to straight
-across (one road through the junction); pairs within STRAIGHT_MARGIN of the straightest
-are told apart by lanes, then speed, then how straight, then their ids. The user can name
-the pair instead (``--major EDGE,EDGE``, the test-case's ``major_road``).
+(more lanes, or a higher priority in the map) and put stop signs on the through road. The
+rule set of a priority_stop junction is the T's (the stop signs on the terminating road),
+so on a junction of three roads scengen always picks by geometry: the pair of roads
+closest to straight across (one road through the junction); on more roads it does so when
+every road in has the same priority, and otherwise keeps the map's priorities. Pairs
+within STRAIGHT_MARGIN of the straightest are told apart by lanes, then speed, then how
+straight, then their ids. The user can name the pair instead (``--major EDGE,EDGE``, the
+test-case's ``major_road``).
 """
 
 from __future__ import annotations
@@ -36,8 +39,8 @@ def choose_major_road(
 ) -> tuple[str, str] | None:
     """The major road of ``node`` made a ``target`` junction (its type now ``current``):
     the one given (for a priority_stop junction only), else, when it becomes priority_stop
-    with netconvert and every road in has the same priority, the straightest pair. None
-    leaves the choice to the network's priorities."""
+    with netconvert and it has three roads in or every road in has the same priority, the
+    straightest pair. None leaves the choice to the network's priorities."""
     if major_road is not None:
         if target != ControlType.PRIORITY_STOP:
             raise InvalidInput(
@@ -46,7 +49,9 @@ def choose_major_road(
                 junction=str(node.getID()),
             )
         return check_major_road(node, major_road)
-    if target == ControlType.PRIORITY_STOP and current != target and same_priority(node):
+    if target != ControlType.PRIORITY_STOP or current == target:
+        return None
+    if len(roads_in(node)) == 3 or same_priority(node):  # a T or a Y: its stem stops
         return straightest_pair(net, node)
     return None
 
