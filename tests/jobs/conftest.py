@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import secrets
 from collections.abc import Iterator
@@ -15,16 +16,25 @@ LEASE = "3"  # seconds: a killed worker's items come back quickly
 POSTGRES = os.environ.get("SCENGEN_TEST_POSTGRES", "postgresql://postgres@127.0.0.1:5432/test")
 
 
-@pytest.fixture(scope="session")
-def postgres_url() -> Iterator[str]:
-    """``postgresql+psycopg://.../scengen_test_<random>``, dropped afterwards."""
-    name = f"scengen_test_{secrets.token_hex(4)}"
+@contextlib.contextmanager
+def throwaway_postgres(prefix: str) -> Iterator[str]:
+    """``postgresql+psycopg://.../PREFIX_<random>``: a new empty database, dropped after."""
+    name = f"{prefix}_{secrets.token_hex(4)}"
     with psycopg.connect(POSTGRES, autocommit=True) as admin:
         admin.execute(f"CREATE DATABASE {name}")
     base = POSTGRES.rsplit("/", 1)[0].replace("postgresql://", "postgresql+psycopg://")
-    yield f"{base}/{name}"
-    with psycopg.connect(POSTGRES, autocommit=True) as admin:
-        admin.execute(f"DROP DATABASE IF EXISTS {name} WITH (FORCE)")
+    try:
+        yield f"{base}/{name}"
+    finally:
+        with psycopg.connect(POSTGRES, autocommit=True) as admin:
+            admin.execute(f"DROP DATABASE IF EXISTS {name} WITH (FORCE)")
+
+
+@pytest.fixture(scope="session")
+def postgres_url() -> Iterator[str]:
+    """A throwaway database for the session's PostgreSQL tests."""
+    with throwaway_postgres("scengen_test") as url:
+        yield url
 
 
 def redis_database(worker_id: str) -> int:

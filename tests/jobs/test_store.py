@@ -3,7 +3,6 @@ and on the machine's PostgreSQL."""
 
 from __future__ import annotations
 
-import secrets
 import threading
 import time
 from collections.abc import Iterator
@@ -201,17 +200,10 @@ def empty_database(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[s
     if request.param == "sqlite":
         yield f"sqlite:///{tmp_path}/old.sqlite3"
         return
-    import psycopg
+    from tests.jobs.conftest import throwaway_postgres
 
-    from tests.jobs.conftest import POSTGRES
-
-    name = f"scengen_old_{secrets.token_hex(4)}"
-    with psycopg.connect(POSTGRES, autocommit=True) as admin:
-        admin.execute(f"CREATE DATABASE {name}")
-    base = POSTGRES.rsplit("/", 1)[0].replace("postgresql://", "postgresql+psycopg://")
-    yield f"{base}/{name}"
-    with psycopg.connect(POSTGRES, autocommit=True) as admin:
-        admin.execute(f"DROP DATABASE IF EXISTS {name} WITH (FORCE)")
+    with throwaway_postgres("scengen_old") as url:
+        yield url
 
 
 def test_a_database_of_an_older_version_is_read(empty_database: str, tmp_path: Path) -> None:
