@@ -525,7 +525,7 @@ async function testcasePage(id) {
   const ego = testcase.ego.route;
   const evaluations = await get(`/evaluations?testcase=${id}&limit=200`).catch(() => ({ items: [] }));
   const downloads = REPORT
-    ? [download(JSON.stringify(testcase, null, 1), `${testcase.name || id}.json`), h("span", { class: "muted" }, " (SUMO bundle and OpenSCENARIO: from the server, or `scengen export`)")]
+    ? [download(JSON.stringify(testcase, null, 1), `${(testcase.name || id).replace(/[:/\\]/g, "-")}.json`), h("span", { class: "muted" }, " (SUMO bundle and OpenSCENARIO: from the server, or `scengen export`)")]
     : [h("a", { href: record.links.document }, "test-case JSON"), " · ", h("a", { href: record.links.bundle }, "SUMO bundle (zip)"), " · ",
       h("a", { href: record.links.openscenario }, "OpenSCENARIO (zip)"), " · ", h("a", { href: `${record.links.openscenario}?flavour=carla` }, "OpenSCENARIO for CARLA")];
   render(
