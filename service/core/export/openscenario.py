@@ -46,8 +46,8 @@ from service.core.checker.rules import rule_set_file, solve_rules
 from service.core.errors import InvalidInput, NetworkBuildFailed
 from service.core.export import FLAVOURS
 from service.core.files import replacing, write_atomically
-from service.core.motion.poses import _cached_network, interpolate_heading, start_front
-from service.core.network import ControlType, Intersection
+from service.core.motion.poses import interpolate_heading, start_front
+from service.core.network import ControlType, Intersection, parsed_network
 from service.core.network.override import run_netconvert
 from service.core.sumo.run import front_to_centre
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
@@ -117,7 +117,7 @@ def _with_stop_signs(text: str, intersection: Intersection) -> str:
     root = ET.fromstring(text)
     roads = [r for r in root.iter("road") if r.get("junction") == "-1"]
     path = intersection.network_file
-    net = _cached_network(str(path), path.stat().st_mtime)
+    net = parsed_network(path)
     signed: dict[str, ET.Element] = {}
     for fork in forks:
         edge = net.getLane(fork.lane).getEdge()
@@ -234,7 +234,7 @@ def _ego_route(
 ) -> xosc.Route:
     """The ego's route from its start through the junction to the end of its exit lane."""
     path = intersection.network_file
-    net = _cached_network(str(path), path.stat().st_mtime)
+    net = parsed_network(path)
     exit_lane = net.getLane(intersection.route(testcase.ego.route.id).exit)
     shape = LineString(exit_lane.getShape())
     end, before = shape.coords[-1], shape.interpolate(max(0.0, shape.length - 1.0))

@@ -14,7 +14,6 @@ import bisect
 import functools
 import math
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 from shapely.geometry import LineString
@@ -118,12 +117,6 @@ def interpolate_heading(a: float, b: float, share: float) -> float:
     return 0.0 if heading >= 360.0 else heading  # -1e-15 % 360.0 is 360.0 in floats
 
 
-def _cached_network(path: str, mtime: float) -> Any:
-    """The network at ``path``, parsed once per version of the file (``mtime`` is the
-    caller's view of that version; parsed_network checks it again)."""
-    return parsed_network(Path(path))
-
-
 def plan_drive(
     intersection: Intersection,
     route: Route,
@@ -140,7 +133,7 @@ def plan_drive(
     if speed <= 0:
         raise InvalidInput(f"cruise speed must be > 0 m/s, got {speed:g}")
     path = intersection.network_file
-    net = _cached_network(str(path), path.stat().st_mtime)
+    net = parsed_network(path)
     junction = intersection.junction
     fork_lane = net.getLane(route.fork)
     connection = next(c for c in fork_lane.getOutgoing() if c.getToLane().getID() == route.exit)
@@ -227,7 +220,7 @@ def longest_start(intersection: Intersection, route: Route, up_to: float) -> flo
     ``up_to`` when the road is that long, else the whole road (to the centimetre below),
     measured as SUMO drives it (lane lengths) and as the start is placed (the shape)."""
     path = intersection.network_file
-    net = _cached_network(str(path), path.stat().st_mtime)
+    net = parsed_network(path)
     _, behind, _ = _walk_upstream(net, net.getLane(route.fork), intersection.junction, up_to)
     road = min(behind, _approach_line(intersection, route, up_to + 1.0).length)
     return up_to if road >= up_to else min(math.floor(road * 100.0) / 100.0, road)
@@ -245,7 +238,7 @@ def _internal_start(net: Any, lanes: list[str], into: float) -> tuple[str, float
 
 def _approach_line(intersection: Intersection, route: Route, length: float) -> LineString:
     path = intersection.network_file
-    net = _cached_network(str(path), path.stat().st_mtime)
+    net = parsed_network(path)
     return LineString(
         approach_polyline(net, net.getLane(route.fork), intersection.junction, length)
     )
