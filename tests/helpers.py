@@ -5,13 +5,17 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
+
+import shapely
+from shapely.geometry import LineString, Point
 
 from service.cli.examples import EXAMPLES, run_example
 from service.core.generator.chain import candidate_routes
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import PoseSample, PoseTrack
+from service.core.network import parsed_network
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -166,3 +170,40 @@ def every_exported_case() -> list[TestCase]:
     cases += _real_map_chain(TOWN05, "396", "allway_stop", "-44_1:-9_1")
     cases += _real_map_chain(TOWN07, "358", "right_before_left", "-40_0:35_0")
     return cases
+
+
+ON_ROAD_TOLERANCE = 1.0  # m beyond a lane's edge: a car's centre cuts a curve's chord
+
+
+@functools.cache
+def _road_area(network_file: Path) -> shapely.Geometry:
+    """Every lane of the network (internal ones too) as the area it covers."""
+    net = parsed_network(network_file)
+    areas = []
+    for edge in net.getEdges(withInternal=True):
+        for lane in edge.getLanes():
+            shape = lane.getShape()
+            if len(shape) >= 2 and LineString(shape).length > 0:
+                areas.append(LineString(shape).buffer(lane.getWidth() / 2 + ON_ROAD_TOLERANCE))
+    return shapely.union_all(areas)
+
+
+def off_road_samples(
+    testcase: TestCase, extra: Sequence[tuple[str, list[PoseSample]]] = ()
+) -> list[str]:
+    """Every sample of the test-case's non-egos and certificates (and of ``extra``) whose
+    centre lies off every lane of the network, as "car at t: (x, y)"."""
+    network_file = load_testcase_intersection(testcase).network_file
+    area = _road_area(network_file)
+    cars: list[tuple[str, Sequence[object]]] = [(n.id, n.trajectory) for n in testcase.nonegos]
+    if testcase.certificates is not None:
+        cars.append(("complexity", testcase.certificates.complexity))
+        cars.append(("solvability", testcase.certificates.solvability))
+    cars += list(extra)
+    found = []
+    for name, samples in cars:
+        for sample in samples:
+            x, y = float(sample.x), float(sample.y)  # type: ignore[attr-defined]
+            if not area.contains(Point(x, y)):
+                found.append(f"{name} at {sample.t:g} s: ({x:.1f}, {y:.1f})")  # type: ignore[attr-defined]
+    return found

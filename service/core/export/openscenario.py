@@ -204,6 +204,20 @@ def _follow(name: str, samples: Sequence[Sample], step: float | None, minor: int
     return event
 
 
+def _leave(name: str, end: float) -> xosc.Event:
+    """An event that removes its actor when its trajectory ends: it reached the end of its
+    road and left the map there (as SUMO removes it)."""
+    event = xosc.Event(f"{name}_leaves", xosc.Priority.parallel)
+    event.add_action(f"{name}_leaves_the_map", xosc.DeleteEntityAction(name))
+    event.add_trigger(
+        xosc.ValueTrigger(
+            f"{name}_at_the_end_of_its_road", 0, xosc.ConditionEdge.none,
+            xosc.SimulationTimeCondition(round(end, 6), xosc.Rule.greaterThan),
+        )
+    )  # fmt: skip
+    return event
+
+
 def _starts_now(name: str, minor: int) -> xosc.ValueTrigger:
     rule = xosc.Rule.greaterOrEqual if minor >= 2 else xosc.Rule.greaterThan
     return xosc.ValueTrigger(
@@ -312,6 +326,8 @@ def scenario(
         for name, samples in followers:
             maneuver = xosc.Maneuver(f"{name}_maneuver")
             maneuver.add_event(_follow(name, samples, step, minor))
+            if samples[-1].t < testcase.duration - testcase.timestep / 2:
+                maneuver.add_event(_leave(name, samples[-1].t))
             group = xosc.ManeuverGroup(f"{name}_group")
             group.add_actor(name)
             group.add_maneuver(maneuver)

@@ -65,8 +65,10 @@ from service.core.motion.poses import (
     DRIVE_BUDGET,
     PoseSample,
     PoseTrack,
+    check_start_speed,
     generate_poses,
     longest_start,
+    plan_drive,
 )
 from service.core.motion.queues import (
     Follow,
@@ -187,6 +189,7 @@ def extend_testcase(
             old.ego.length,
             old.ego.width,
             budget=max(drive_budget, 0.01),
+            reach=old.params.v_max * old.duration,  # the farthest any car can travel
         )
     except BudgetExceeded:
         if drive_budget < DRIVE_BUDGET:  # the call's own budget ran out, not SUMO's
@@ -403,8 +406,15 @@ def _validate(old: TestCase, junction: Intersection, routes: Sequence[str]) -> l
 
 
 def checked_judge(old: TestCase, junction: Intersection) -> Judge:
-    """The checker of ``old``, once its own solvability certificate passed it
-    (InvalidTestCase if not)."""
+    """The checker of ``old``, once its own solvability certificate passed it and its ego
+    starts within its lane's speed limit, where SUMO can insert it (InvalidTestCase if
+    not)."""
+    ego = old.ego
+    plan = plan_drive(
+        junction, junction.route(ego.route.id), ego.start.distance, max(ego.start.speed, 1.0),
+        old.duration, old.timestep, ego.length, ego.width,
+    )  # fmt: skip
+    check_start_speed(junction, plan, ego.start.speed)
     judge = Judge(old, junction)
     _check_old(old, judge)
     return judge
@@ -692,7 +702,7 @@ def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: boo
     if stop_sign and not stops and arrival is not None and entry is not None:
         runs = (arrival, entry)
     inside = (entry, leaves) if entry is not None and leaves is not None else None
-    # No end of the road: beyond its poses a car drives on off the map (PoseTrack.pose_at).
+    # No end of the road here: a car's trajectory ends where it leaves the map (_sample).
     return CarPlan(car.car, tuple(knots), math.inf, car.start_speed, runs, inside)
 
 
@@ -806,10 +816,14 @@ def _followings(
 def _sample(
     at: Callable[[float], tuple[float, float]], track: PoseTrack, duration: float, timestep: float
 ) -> list[PoseSample]:
+    """The curve at every time step while the car is on the map: a car whose front reaches
+    the end of its road leaves there (as SUMO removes it), and its trajectory ends."""
     samples: list[PoseSample] = []
     for k in range(round(duration / timestep) + 1):
         t = round(k * timestep, 9)
         distance, speed = at(t)
+        if distance > track.road and len(samples) >= 2:
+            break
         if -ROUNDING < speed < 0:
             speed = 0.0  # float noise of a standing car
         if samples and samples[-1].distance - ROUNDING < distance < samples[-1].distance:

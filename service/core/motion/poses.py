@@ -20,7 +20,7 @@ from shapely.geometry import LineString
 from shapely.geometry import Point as ShapelyPoint
 
 from service.core.budget import WarmWorker
-from service.core.errors import InvalidInput, SimulationFailed
+from service.core.errors import InvalidInput, InvalidTestCase, SimulationFailed
 from service.core.network import Intersection, Route, parsed_network
 from service.core.network.lanes import (
     approach_polyline,
@@ -69,6 +69,8 @@ class DrivePlan:
     start_on: tuple[str, float] | None = None  # that internal lane and the front's position
     road: float = math.inf  # metres from the start to the end of its last lane (SUMO
     # removes the car when its front gets there)
+    reach: float = 0.0  # metres from the start the drive covers at least, where the road
+    # goes that far (the farthest the car may travel in the test-case)
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,8 @@ class PoseTrack:
     width: float
     start_distance: float  # front bumper before the stop line at the first sample
     samples: tuple[PoseSample, ...]
+    road: float = math.inf  # metres from the start to the end of the road: there the car
+    # leaves the map (SUMO removes it), and its trajectory ends
 
     @functools.cached_property
     def _distances(self) -> list[float]:
@@ -87,9 +91,8 @@ class PoseTrack:
 
     def pose_at(self, distance: float) -> tuple[float, float, float]:
         """(x, y, heading) at ``distance`` travelled, interpolated between samples. Beyond
-        the last sample (the end of the road, or of the drive) straight on along the last
-        heading: a car that reaches a dead end drives on off the map (SUMO removes it
-        there), instead of having to stop at the end of the road."""
+        the last sample straight on along the last heading (a drive covers the farthest a
+        car can travel, so only float noise at the end of the road gets there)."""
         distances = self._distances
         if distance <= distances[0]:
             first = self.samples[0]
@@ -126,8 +129,11 @@ def plan_drive(
     timestep: float,
     length: float = 5.0,
     width: float = 1.8,
+    reach: float = 0.0,
 ) -> DrivePlan:
-    """The lanes, start and stop condition of a drive; InvalidInput if the start is off-map."""
+    """The lanes, start and stop condition of a drive; InvalidInput if the start is off-map.
+    The drive covers ``duration`` at ``speed``, and at least ``reach`` metres where the road
+    goes that far."""
     if start_distance < 0:
         raise InvalidInput(f"start distance must be >= 0 m, got {start_distance:g}")
     if speed <= 0:
@@ -152,7 +158,7 @@ def plan_drive(
     # on far enough for the whole drive, and at least until the car has left the junction
     # (a far start covers the drive's length before the junction: short exit lanes still
     # need the lanes after them)
-    needed = max(speed * (duration + timestep) + 2 * length, leave)
+    needed = max(speed * (duration + timestep) + 2 * length, leave, reach + 2 * length)
     while ahead < needed:
         outgoing = straightest_successor(net, lanes[-1], junction)
         if outgoing is None:
@@ -185,13 +191,36 @@ def plan_drive(
         length=length,
         width=width,
         timestep=timestep,
-        steps=math.ceil(duration / timestep - 1e-9) + math.ceil(skip / (speed * timestep)),
+        steps=max(
+            math.ceil(duration / timestep - 1e-9), math.ceil(reach / (speed * timestep) - 1e-9)
+        )
+        + math.ceil(skip / (speed * timestep)),
         leave_distance=leave + skip,
         road=ahead,
+        reach=reach,
         connecting_lanes=tuple(chain),
         skip=skip,
         start_on=start_on,
     )
+
+
+def start_speed_limit(intersection: Intersection, plan: DrivePlan) -> float:
+    """The speed limit of the lane a drive departs on (m/s)."""
+    lane = f"{plan.edges[0]}_{plan.depart_lane}"
+    return float(parsed_network(intersection.network_file).getLane(lane).getSpeed())
+
+
+def check_start_speed(intersection: Intersection, plan: DrivePlan, speed: float) -> None:
+    """InvalidTestCase when a car under SUMO's limits (the ego) starts faster than the
+    speed limit of the lane it departs on: SUMO would refuse to insert it."""
+    limit = start_speed_limit(intersection, plan)
+    if speed > limit + 1e-6:
+        lane = f"{plan.edges[0]}_{plan.depart_lane}"
+        raise InvalidTestCase(
+            f"ego start speed {speed:g} m/s is above the speed limit of lane {lane!r} where "
+            f"it starts ({limit:g} m/s); SUMO inserts no car faster than its lane allows: "
+            f"give a start speed of at most {limit:g} m/s"
+        )
 
 
 def _walk_upstream(
@@ -357,12 +386,15 @@ def generate_poses(
     length: float = 5.0,
     width: float = 1.8,
     budget: float = DRIVE_BUDGET,
+    reach: float = 0.0,
 ) -> list[PoseTrack]:
-    """Step 1 for (route, start distance) pairs, in one killable SUMO process. A drive is a
-    function of its plan (network file, lanes, start, speed, steps), so a plan driven
-    before in this process is not driven again."""
+    """Step 1 for (route, start distance) pairs, in one killable SUMO process; each drive
+    goes on for ``duration`` at ``speed`` and at least ``reach`` metres, or to the end of
+    the road (the track's ``road``). A drive is a function of its plan (network file,
+    lanes, start, speed, steps), so a plan driven before in this process is not driven
+    again."""
     plans = [
-        plan_drive(intersection, route, start, speed, duration, timestep, length, width)
+        plan_drive(intersection, route, start, speed, duration, timestep, length, width, reach)
         for route, start in requests
     ]
     version = intersection.network_file.stat().st_mtime_ns
@@ -374,6 +406,6 @@ def generate_poses(
                 DRIVEN.pop(next(iter(DRIVEN)))
             DRIVEN[plan, version] = tuple(samples)
     return [
-        PoseTrack(route.id, length, width, start, DRIVEN[plan, version])
+        PoseTrack(route.id, length, width, start, DRIVEN[plan, version], plan.road)
         for (route, start), plan in zip(requests, plans, strict=True)
     ]

@@ -142,9 +142,13 @@ def drive(
         if step == steps:
             break
         for car, distances in replayed:
-            if car in present and step + 1 < len(distances):
+            if car not in present:
+                continue
+            if step + 1 < len(distances):
                 gap = distances[step + 1] - distances[step]
                 traci.vehicle.setSpeed(car, max(gap, 0.0) / timestep)
+            elif car != EGO:  # its trajectory ended: it left the map there
+                traci.vehicle.remove(car)
         if sumo_driven and controller.get("rolling_speed") is not None:
             rolling = _roll(traci, plan, controller, row, rolling)
         if on_step is not None:

@@ -31,6 +31,7 @@ from service.core.testcase import (
     parse_testcase,
 )
 from tests.conftest import TOWN07
+from tests.helpers import off_road_samples
 
 
 def samples(rows: list) -> list[PoseSample]:  # type: ignore[type-arg]
@@ -53,6 +54,7 @@ def assert_strictly_more_complex(old: TestCase, new: TestCase) -> None:
     # Old non-egos are kept exactly: that is what makes the solutions a subset.
     assert new.nonegos[: len(old.nonegos)] == old.nonegos
     assert implausible_trajectories(new) == []  # every car and certificate drivable
+    assert off_road_samples(new) == []  # no car or certificate off the network
 
 
 @pytest.fixture(scope="module")

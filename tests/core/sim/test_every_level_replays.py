@@ -1,0 +1,83 @@
+"""Every level of a chain replays with every built-in controller, and no car leaves the map.
+
+45 s test-cases (the duration of the benchmarks and campaigns) outlast the bundled roads: a
+car that reaches the end of its road leaves the test-case there. Chains on the bundled
+junctions, on junctions no constant was tuned on, with a queue on the ego's fork, and on
+two real maps; every level is checked on the road geometry (independently of the
+generator, tests.helpers.off_road_samples) and replayed in SUMO with every controller.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from service.core.generator.chain import grow_chain
+from service.core.generator.extension import extend_testcase
+from service.core.sim.controllers import BUILT_IN
+from service.core.sim.replay import evaluate
+from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
+from tests.conftest import TOWN05, TOWN07
+from tests.helpers import off_road_samples
+
+UNSEEN = Path(__file__).parents[2] / "data" / "junctions"
+DURATION = 45.0
+
+
+def _queue_root() -> TestCase:
+    """A car ahead of the ego on its fork, at an all-way stop."""
+    old = new_testcase("4way-stop", "E2C_0:C2N_0", duration=DURATION)
+    return extend_testcase(old, ["E2C_0:C2W_0"], seed=0, budget=120).testcase
+
+
+CHAINS = {
+    "4way-stop": (lambda: new_testcase("4way-stop", "S2C_0:C2N_0", duration=DURATION), 3),
+    "t-stop": (lambda: new_testcase("t-stop", "E2C_0:C2S_0", duration=DURATION), 3),
+    "y-uncontrolled": (
+        lambda: new_testcase("y-uncontrolled", "N2C_0:C2SE_0", duration=DURATION),
+        3,
+    ),
+    "skewed-allway": (
+        lambda: new_testcase(
+            UNSEEN / "skewed-allway.net.xml", "N2C_0:C2ENE_0", junction="C", duration=DURATION
+        ),
+        2,
+    ),
+    "queue": (_queue_root, 2),
+    "town05-396": (
+        lambda: new_testcase(
+            TOWN05, "-44_1:-9_1", junction="396", control="allway_stop", duration=DURATION
+        ),
+        2,
+    ),
+    "town07-358": (
+        lambda: new_testcase(
+            TOWN07, "-40_0:35_0", junction="358", control="right_before_left", duration=DURATION
+        ),
+        2,
+    ),
+}
+
+
+@pytest.mark.parametrize("name", sorted(CHAINS))
+def test_every_level_replays_with_every_controller_on_the_map(name: str) -> None:
+    make_root, levels = CHAINS[name]
+    root = make_root()
+    chain = [growth.extension.testcase for growth in grow_chain(root, levels, seed=7)]
+    assert len(chain) == levels
+    intersection = load_testcase_intersection(root)
+    for testcase in chain:
+        level = testcase.provenance["level"] if testcase.provenance else 0
+        assert off_road_samples(testcase) == [], f"level {level}"
+        for controller in BUILT_IN:
+            evaluation = evaluate(testcase, controller, intersection)
+            verdict = evaluation.verdict
+            assert evaluation.error is None, (level, controller, evaluation.error)
+            assert not verdict.errors, (level, controller, verdict.errors)
+            if controller == "certificate:solvability":
+                assert verdict.passed, (level, verdict.reasons)
+            if controller == "certificate:complexity":
+                assert not verdict.passed and verdict.goal_reached, (level, verdict.reasons)
+            replayed = [("ego", evaluation.trajectory)]
+            assert off_road_samples(testcase, replayed) == [], (level, controller)
