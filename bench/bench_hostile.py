@@ -89,6 +89,16 @@ def hostile_requests() -> list[Hostile]:
             b'"params":{"v_max":Infinity}}',
             curl='-d \'{... "params": {"v_max": Infinity}}\' /testcases',
         ),
+        *(
+            Hostile(
+                f"params.{key} {value!r}",
+                "POST",
+                "/testcases",
+                {**CREATE, "params": {key: value}},
+                curl=f"-d '{{... \"params\": {{\"{key}\": {value!r}}}}}' /testcases",
+            )
+            for key, value in (("v_max", 1e308), ("m", 1e308), ("a_min", -5e-324))
+        ),
         Hostile(
             "duration NaN",
             "POST",

@@ -14,6 +14,7 @@ from service.core.network import ControlType
 from service.core.testcase import (
     MAX_DURATION,
     MAX_NAME_LENGTH,
+    MAX_SPEED,
     MAX_TIMESTEP,
     MIN_TIMESTEP,
     Params,
@@ -101,7 +102,13 @@ class TestCaseCreate(_Body):
         description="ego front before the stop line (m); default 30 m, or the whole road "
         "before the fork where that is shorter (a start given here is never shortened)",
     )
-    start_speed: float = Field(8.0, ge=0, description="ego speed at t = 0 (m/s)")
+    start_speed: float | None = Field(
+        None,
+        ge=0,
+        le=MAX_SPEED,
+        description="ego speed at t = 0 (m/s); default 8 m/s, or the speed limit of the lane "
+        "it starts on where that is lower (a speed given must be at most that limit and v_max)",
+    )
     duration: float = Field(20.0, gt=0, le=MAX_DURATION, description="length of the test (s)")
     timestep: float = Field(0.1, ge=MIN_TIMESTEP, le=MAX_TIMESTEP, description="sample spacing (s)")
     params: Params | None = Field(None, description="rule and speed parameters")

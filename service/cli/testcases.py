@@ -29,6 +29,7 @@ from service.core.motion.poses import generate_poses
 from service.core.network import bundled_networks, load_intersection
 from service.core.testcase import (
     DEFAULT_START_DISTANCE,
+    DEFAULT_START_SPEED,
     TestCase,
     name_stem,
     new_testcase,
@@ -52,9 +53,9 @@ from service.core.testcase import (
     arg(
         "--start-speed",
         type=float,
-        default=8.0,
         metavar="V",
-        help="ego speed at t = 0 (default 8 m/s)",
+        help=f"ego speed at t = 0 (default {DEFAULT_START_SPEED:g} m/s, or the speed limit of "
+        "the lane it starts on where that is lower; at most that limit and v_max)",
     ),
     arg("--duration", type=float, default=20.0, help="seconds (default 20)"),
     arg("--timestep", type=float, default=0.1, help="seconds (default 0.1)"),

@@ -28,7 +28,12 @@ from pydantic import (
 from service.core.errors import InvalidTestCase, UnknownNetwork
 from service.core.motion.events import EventKind
 from service.core.motion.plausibility import first_jump
-from service.core.motion.poses import longest_start, plan_drive
+from service.core.motion.poses import (
+    check_start_speed,
+    longest_start,
+    plan_drive,
+    start_speed_limit,
+)
 from service.core.network import (
     Intersection,
     bundled_networks,
@@ -47,9 +52,13 @@ MAX_TIMESTEP = 1.0  # s
 MAX_DURATION = 600.0  # s
 MAX_SAMPLES = 60_000  # per car: 600 s at 0.01 s
 MAX_NAME_LENGTH = 200
+# Physical bounds on what a document may say (the parameters' own are in Params).
+MAX_SPEED = 100.0  # m/s: any speed a sample or a start may have (v_max is at most 70)
+MAX_START_DISTANCE = 10_000.0  # m before the stop line
+MAX_TRAVEL = MAX_SPEED * MAX_DURATION + MAX_START_DISTANCE  # m: a sample's distance
+MAX_COORDINATE = 1e7  # m: network coordinates (netconvert moves a map's origin near it)
 
-Positive = Annotated[float, Field(gt=0)]
-NonNegative = Annotated[float, Field(ge=0)]
+Seconds = Annotated[float, Field(ge=0, le=MAX_DURATION)]
 
 
 class _Model(BaseModel):
@@ -68,22 +77,36 @@ def check_name(value: str) -> str:
 
 
 class Params(_Model):
-    """Parameters of the rules and of the speed profiles."""
+    """Parameters of the rules and of the speed profiles, each within a physically
+    meaningful range (PARAM_BOUNDS): a number outside cannot describe a car at a junction,
+    and the solvers' arithmetic is only sound inside."""
 
-    m: Positive = Field(1.0, description="minimum perceptible time difference (s)")
-    a_min: float = Field(-4.0, lt=0, description="strongest deceleration (m/s^2, negative)")
-    a_max: Positive = Field(3.0, description="strongest acceleration (m/s^2)")
-    v_stop: NonNegative = Field(0.1, description="at or below this speed a car is stopped (m/s)")
-    v_run: Positive = Field(2.0, description="at or above this speed a car runs a sign (m/s)")
-    v_max: Positive = Field(15.0, description="speed limit of every car (m/s)")
-    arrival_distance: Positive = Field(
-        10.0, description="a car has arrived at its fork when its front is this close (m)"
+    m: float = Field(1.0, ge=0.01, le=10, description="minimum perceptible time difference (s)")
+    a_min: float = Field(
+        -4.0, ge=-15, le=-0.1, description="strongest deceleration (m/s^2, negative)"
     )
-    gap: NonNegative = Field(
-        2.0, description="distance a car keeps behind the car ahead on its lane (m)"
+    a_max: float = Field(3.0, ge=0.1, le=15, description="strongest acceleration (m/s^2)")
+    v_stop: float = Field(
+        0.1, ge=0, le=5, description="at or below this speed a car is stopped (m/s)"
     )
-    headway: NonNegative = Field(
-        1.0, description="time headway a car keeps on top of the gap: gap + headway x speed (s)"
+    v_run: float = Field(
+        2.0, gt=0, le=30, description="at or above this speed a car runs a sign (m/s)"
+    )
+    v_max: float = Field(15.0, ge=1, le=70, description="speed limit of every car (m/s)")
+    arrival_distance: float = Field(
+        10.0,
+        ge=0.1,
+        le=100,
+        description="a car has arrived at its fork when its front is this close (m)",
+    )
+    gap: float = Field(
+        2.0, ge=0, le=50, description="distance a car keeps behind the car ahead on its lane (m)"
+    )
+    headway: float = Field(
+        1.0,
+        ge=0,
+        le=10,
+        description="time headway a car keeps on top of the gap: gap + headway x speed (s)",
     )
 
     @model_validator(mode="after")
@@ -126,38 +149,44 @@ class RouteRef(_Model):
 
 
 class Start(_Model):
-    distance: NonNegative = Field(description="front bumper before the stop line (m)")
-    speed: NonNegative = Field(description="speed at t = 0 (m/s)")
+    distance: float = Field(
+        ge=0, le=MAX_START_DISTANCE, description="front bumper before the stop line (m)"
+    )
+    speed: float = Field(ge=0, le=MAX_SPEED, description="speed at t = 0 (m/s)")
+
+
+CarLength = Annotated[float, Field(ge=1, le=30, description="m")]
+CarWidth = Annotated[float, Field(ge=0.5, le=5, description="m")]
 
 
 class Ego(_Model):
     route: RouteRef
     start: Start
-    length: Positive = 5.0
-    width: Positive = 1.8
+    length: CarLength = 5.0
+    width: CarWidth = 1.8
 
 
 class Sample(_Model):
-    t: NonNegative
-    x: float
-    y: float
+    t: Seconds
+    x: float = Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)
+    y: float = Field(ge=-MAX_COORDINATE, le=MAX_COORDINATE)
     heading: float = Field(ge=0, lt=360)
-    speed: NonNegative
-    distance: NonNegative
+    speed: float = Field(ge=0, le=MAX_SPEED)
+    distance: float = Field(ge=0, le=MAX_TRAVEL)
 
 
 class EventRecord(_Model):
     kind: EventKind = Field(strict=False)  # a name in JSON is an enum member
     lane: str
-    t: NonNegative
-    distance: NonNegative
+    t: Seconds
+    distance: float = Field(ge=0, le=MAX_TRAVEL)
 
 
 class NonEgo(_Model):
     id: str = Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")
     route: RouteRef
-    length: Positive = 5.0
-    width: Positive = 1.8
+    length: CarLength = 5.0
+    width: CarWidth = 1.8
     trajectory: list[Sample] = Field(min_length=2)
     events: list[EventRecord] = []
     added_in: int = Field(ge=1, description="extension level that added this car")
@@ -472,6 +501,7 @@ def _network_candidates(
 
 
 DEFAULT_START_DISTANCE = 30.0  # m: the ego's automatic start, where the road is that long
+DEFAULT_START_SPEED = 8.0  # m/s: the ego's automatic start speed, where its lane allows it
 
 
 def new_testcase(
@@ -480,7 +510,7 @@ def new_testcase(
     junction: str | None = None,
     control: str | None = None,
     start_distance: float | None = None,
-    start_speed: float = 8.0,
+    start_speed: float | None = None,
     duration: float = 20.0,
     timestep: float = 0.1,
     params: Params | None = None,
@@ -492,16 +522,19 @@ def new_testcase(
 
     ``start_distance`` None is automatic: DEFAULT_START_DISTANCE, or the whole road before
     the fork where it is shorter (a start given is refused when the road is shorter).
+    ``start_speed`` None is automatic: DEFAULT_START_SPEED, or the speed limit of the lane
+    the ego starts on (or v_max) where that is lower; a speed given above either is refused.
     ``major_road``: two roads into a priority_stop junction that keep the right of way
     (service.core.network.load_intersection); the test-case keeps it (``major_road``), so
     every later command rebuilds the same network."""
     intersection = load_intersection(network, junction, control, cache_dir, major_road=major_road)
     route = intersection.route(ego_route)
     chosen = params or Params()
-    if start_speed > chosen.v_max:
+    if start_speed is not None and start_speed > chosen.v_max:
         raise InvalidTestCase(
             f"ego start speed {start_speed:g} m/s exceeds v_max {chosen.v_max:g} m/s"
         )
+    speed = min(DEFAULT_START_SPEED, chosen.v_max) if start_speed is None else start_speed
     if start_distance is None:
         start_distance = longest_start(intersection, route, DEFAULT_START_DISTANCE)
     document: dict[str, Any] = {
@@ -516,14 +549,19 @@ def new_testcase(
         "params": chosen.model_dump(),
         "ego": {
             "route": {"fork": route.fork, "exit": route.exit},
-            "start": {"distance": start_distance, "speed": start_speed},
+            "start": {"distance": start_distance, "speed": speed},
         },
     }
     if major_road is not None:
         document["major_road"] = list(major_road)
     testcase = parse_testcase(document)
     # Fails with a clear message when the start lies beyond the mapped road.
-    plan_drive(intersection, route, start_distance, max(start_speed, 1.0), duration, timestep)
+    plan = plan_drive(intersection, route, start_distance, max(speed, 1.0), duration, timestep)
+    if start_speed is not None:
+        check_start_speed(intersection, plan, start_speed)
+    elif speed > start_speed_limit(intersection, plan):
+        document["ego"]["start"]["speed"] = start_speed_limit(intersection, plan)
+        testcase = parse_testcase(document)
     return testcase
 
 

@@ -403,6 +403,9 @@ def test_a_huge_offset_is_refused(client: TestClient, path: str) -> None:
         ('"timestep": 5e-324', "timestep"),
         ('"duration": 1e6', "duration"),
         ('"params": {"v_max": Infinity}', "params.v_max"),
+        ('"params": {"v_max": 1e308}', "params.v_max"),  # were 201, then 502 on /extend
+        ('"params": {"m": 1e308}', "params.m"),
+        ('"params": {"a_min": -5e-324}', "params.a_min"),
         ('"start_speed": NaN', "start_speed"),
         ('"name": "a\\u0000b"', "name"),
     ],
@@ -418,6 +421,16 @@ def test_numbers_and_names_are_checked_at_the_edge(
         headers={"content-type": "application/json", **AUTH},
     )
     assert_problem(reply, 422, "invalid-request", field)
+
+
+def test_an_ego_faster_than_its_lane_allows_is_refused(client: TestClient) -> None:
+    """Within v_max (15) but above lane E2C_1's 13.89 m/s: SUMO would not insert the ego."""
+    reply = client.post(
+        "/testcases",
+        json={"network": "4way-stop", "ego_route": "E2C_1:C2S_1", "start_speed": 14.5},
+        headers=AUTH,
+    )
+    assert_problem(reply, 422, "invalid-testcase", "speed limit of lane 'E2C_1'")
 
 
 def test_an_inline_testcase_has_the_caps_of_a_created_one(client: TestClient) -> None:

@@ -108,6 +108,12 @@ def test_new_testcase_rejects_start_faster_than_the_limit() -> None:
         new_testcase("4way-stop", "S2C_1:C2W_1", start_speed=30.0)
 
 
+def test_new_testcase_rejects_start_faster_than_its_lane_allows() -> None:
+    # SUMO refuses to insert a car faster than its lane's limit (13.89 m/s here)
+    with pytest.raises(InvalidTestCase, match=r"above the speed limit of lane 'S2C_1'.* 13\.89"):
+        new_testcase("4way-stop", "S2C_1:C2W_1", start_speed=14.5)
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [
@@ -136,6 +142,32 @@ def test_new_testcase_rejects_start_faster_than_the_limit() -> None:
         (lambda d: d.update(duration=float("nan")), r"duration: Input should be a finite number"),
         (lambda d: d["params"].update(v_max=float("inf")), r"params\.v_max: .*finite number"),
         (lambda d: d["ego"]["start"].update(distance=float("nan")), r"ego\.start\.distance"),
+        # physical bounds: nothing accepted can overflow a solver or a worker
+        (lambda d: d["params"].update(v_max=1e308), r"params\.v_max: .*less than or equal to 70"),
+        (lambda d: d["params"].update(m=1e308), r"params\.m: .*less than or equal to 10"),
+        (lambda d: d["params"].update(m=5e-324), r"params\.m: .*greater than or equal to 0\.01"),
+        (
+            lambda d: d["params"].update(a_min=-5e-324),
+            r"params\.a_min: .*less than or equal to -0\.1",
+        ),
+        (
+            lambda d: d["params"].update(a_min=-1e308),
+            r"params\.a_min: .*greater than or equal to -15",
+        ),
+        (
+            lambda d: d["params"].update(a_max=1e-300),
+            r"params\.a_max: .*greater than or equal to 0\.1",
+        ),
+        (lambda d: d["params"].update(gap=1e308), r"params\.gap: .*less than or equal to 50"),
+        (lambda d: d["params"].update(headway=1e9), r"params\.headway: .*less than or equal to 10"),
+        (lambda d: d["params"].update(arrival_distance=1e-9), r"params\.arrival_distance: "),
+        (lambda d: d["ego"].update(length=1e308), r"ego\.length: .*less than or equal to 30"),
+        (lambda d: d["ego"].update(width=1e-9), r"ego\.width: .*greater than or equal to 0\.5"),
+        (
+            lambda d: d["ego"]["start"].update(speed=1e308),
+            r"ego\.start\.speed: .*less than or equal to 100",
+        ),
+        (lambda d: d["ego"]["start"].update(distance=1e308), r"ego\.start\.distance: "),
         (lambda d: d.update(name="a\u0000b"), r"name: must not contain control .*U\+0000"),
         (lambda d: d.update(name="x" * 201), r"name: .*at most 200 characters"),
     ],

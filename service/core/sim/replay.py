@@ -30,6 +30,7 @@ from service.core.files import write_atomically
 from service.core.motion.poses import (
     PoseSample,
     centre_to_front,
+    check_start_speed,
     front_to_centre,
     plan_drive,
     start_distance_of,
@@ -50,6 +51,10 @@ from service.core.testcase import TestCase, load_testcase_intersection
 REPLAY_BUDGET = 60.0  # seconds for one evaluation
 TYPES_FILE = "testcase.types.xml"
 ROUTES_FILE = "testcase.all.rou.xml"
+
+
+SCRIPTED_MAX_SPEED = 100.0  # m/s: above every v_max a test-case may have
+SCRIPTED_SPEED_FACTOR = 100.0  # times any lane's limit (at least 1 m/s): SCRIPTED_MAX_SPEED
 
 
 @dataclass(frozen=True)
@@ -84,7 +89,9 @@ def departures(testcase: TestCase, intersection: Intersection) -> tuple[Departur
     plan = plan_drive(
         intersection, intersection.route(ego.route.id), ego.start.distance,
         max(ego.start.speed, 1.0), testcase.duration, testcase.timestep, ego.length, ego.width,
+        testcase.params.v_max * testcase.duration,  # as far as any controller can drive
     )  # fmt: skip
+    check_start_speed(intersection, plan, ego.start.speed)
     ego_departure = Departure(
         "ego", plan.edges, plan.depart_lane, plan.depart_pos, ego.start.speed,
         ego.length, ego.width, plan.start_on,
@@ -132,7 +139,13 @@ def vtype_lines(ego: Departure, nonegos: Sequence[Departure], testcase: TestCase
                 f' maxSpeed="{p.v_max:g}" speedFactor="1" speedDev="0"'
             )
         else:
-            extra = ' sigma="0" minGap="0" speedFactor="1" speedDev="0" maxSpeed="100"'
+            # Scripted: they follow their trajectories, not the lanes' limits, so SUMO must
+            # accept their departures at any speed up to maxSpeed (SUMO's limit at the start
+            # is the lane's times speedFactor).
+            extra = (
+                f' sigma="0" minGap="0" speedFactor="{SCRIPTED_SPEED_FACTOR:g}" speedDev="0"'
+                f' maxSpeed="{SCRIPTED_MAX_SPEED:g}"'
+            )
         lines.append(
             f'    <vType id="type_{car.id}" length="{car.length:g}" width="{car.width:g}"{extra}/>'
         )

@@ -11,13 +11,20 @@ from typing import Any
 import pytest
 
 from service.core.checker.check import Judge
-from service.core.errors import InvalidInput
+from service.core.errors import InvalidInput, InvalidTestCase
 from service.core.export.bundle import export_bundle
 from service.core.generator.chain import candidate_routes
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import centre_to_front, generate_poses, plan_drive, start_front
+from service.core.network import parsed_network
 from service.core.sim.replay import evaluate
-from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
+from service.core.testcase import (
+    TestCase,
+    dump_testcase,
+    load_testcase_intersection,
+    new_testcase,
+    parse_testcase,
+)
 from tests.conftest import TOWN05, TOWN07
 from tests.helpers import car_ahead_of_ego, retime, with_nonegos
 
@@ -268,7 +275,11 @@ def test_the_leader_is_the_car_ahead_on_the_fork(
     ahead = Judge(case).nonegos[0].in_queue  # places on the fork: distance - line
     gaps, left = [], 0
     for record in records:
-        sample = car.trajectory[round(record["t"] / case.timestep)]
+        step = round(record["t"] / case.timestep)
+        if step >= len(car.trajectory):  # car1 has left the map: nobody is ahead
+            assert record["leader"] is None, record
+            continue
+        sample = car.trajectory[step]
         rear = sample.distance - ahead.line - ahead.length  # metres past the stop line
         if rear > 0.5:
             assert record["leader"] is None, record
@@ -326,3 +337,35 @@ def test_a_merging_car_is_the_leader_once_on_the_ego_lane(
             _check_sumo_gap(record)
             after += 1
     assert before and after
+
+
+def test_a_car_that_starts_faster_than_its_lane_allows_replays() -> None:
+    """The outside test's chain: car3 starts at 14.09 m/s on N2C (limit 13.89 m/s). The
+    non-egos follow their trajectories, not the lanes' limits, and SUMO accepts them."""
+    from service.core.generator.chain import grow_chain
+
+    root = new_testcase("4way-stop", "S2C_0:C2N_0", duration=30.0)
+    level3 = grow_chain(root, 3, seed=7)[-1].extension.testcase
+    intersection = load_testcase_intersection(level3)
+    net = parsed_network(intersection.network_file)
+    fast = [
+        car.id
+        for car in level3.nonegos
+        if car.trajectory[0].speed > net.getLane(car.route.fork).getSpeed()
+    ]
+    assert fast  # the case the outside test found (the chain is deterministic)
+    for controller in ("sumo", "certificate:solvability"):
+        evaluation = evaluate(level3, controller, intersection)
+        assert evaluation.error is None and not evaluation.verdict.errors
+
+
+def test_an_ego_faster_than_its_lane_allows_is_the_users_error() -> None:
+    """SUMO would refuse to insert the ego: the replay and the generator say so, naming the
+    lane and its limit, instead of crashing."""
+    document = json.loads(dump_testcase(new_testcase("4way-stop", "S2C_0:C2N_0")))
+    document["ego"]["start"]["speed"] = 14.5  # within v_max (15), above the lane's 13.89
+    fast = parse_testcase(document)
+    with pytest.raises(InvalidTestCase, match=r"speed limit of lane '[^']+' .*13\.89 m/s"):
+        evaluate(fast, "sumo")
+    with pytest.raises(InvalidTestCase, match=r"speed limit of lane"):
+        extend_testcase(fast, ["W2C_0:C2E_0"], seed=0, budget=60)
