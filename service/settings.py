@@ -74,7 +74,10 @@ class Settings(BaseSettings):
         3, ge=1, le=10, description="times a job item is started before it is marked failed"
     )
     lease_seconds: float = Field(
-        30.0, gt=1, description="a running item whose worker is silent this long is retried"
+        30.0,
+        gt=1,
+        description="a running item whose worker is silent this long is retried; a queued "
+        "item whose message the broker lost is sent again this long after it was last seen",
     )
 
     @field_validator("worker_memory_mb")

@@ -8,6 +8,11 @@ stdin: no fork of a threaded server, and no re-import of the caller's ``__main__
 ``WarmWorker`` keeps such a child alive between calls, so that its imports (libsumo, about
 half a second) are paid once per process; each call still runs under its budget, and a call
 that overruns kills the child (the next call starts a fresh one).
+
+Inside such a child (an evaluation or a picture the server or a job started there), a nested
+call runs in the child itself, under its own budget (an alarm, and the child's parent kills
+the child at the outer budget): one child per call, so the number of workers is a true cap
+on the processes that compute at once.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ import os
 import pickle
 import re
 import select
+import signal
 import struct
 import subprocess
 import sys
@@ -38,6 +44,7 @@ OUT_OF_MEMORY = re.compile(
 )
 
 T = TypeVar("T")
+INSIDE_CHILD = False  # set in a budget child: nested calls run there, not in a grandchild
 
 
 def run_with_budget(
@@ -46,8 +53,11 @@ def run_with_budget(
     """``function(*args)`` in a child process; BudgetExceeded after ``budget`` seconds.
 
     ``function`` must be a module-level function and its arguments and result picklable.
-    Domain errors raised in the child are re-raised here as they were.
+    Domain errors raised in the child are re-raised here as they were. Inside a budget
+    child, the call runs in this process (``run_here``).
     """
+    if INSIDE_CHILD:
+        return run_here(function, args, budget, what)
     request = encode_call(function, args)
     try:
         result = subprocess.run(
@@ -65,6 +75,42 @@ def run_with_budget(
 
 
 CHILD_COMMAND = [sys.executable, "-m", "service.core.budget"]
+
+
+def run_here(function: Callable[..., T], args: tuple[Any, ...], budget: float, what: str) -> T:
+    """``function(*args)`` in this process, as a child would answer it: BudgetExceeded when
+    an alarm after ``budget`` seconds interrupts it (Python code between two native calls;
+    a native call that never returns is ended by the parent, which kills this process at
+    its own budget), anything but a domain error reported as a crash."""
+    alarm = threading.current_thread() is threading.main_thread() and hasattr(signal, "setitimer")
+    if alarm and signal.getitimer(signal.ITIMER_REAL)[0] > 0:
+        alarm = False  # an outer call's alarm is running: it stays the one that stops us
+
+    def expire(signum: int, frame: Any) -> None:
+        raise BudgetExceeded(
+            f"{what} did not finish within its budget of {budget:g} s and was stopped"
+        )
+
+    previous = signal.signal(signal.SIGALRM, expire) if alarm else None
+    try:
+        if alarm:
+            signal.setitimer(signal.ITIMER_REAL, max(budget, 0.001))
+        return function(*args)
+    except ScengenError:
+        raise
+    except MemoryError:
+        limit = os.environ.get(MEMORY_VARIABLE, str(DEFAULT_MEMORY_MB))
+        raise MemoryExceeded(
+            f"{what} needed more memory than a worker may use ({limit} MB, {MEMORY_VARIABLE})"
+        ) from None
+    except Exception as exc:
+        raise ScengenError(
+            f"{what} crashed: {type(exc).__name__}: {exc}", traceback=traceback.format_exc()
+        ) from exc
+    finally:
+        if alarm:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, previous)
 
 
 def encode_call(function: Callable[..., Any], args: tuple[Any, ...]) -> bytes:
@@ -123,7 +169,10 @@ class WarmWorker:
 
     def call(self, function: Callable[..., T], args: tuple[Any, ...], budget: float,
              what: str) -> T:  # fmt: skip
-        """``function(*args)`` in the warm child; BudgetExceeded after ``budget`` seconds."""
+        """``function(*args)`` in the warm child; BudgetExceeded after ``budget`` seconds.
+        Inside a budget child, in this process (``run_here``)."""
+        if INSIDE_CHILD:
+            return run_here(function, args, budget, what)
         with self._lock:
             process = self._child()
             assert process.stdin is not None and process.stdout is not None
@@ -225,10 +274,18 @@ def _limit_memory() -> None:
         resource.setrlimit(resource.RLIMIT_DATA, (wanted, hard))
 
 
-def _serve() -> None:
-    """Child side: read one pickled call from stdin, write the pickled outcome to stdout."""
+def _enter_child() -> None:
+    """This process is a budget child: die with the parent, cap the memory, and run nested
+    calls here (the flag is set on the importable module, which the calls import: this file
+    runs as ``__main__``)."""
     _die_with_parent()
     _limit_memory()
+    vars(importlib.import_module("service.core.budget"))["INSIDE_CHILD"] = True
+
+
+def _serve() -> None:
+    """Child side: read one pickled call from stdin, write the pickled outcome to stdout."""
+    _enter_child()
     request = sys.stdin.buffer.read()
     out = sys.stdout.buffer
     sys.stdout = sys.stderr  # anything the call prints must not corrupt the answer
@@ -238,8 +295,7 @@ def _serve() -> None:
 
 def _serve_many() -> None:
     """Warm child side: answer framed calls from stdin until it closes."""
-    _die_with_parent()
-    _limit_memory()
+    _enter_child()
     source, out = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr
     while header := source.read(FRAME.size):

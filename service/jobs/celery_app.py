@@ -1,21 +1,38 @@
 """The Celery side of batch jobs: one task, ``scengen.run_item``, run by ``scengen worker``.
 
 Each worker process takes one task at a time and is replaced after it (libsumo and the
-solvers are per-process singletons; a fresh process per task keeps items apart). The
+solvers are per-process singletons; a fresh process per task keeps items apart). Celery
+gives each pool process PR_SET_PDEATHSIG (SIGKILL) and every solver child sets its own
+(service.core.budget): a worker killed with -9 leaves no process behind. The
 message is acknowledged only after the task ends and given back when a worker dies; the
 database claim makes a redelivered message that finds its item running or finished a
 no-op, so nothing runs twice.
+
+A message can still be lost (Redis restarted empty, a worker killed while it held a message
+it had not started): ``held_items`` tells which items' messages the broker still holds, so
+that the dispatcher sends the others again, and only those, within the lease.
 """
 
 from __future__ import annotations
 
+import re
+import secrets
+import time
 from typing import Any
 
+import redis
 from celery import Celery
 
 from service.settings import Settings, get_settings
 
 ITEM_TIME_LIMIT = 6 * 3600  # seconds; every solver call inside has its own, smaller budget
+QUEUE = "celery"  # Celery's default queue: a Redis list (one per priority step)
+# kombu's Redis transport: the queue of priority p is QUEUE + SEPARATOR + p (0: QUEUE); a
+# message delivered to a worker and not yet acknowledged is in UNACKED, by delivery tag,
+# with its delivery time in UNACKED_INDEX
+SEPARATOR, PRIORITIES = "\x06\x16", (0, 3, 6, 9)
+UNACKED, UNACKED_INDEX = "unacked", "unacked_index"
+TASK_ID = re.compile(rb"scengen-item\.([0-9a-f]+)\.(\d+)\.")
 
 
 def make_celery(settings: Settings) -> Celery:
@@ -65,3 +82,29 @@ def worker_arguments(concurrency: int, name: str, loglevel: str = "INFO") -> lis
 def start_worker(settings: Settings, concurrency: int, name: str) -> Any:
     """``scengen worker``: blocks until the worker stops."""
     return make_celery(settings).worker_main(worker_arguments(concurrency, name))
+
+
+def task_id(job: str, position: int) -> str:
+    """The id of an item's message: names the item, so that ``held_items`` can find it."""
+    return f"scengen-item.{job}.{position}.{secrets.token_hex(4)}"
+
+
+def held_items(broker_url: str, fresh: float) -> set[tuple[str, int]] | None:
+    """The items whose message the broker holds: waiting in the queue, or delivered to a
+    worker less than ``fresh`` seconds ago (the worker has that long to claim the item).
+    None when the broker is not Redis (the dispatcher then resends after ``fresh``; a
+    duplicate message finds its item claimed and does nothing)."""
+    if not broker_url.startswith(("redis://", "rediss://", "unix://")):
+        return None
+    client = redis.Redis.from_url(broker_url)
+    try:
+        with client.pipeline(transaction=False) as pipe:
+            for priority in PRIORITIES:
+                pipe.lrange(QUEUE + (f"{SEPARATOR}{priority}" if priority else ""), 0, -1)
+            pipe.zrangebyscore(UNACKED_INDEX, time.time() - fresh, "+inf")
+            *queued, recent = pipe.execute()
+        delivered = client.hmget(UNACKED, recent) if recent else []
+    finally:
+        client.close()
+    messages = [m for queue in queued for m in queue] + [m for m in delivered if m]
+    return {(found[1].decode(), int(found[2])) for m in messages for found in TASK_ID.finditer(m)}

@@ -11,7 +11,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import functools
+import sys
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -94,7 +96,13 @@ class LocalDispatcher(Dispatcher):
 
 class CeleryDispatcher(Dispatcher):
     """Items go to Celery workers through the broker; the database still decides who runs
-    what, so a message delivered twice, or sent again after a lost lease, runs once."""
+    what, so a message delivered twice, or sent again after a lost lease, runs once.
+
+    A message the broker lost (Redis restarted empty, a worker killed holding a message it
+    had not started) is sent again within the lease: an item sent (or last seen in the
+    broker) more than ``SCENGEN_LEASE_SECONDS`` ago is looked for in the broker, and sent
+    again only when it is not there; one that waits its turn behind busy workers is
+    found there and left alone."""
 
     def __init__(self, store: Store, settings: Settings) -> None:
         super().__init__(store, settings)
@@ -103,13 +111,32 @@ class CeleryDispatcher(Dispatcher):
         self.celery: Any = make_celery(settings)
 
     async def dispatch(self) -> None:
-        ready = await asyncio.to_thread(self.jobs.runnable, 100, True)
+        lease = self.settings.lease_seconds
+        ready = await asyncio.to_thread(self.jobs.runnable, 100, True, lease)
+        if any(item.sent_at is not None for item in ready):
+            from service.jobs.celery_app import held_items
+
+            held = await asyncio.to_thread(held_items, self.settings.broker_url, lease)
+            if held:
+                waiting = [(i.job, i.position) for i in ready if (i.job, i.position) in held]
+                await asyncio.to_thread(self.jobs.mark_sent, waiting)
+                ready = [item for item in ready if (item.job, item.position) not in held]
         for item in ready:
+            if item.sent_at is not None:
+                print(
+                    f"scengen: dispatcher: job {item.job} item {item.position}: its message "
+                    f"is not in the broker {time.time() - item.sent_at:.0f} s after it was "
+                    "sent (lost?): sent again",
+                    file=sys.stderr,
+                )
             await asyncio.to_thread(self._send, item.job, item.position)
 
     def _send(self, job: str, position: int) -> None:
-        self.celery.send_task("scengen.run_item", args=[job, position])
-        self.jobs.mark_sent(job, position)
+        from service.jobs.celery_app import task_id
+
+        self.celery.send_task("scengen.run_item", args=[job, position],
+                              task_id=task_id(job, position))  # fmt: skip
+        self.jobs.mark_sent([(job, position)])
 
 
 def make_dispatcher(store: Store, settings: Settings) -> Dispatcher:

@@ -98,6 +98,7 @@ class ItemRecord:
     started_at: datetime | None
     finished_at: datetime | None
     error_kind: str | None = None  # the class of service.core.errors behind ``error``
+    sent_at: float | None = None  # unix time its message was sent or last seen in the broker
 
     def evaluation_id(self, testcase: str, controller: str) -> str:
         """The same item, test-case and controller: the same stored evaluation, once."""
@@ -384,11 +385,13 @@ class JobStore:
     # the dispatcher side
 
     def runnable(
-        self, limit: int, unsent_only: bool = False, resend_after: float = 600
+        self, limit: int, unsent_only: bool = False, resend_after: float = 0.0
     ) -> list[ItemRecord]:
         """Queued items whose dependencies succeeded (failing those whose dependencies
-        failed); oldest jobs first. Two light queries, whatever the number of items; only
-        the chosen items are read in full."""
+        failed); oldest jobs first. ``unsent_only``: only those never sent to the broker, or
+        sent (or last seen there, ``mark_sent``) more than ``resend_after`` seconds ago.
+        Two light queries, whatever the number of items; only the chosen items are read in
+        full."""
         queued = (
             sa.select(items.c.job, items.c.position, items.c.needs)
             .join(jobs, jobs.c.id == items.c.job)
@@ -426,13 +429,18 @@ class JobStore:
                 chosen.append((row.job, row.position))
         return [found for found in (self.item(j, p) for j, p in chosen) if found is not None]
 
-    def mark_sent(self, job: str, position: int) -> None:
+    def mark_sent(self, keys: list[tuple[str, int]]) -> None:
+        """These queued items' messages were sent, or were seen in the broker, just now."""
         with self.engine.begin() as connection:
-            connection.execute(
-                items.update()
-                .where(items.c.job == job, items.c.position == position)
-                .values(sent_at=time.time())
-            )
+            for job, position in keys:
+                connection.execute(
+                    items.update()
+                    .where(
+                        items.c.job == job, items.c.position == position,
+                        items.c.state == "queued",
+                    )
+                    .values(sent_at=time.time())
+                )  # fmt: skip
 
     def reclaim_expired(self, attempts: int) -> list[tuple[str, int]]:
         """Running items whose lease ran out: back to queued, or failed after ``attempts``.
@@ -485,7 +493,7 @@ def _item(row: Any) -> ItemRecord:
         spec=json.loads(row["spec"]), needs=json.loads(row["needs"]), state=row["state"],
         attempts=row["attempts"], owner=row["owner"], progress=row["progress"],
         testcases=json.loads(row["testcases"]), evaluations=json.loads(row["evaluations"]),
-        error=error, error_kind=kind,
+        error=error, error_kind=kind, sent_at=row["sent_at"],
         started_at=utc(row["started_at"]) if row["started_at"] else None,
         finished_at=utc(row["finished_at"]) if row["finished_at"] else None,
     )  # fmt: skip

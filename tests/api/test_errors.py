@@ -199,6 +199,19 @@ def test_a_budget_too_small_is_a_504(client: TestClient) -> None:
     assert "budget" in body["detail"]
 
 
+def test_an_evaluation_budget_too_small_is_a_504_not_a_fail(client: TestClient) -> None:
+    """The budget is the server's limit: running out of it is no verdict on the controller,
+    and nothing is stored."""
+    before = client.get("/evaluations").json()["total"]
+    reply = client.post(
+        "/evaluations",
+        json={"testcase": example_testcase(), "controller": "sumo", "budget": 0.01},
+        headers=AUTH,
+    )
+    assert_problem(reply, 504, "budget-exceeded", "budget of 0.01 s", "no verdict on sumo")
+    assert client.get("/evaluations").json()["total"] == before
+
+
 def test_budget_over_the_limit_is_refused(client: TestClient) -> None:
     reply = client.post(
         "/extend",

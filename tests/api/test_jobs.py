@@ -145,6 +145,18 @@ def test_a_failing_item_is_an_error_in_the_junit(server: Server) -> None:
     assert messages == [error, job["items"][1]["error"]]
 
 
+def test_an_evaluation_budget_too_small_fails_the_item_without_a_verdict(server: Server) -> None:
+    """The budget is the server's limit: the item fails with the budget error, and no
+    evaluation (no FAIL of the controller) is stored."""
+    root = regression_batch()["items"][0]["testcase"]
+    batch = {"items": [{"kind": "evaluate", "testcase": root, "controllers": ["sumo"],
+                        "budget": 0.01}]}  # fmt: skip
+    job = server.wait_for_job(server.client.post("/jobs", json=batch).json()["id"])
+    item = job["items"][0]
+    assert job["state"] == "failed" and item["evaluations"] == []
+    assert "budget of 0.01 s" in item["error"] and "no verdict on sumo" in item["error"]
+
+
 def test_a_bad_start_distance_list_is_refused_before_the_job(api: httpx.Client) -> None:
     batch = {"items": [{"kind": "extend", "testcase_id": "x", "routes": ["a:b"],
                         "start_distance": [1, 2]}]}  # fmt: skip

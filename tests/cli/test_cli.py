@@ -451,6 +451,16 @@ def test_evaluate_one_passing_controller_exits_0(tmp_path: Path) -> None:
     assert result.stdout.startswith("PASS  4way-stop C S2C_1:C2W_1 level 0 / sumo-cautious")
 
 
+def test_evaluate_with_a_budget_too_small_exits_3_without_a_verdict(tmp_path: Path) -> None:
+    """The budget is the command's limit, not the controller's: an error, never a FAIL."""
+    testcase = tmp_path / "left.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0
+    result = run("evaluate", str(testcase), "--budget", "0.01")
+    assert result.returncode == 3, result.stdout + result.stderr
+    assert "budget of 0.01 s" in result.stderr and "no verdict on sumo" in result.stderr
+    assert "FAIL" not in result.stdout + result.stderr
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

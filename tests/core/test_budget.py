@@ -3,7 +3,11 @@
 from __future__ import annotations
 
 import math
+import os
+import subprocess
 import time
+from collections.abc import Callable
+from typing import Any
 
 import pytest
 
@@ -51,3 +55,41 @@ def test_a_native_library_that_cannot_allocate_is_a_memory_failure() -> None:
         decode_outcome(b"", stderr, "the picture")
     with pytest.raises(ScengenError, match="died without an answer: Segmentation fault"):
         decode_outcome(b"", b"Segmentation fault\n", "the picture")
+
+
+def spawning(function: Callable[..., Any], args: tuple[Any, ...]) -> tuple[Any, int, list[str]]:
+    """``function(*args)`` (run in a budget child), this process's pid, and the command line
+    of every process it started meanwhile."""
+    started: list[str] = []
+    original = subprocess.Popen.__init__
+
+    def recording(self: subprocess.Popen[Any], command: Any, *rest: Any, **named: Any) -> None:
+        started.append(command if isinstance(command, str) else " ".join(map(str, command)))
+        original(self, command, *rest, **named)
+
+    subprocess.Popen.__init__ = recording  # type: ignore[method-assign]
+    try:
+        return function(*args), os.getpid(), started
+    finally:
+        subprocess.Popen.__init__ = original  # type: ignore[method-assign]
+
+
+def test_a_call_inside_a_budget_child_runs_in_that_child() -> None:
+    """A nested call (an evaluation's replay, Step 1's drive) starts no grandchild: the
+    workers a server or a job runs are all the processes that compute."""
+    inner, child, started = run_with_budget(
+        spawning, (run_with_budget, (os.getpid, (), 30.0, "inner")), 60.0, "outer"
+    )
+    assert inner == child != os.getpid()
+    assert started == []
+
+
+def test_a_nested_call_over_its_budget_is_stopped_in_the_child() -> None:
+    """The nested call's own budget (an alarm), not the outer one, stops it."""
+    with pytest.raises(BudgetExceeded, match="sleep did not finish within its budget of 1 s"):
+        run_with_budget(run_with_budget, (time.sleep, (60,), 1.0, "sleep"), 120.0, "outer")
+
+
+def test_a_nested_crash_is_reported_as_a_child_would() -> None:
+    with pytest.raises(ScengenError, match=r"inner sqrt crashed: ValueError: math domain error"):
+        run_with_budget(run_with_budget, (math.sqrt, (-1.0,), 30.0, "inner sqrt"), 60.0, "outer")

@@ -1,16 +1,22 @@
-"""A throwaway PostgreSQL database per test session (the machine's server, trust auth)."""
+"""A throwaway PostgreSQL database per test session (the machine's server, trust auth);
+a private Redis server that a test may restart empty."""
 
 from __future__ import annotations
 
 import contextlib
 import os
 import secrets
+import shutil
+import subprocess
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import psycopg
 import pytest
 import redis
+
+from tests.servers import free_port
 
 LEASE = "3"  # seconds: a killed worker's items come back quickly
 POSTGRES = os.environ.get("SCENGEN_TEST_POSTGRES", "postgresql://postgres@127.0.0.1:5432/test")
@@ -69,3 +75,46 @@ def celery_settings(postgres_url: str, tmp_path: Path, worker_id: str) -> Iterat
         ):
             connection.exec_driver_sql(f"DELETE FROM {table}")
     engine.dispose()
+
+
+class PrivateRedis:
+    """``redis-server`` on a free port, keeping nothing on disk: a restart starts empty."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder, self.port = folder, free_port()
+        self.url = f"redis://127.0.0.1:{self.port}/0"
+        self.process: subprocess.Popen[bytes] | None = None
+        self.start()
+
+    def start(self) -> None:
+        self.process = subprocess.Popen(
+            ["redis-server", "--port", str(self.port), "--bind", "127.0.0.1", "--save", "",
+             "--appendonly", "no", "--dir", str(self.folder)],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        )  # fmt: skip
+        client = redis.Redis.from_url(self.url)
+        deadline = time.monotonic() + 30
+        while True:
+            with contextlib.suppress(redis.ConnectionError):
+                if client.ping():
+                    break
+            if time.monotonic() > deadline:
+                raise RuntimeError("redis-server did not come up")
+            time.sleep(0.1)
+        client.close()
+
+    def kill(self) -> None:
+        """kill -9: everything it held is gone."""
+        if self.process is not None:
+            self.process.kill()
+            self.process.wait()
+            self.process = None
+
+
+@pytest.fixture
+def private_redis(tmp_path: Path) -> Iterator[PrivateRedis]:
+    if shutil.which("redis-server") is None:
+        pytest.skip("redis-server is not installed")
+    server = PrivateRedis(tmp_path)
+    yield server
+    server.kill()

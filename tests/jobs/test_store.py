@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from service.jobs.batch import parse_batch
-from service.jobs.store import IdempotencyConflict, JobStore
+from service.jobs.store import IdempotencyConflict, JobStore, items
 from service.store import Store
 
 BATCH = parse_batch(
@@ -66,6 +66,25 @@ def test_of_concurrent_claims_one_wins(jobs: JobStore) -> None:
     for racer in racers:
         racer.join()
     assert sorted(wins) == [False] * 7 + [True]
+
+
+def test_an_item_sent_longer_ago_than_the_lease_is_offered_again(jobs: JobStore) -> None:
+    """The dispatcher sees again an item sent (or last seen in the broker) more than a
+    lease ago, to look for its message; seeing it there re-arms it for another lease. A
+    second message for an item that was claimed meanwhile is no second run."""
+    job, _ = jobs.create(BATCH)
+    assert [i.position for i in jobs.runnable(10, True, 5.0)] == [0, 1]
+    jobs.mark_sent([(job.id, 0), (job.id, 1)])
+    assert jobs.runnable(10, True, 5.0) == []
+    with jobs.engine.begin() as connection:  # a lease later
+        connection.execute(items.update().values(sent_at=items.c.sent_at - 6.0))
+    again = jobs.runnable(10, True, 5.0)
+    assert [i.position for i in again] == [0, 1] and all(i.sent_at for i in again)
+    jobs.mark_sent([(job.id, 0)])  # found in the broker: waits its turn
+    assert [i.position for i in jobs.runnable(10, True, 5.0)] == [1]
+    assert jobs.claim(job.id, 1, "w1", 30)
+    assert not jobs.claim(job.id, 1, "w2", 30)  # the first message's worker has it
+    assert [i.position for i in jobs.runnable(10, True, 5.0)] == []
 
 
 def test_an_expired_lease_is_retried_then_failed(jobs: JobStore) -> None:

@@ -9,7 +9,9 @@ controller whose acceleration is integrated here. The ego's poses are recorded e
 and judged by the checker.
 
 Every evaluation runs in its own process (libsumo is a per-process singleton) under a time
-budget. A user controller that raises or hangs gives a failed evaluation with the reason.
+budget. A user controller that raises gives a failed evaluation with the reason; a replay
+that outlives its budget gives no verdict (BudgetExceeded: the budget is not the
+controller's to meet).
 """
 
 from __future__ import annotations
@@ -257,7 +259,9 @@ def evaluate(
     budget: float = REPLAY_BUDGET,
 ) -> Evaluation:
     """Replay ``testcase`` with ``controller`` driving the ego, in a child process under
-    ``budget``, and judge the ego. A controller that fails or runs out of time fails."""
+    ``budget``, and judge the ego. A controller that raises fails; a replay that does not
+    finish within ``budget`` is BudgetExceeded (the budget is the caller's limit, so it
+    gives no verdict: a controller that hangs is not told apart from a budget too small)."""
     driver = resolve_driver(controller)
     if isinstance(driver, CertificateDriver) and testcase.certificates is None:
         raise InvalidInput(
@@ -274,8 +278,11 @@ def evaluate(
         arguments = (plan_file, controller_spec(driver), driver.name, reference)
         try:
             rows, error = run_with_budget(run_replay, arguments, budget, "the replay")
-        except BudgetExceeded as exc:
-            rows, error = [], str(exc)
+        except BudgetExceeded as exc:  # the server's limit: no verdict on the controller
+            raise type(exc)(
+                f"{exc.message}; no verdict on {controller} (raise the evaluation's budget)",
+                **exc.context,
+            ) from None
     samples = [row_sample(row, testcase.ego.length) for row in rows]
     if len(samples) < 2:
         verdict = _failed(testcase, controller, error or "the ego never moved in SUMO")

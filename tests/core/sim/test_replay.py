@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 
 from service.core.checker.check import Judge
-from service.core.errors import InvalidInput, InvalidTestCase
+from service.core.errors import BudgetExceeded, InvalidInput, InvalidTestCase
 from service.core.export.bundle import export_bundle
 from service.core.generator.chain import candidate_routes
 from service.core.generator.extension import extend_testcase
@@ -115,18 +115,23 @@ def test_a_controller_that_raises_fails_with_the_error(
     assert "ZeroDivisionError" in verdict.reasons[0]
 
 
-def test_a_controller_that_hangs_is_stopped_at_the_budget(
+def test_a_controller_that_hangs_is_stopped_at_the_budget_without_a_verdict(
     y_new: TestCase, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """The budget is the caller's limit: running out of it is an error, not a FAIL."""
     _write(
         tmp_path,
         "stuck",
         "class Stuck:\n    def step(self, obs):\n        while True:\n            pass\n",
     )
     monkeypatch.chdir(tmp_path)
-    verdict = evaluate(y_new, "stuck:Stuck", budget=3.0).verdict
-    assert not verdict.passed
-    assert "budget" in verdict.reasons[0]
+    with pytest.raises(BudgetExceeded, match=r"budget of 3 s .*no verdict on stuck:Stuck"):
+        evaluate(y_new, "stuck:Stuck", budget=3.0)
+
+
+def test_a_budget_too_small_for_sumo_is_an_error_not_a_fail(four_way_start: TestCase) -> None:
+    with pytest.raises(BudgetExceeded, match=r"budget of 0.01 s .*no verdict on sumo"):
+        evaluate(four_way_start, "sumo", budget=0.01)
 
 
 def test_a_missing_user_module_fails_with_its_name(y_new: TestCase) -> None:
