@@ -1,6 +1,9 @@
 """Schemathesis hooks of the fuzz test: after every request the server must still answer
 ``/healthz`` (a request that wedges the event loop, kills the database or the worker pool
-fails here, not only its own check).
+fails here, not only its own check); and no schema-valid request is refused by the server's
+own request validation (``invalid-request``): where schemathesis.toml lets an operation
+answer a schema-valid request with 422 (it names something this server does not have),
+the 422 must say so, not that the request is malformed.
 
 Also a mend of the fuzzer's own process: on CPython 3.11, two threads in ``ast.parse`` at
 once can corrupt the interpreter's AST recursion counter (a garbage collection inside one
@@ -14,6 +17,7 @@ judged. Parsing one at a time removes the race; the server is not touched.
 from __future__ import annotations
 
 import ast
+import json
 import os
 import threading
 from typing import Any
@@ -45,3 +49,29 @@ def server_stays_healthy(ctx: Any, response: Any, case: Any) -> bool:
     if answer.status_code != 200:
         raise AssertionError(f"/healthz answered {answer.status_code} after this request")
     return True
+
+
+@schemathesis.check
+def schema_as_strict_as_the_server(ctx: Any, response: Any, case: Any) -> bool | None:
+    meta = case.meta
+    if meta is None or not meta.generation.mode.is_positive:
+        return None
+    if response.status_code not in (400, 422):
+        return None
+    try:
+        kind = json.loads(response.text).get("type")
+    except ValueError:
+        kind = None
+    if kind in ("/problems/invalid-request", "/problems/malformed-request") and not _is_upload(
+        case
+    ):
+        raise AssertionError(
+            f"a schema-valid request was refused as {kind}: the schema is looser than the "
+            f"server ({response.text[:500]})"
+        )
+    return None
+
+
+def _is_upload(case: Any) -> bool:
+    """An upload's file is XML that no schema describes: not well-formed is a 400 there."""
+    return bool(case.operation.method.upper() == "POST" and case.operation.path == "/networks")
