@@ -6,7 +6,8 @@ server holds requests to at run time. Each server serves the document of its set
   deleting when ``SCENGEN_API_TOKEN`` is set, on every operation but ``PUBLIC`` with
   ``SCENGEN_PROTECT_READS`` too, nowhere without a token (there is nothing to send);
 - its largest budget (``SCENGEN_MAX_BUDGET``) as the budgets' maximum;
-- its installed controllers as the controller names' enum;
+- its installed controllers as the controller names' enum (a campaign's without the
+  certificates, which an ego-only start has not);
 - a body that takes a test-case inline or by id as one of two schemas, each with its one
   required base (a generator makes them two types; "neither" and "both" are refused);
 - files as what they are: an upload's ``file`` and every body that is not JSON are binary
@@ -36,6 +37,7 @@ def tighten(schema: dict[str, Any], settings: Settings) -> None:
         _binary_files(model)
         _budget_limits(model, settings.max_budget)
     _controller_choices(schema, components, controller_names())
+    _batch_rules(components)
     for body in ONE_BASE:
         if body in components:
             _one_base_of(components, body)
@@ -85,9 +87,14 @@ def _controller_choices(
     choice = {"type": "string", "enum": names}
     if "EvaluationCreate" in components:
         components["EvaluationCreate"]["properties"]["controller"].update(choice)
-    for item in ("EvaluateItem", "CampaignItem"):
-        if item in components:
-            components[item]["properties"]["controllers"]["items"] = dict(choice)
+    if "EvaluateItem" in components:
+        components["EvaluateItem"]["properties"]["controllers"]["items"] = dict(choice)
+    if "CampaignItem" in components:  # a campaign starts ego-only: nothing to replay
+        drivers = [name for name in names if not name.startswith("certificate:")]
+        components["CampaignItem"]["properties"]["controllers"]["items"] = {
+            "type": "string",
+            "enum": drivers,
+        }
     for operation in _operations(schema):
         for parameter in operation.get("parameters", []):
             if parameter["name"] == "controller" and parameter["in"] == "query":
@@ -131,3 +138,28 @@ def _one_base_of(components: dict[str, Any], name: str) -> None:
         }
         variants.append({"$ref": f"#/components/schemas/{name}{suffix}"})
     components[name] = {"title": name, "description": model["description"], "oneOf": variants}
+
+
+RULES_ACROSS_FIELDS = {  # what the models check that JSON Schema cannot say: in words
+    "Params": "v_stop < v_run < v_max.",
+    "ExtendItem": "Exactly one of testcase_id, testcase and after.",
+    "ChainItem": "Exactly one of testcase_id, testcase and after; of steps and levels.",
+    "EvaluateItem": "Exactly one of testcase_id, testcase and items.",
+    "CampaignItem": "Exactly one of egos and all_egos: true.",
+    "Batch": "An item refers only to earlier items, and only to those that make test-cases.",
+}
+
+
+def _batch_rules(components: dict[str, Any]) -> None:
+    """What the batch's items hold a list to (a campaign's egos each once, a chain's steps
+    each with a route), and the rules across fields in the models' descriptions."""
+    for name, rule in RULES_ACROSS_FIELDS.items():
+        if name in components:
+            described = components[name].get("description", "").rstrip()
+            components[name]["description"] = f"{described} {rule}".strip()
+    if "CampaignItem" in components:
+        egos = components["CampaignItem"]["properties"]["egos"]["anyOf"][0]
+        egos["uniqueItems"] = True
+    if "ChainItem" in components:
+        steps = components["ChainItem"]["properties"]["steps"]["anyOf"][0]
+        steps["items"]["minItems"] = 1
