@@ -106,6 +106,7 @@ class _Answer:
 
     async def send(self, message: MutableMapping[str, Any]) -> None:
         if message["type"] == "http.response.start":
+            message.setdefault("headers", [])  # optional in ASGI
             headers = MutableHeaders(scope=message)
             for name, value in FIXED_HEADERS.items():
                 headers.setdefault(name, value)
@@ -116,7 +117,11 @@ class _Answer:
             else:
                 self._start = message  # sent with the whole page
             return
-        if message["type"] != "http.response.body":
+        if message["type"] != "http.response.body":  # a file sent by the server itself
+            if self._start is not None:  # (pathsend): a page whose inline scripts are unseen
+                MutableHeaders(scope=self._start)["content-security-policy"] = page_policy(b"")
+                await self._send(self._start)
+                self._start = None
             await self._send(message)
             return
         if self._start is not None:
