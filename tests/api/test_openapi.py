@@ -87,6 +87,7 @@ def test_the_token_is_required_where_listed_never_optional() -> None:
 def test_enums_and_patterns_are_the_servers() -> None:
     from service.api.routes.jobs import STATES
     from service.core.sim.controllers import controller_names
+    from service.jobs.store import FINISHED
 
     schema = json.loads(openapi_document())
     components = schema["components"]["schemas"]
@@ -96,6 +97,7 @@ def test_enums_and_patterns_are_the_servers() -> None:
         found: dict[str, Any] = next(p for p in parameters if p["name"] == name)["schema"]
         return found
 
+    assert ("queued", "running", *FINISHED) == STATES
     assert query("/jobs", "get", "state")["anyOf"][0]["enum"] == list(STATES)
     for path in ("/testcases/{testcase}/plot", "/networks/{network}/junctions/{junction}/plot"):
         assert query(path, "get", "format")["enum"] == ["png", "svg"]
