@@ -8,7 +8,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, field_validator
+from pydantic import Field, field_validator, model_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 from service.core.budget import DEFAULT_MEMORY_MB
@@ -47,6 +47,11 @@ class Settings(BaseSettings):
     max_budget: float = Field(600.0, gt=0, description="largest budget a request may ask for (s)")
     work_budget: float = Field(120.0, gt=0, description="budget of uploads, pictures, bundles (s)")
     api_token: str = Field("", description="when set, creating or deleting needs this bearer token")
+    protect_reads: bool = Field(
+        False,
+        description="with api_token: reads and the results browser need the token too "
+        "(all but /healthz and the API's docs)",
+    )
     max_upload_mb: float = Field(20.0, gt=0, description="largest request body (MB)")
     max_samples: int = Field(
         MAX_SAMPLES,
@@ -89,6 +94,14 @@ class Settings(BaseSettings):
                 "(SUMO, clingo, z3, numpy); 0 turns the cap off"
             )
         return value
+
+    @model_validator(mode="after")
+    def _reads_need_a_token(self) -> Settings:
+        if self.protect_reads and not self.api_token:
+            raise ValueError(
+                "SCENGEN_PROTECT_READS needs SCENGEN_API_TOKEN: there is no token to ask for"
+            )
+        return self
 
     @property
     def database(self) -> str:

@@ -23,6 +23,8 @@ from fastapi.responses import HTMLResponse, RedirectResponse
 from fastapi.routing import APIRoute
 from fastapi.staticfiles import StaticFiles
 
+from service.api.document import tighten
+from service.api.edge import Edge
 from service.api.problems import (
     HTTP,
     STATUS_DESCRIPTIONS,
@@ -56,6 +58,7 @@ download **/testcases/{id}/bundle** to run any ego controller in SUMO, and judge
 **POST /evaluations**. Errors are `application/problem+json`; `GET /problems` lists them.
 """
 
+EXAMPLE_BUDGET = 60  # s: the /extend example's, or the server's largest if that is smaller
 ROUTE_MODULES = (extend, testcases, networks, evaluations, jobs, health)
 KNOWN_METHODS = ("GET", "HEAD", "POST", "PUT", "PATCH", "DELETE", "OPTIONS")
 ASGIApp = Callable[
@@ -115,7 +118,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     _serve_ui(app)
     app.middleware("http")(_count_requests)
     app.add_middleware(BodyLimit, limit=chosen.max_upload_bytes, token=chosen.api_token)
-    app.openapi = lambda: _openapi(app)  # type: ignore[method-assign]
+    app.add_middleware(Edge, token=chosen.api_token, protect_reads=chosen.protect_reads)
+    app.openapi = lambda: _openapi(app, chosen)  # type: ignore[method-assign]
     return app
 
 
@@ -286,8 +290,9 @@ def _offline_redoc() -> bytes:
 REDOC_LOGO = b"https://cdn.redoc.ly/redoc/logo-mini.svg"
 
 
-def _openapi(app: FastAPI) -> dict[str, Any]:
-    """The schema, with request examples that work as they stand (built once)."""
+def _openapi(app: FastAPI, settings: Settings) -> dict[str, Any]:
+    """The schema of this server (its token, limits and controllers: api.document), with
+    request examples that work as they stand (built once)."""
     if app.openapi_schema is None:
         schema = get_openapi(
             title=app.title,
@@ -295,7 +300,8 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
             description=app.description,
             routes=app.routes,
         )
-        _add_examples(schema)
+        tighten(schema, settings)
+        _add_examples(schema, settings)
         _add_parameter_examples(schema)
         _document_problems(schema, [r for m in ROUTE_MODULES for r in m.router.routes])
         _drop_repeated_descriptions(schema)
@@ -303,7 +309,7 @@ def _openapi(app: FastAPI) -> dict[str, Any]:
     return app.openapi_schema
 
 
-def _add_examples(schema: dict[str, Any]) -> None:
+def _add_examples(schema: dict[str, Any], settings: Settings) -> None:
     testcase = example_testcase()
     bodies = {
         ("/extend", "post"): {
@@ -313,7 +319,7 @@ def _add_examples(schema: dict[str, Any]) -> None:
                     "testcase": testcase,
                     "routes": [EXAMPLE_NEW_ROUTE],
                     "seed": 0,
-                    "budget": 60,
+                    "budget": min(EXAMPLE_BUDGET, settings.max_budget),
                 },
             }
         },
@@ -364,8 +370,6 @@ def _document_problems(schema: dict[str, Any], routes: list[Any]) -> None:
             for code, response in responses.items():
                 if code.startswith(("4", "5")):
                     response["content"] = reference
-            if "security" in operation:  # a token is needed only when the server has one
-                operation["security"] = [*operation["security"], {}]
             operation["responses"] = dict(sorted(responses.items()))
 
 

@@ -13,7 +13,10 @@ import json
 import secrets
 from collections.abc import Awaitable, Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any
+
+from fastapi import Query
+from pydantic import WithJsonSchema
 
 from service.api.problems import Problem
 
@@ -21,23 +24,33 @@ if TYPE_CHECKING:
     from service.api.state import AppState
 
 PICTURES = {"png": "image/png", "svg": "image/svg+xml"}
+BINARY = {"type": "string", "format": "binary"}  # a file: generated clients keep its bytes
 IMAGE_RESPONSES: dict[int | str, dict[str, Any]] = {
     200: {
-        "content": {
-            "image/png": {"schema": {"type": "string", "format": "binary"}},
-            "image/svg+xml": {"schema": {"type": "string"}},
-        },
+        "content": {"image/png": {"schema": BINARY}, "image/svg+xml": {"schema": BINARY}},
         "description": "the picture",
     }
 }
+# The schema names the values the server takes; any other is 406 naming them (a format
+# is a representation asked for, like Accept), not a validation error.
+PictureFormat = Annotated[
+    str | None,
+    WithJsonSchema({"type": "string", "enum": list(PICTURES)}),
+    Query(description="png or svg (default: by Accept)"),
+]
+VerdictFormat = Annotated[
+    str | None,
+    WithJsonSchema({"type": "string", "enum": ["json", "junit"]}),
+    Query(description="json or junit (default: by Accept)"),
+]
 
 
 def picture_format(requested: str | None, accept: str | None) -> tuple[str, str]:
     """(suffix, media type): the query parameter wins, then Accept, then PNG."""
     if requested is not None:
-        if requested.lower() not in PICTURES:
+        if requested not in PICTURES:
             raise Problem(406, f"format {requested!r} is not offered; valid choices: png, svg")
-        return requested.lower(), PICTURES[requested.lower()]
+        return requested, PICTURES[requested]
     wanted = (accept or "").lower()
     if "image/svg+xml" in wanted and "image/png" not in wanted:
         return "svg", PICTURES["svg"]

@@ -10,11 +10,19 @@ from service.api.app import create_app
 from service.settings import Settings
 
 COMMITTED = Path(__file__).resolve().parents[2] / "openapi" / "openapi.json"
+# The committed document is that of a server with a token (writes need it), public reads,
+# and the default limits, whatever this machine's SCENGEN_* variables say; each server
+# serves its own at /openapi.json.
+COMMITTED_SETTINGS = Settings(
+    api_token="a token is set",
+    protect_reads=False,
+    max_budget=Settings.model_fields["max_budget"].default,
+)
 
 
 def openapi_document() -> str:
     """The app's OpenAPI document, formatted for clean diffs."""
-    schema = create_app(Settings()).openapi()
+    schema = create_app(COMMITTED_SETTINGS).openapi()
     return json.dumps(schema, indent=2, ensure_ascii=False) + "\n"
 
 

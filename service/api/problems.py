@@ -290,6 +290,8 @@ def _allowed_methods(request: Request) -> list[str]:
         pattern = re.sub(r"\\\{[^/]+?\\\}", "[^/]+", re.escape(template))
         if re.fullmatch(pattern, path):
             methods |= {m.upper() for m in operations if m in HTTP_METHODS}
+    if "GET" in methods:
+        methods.add("HEAD")  # answered as GET without the body (api.edge)
     return sorted(methods)
 
 

@@ -6,9 +6,16 @@ from __future__ import annotations
 import json
 from datetime import datetime
 from functools import lru_cache
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    StringConstraints,
+    field_validator,
+    model_validator,
+)
 
 from service.core.network import ControlType
 from service.core.testcase import (
@@ -44,6 +51,24 @@ def example_testcase() -> dict[str, Any]:
 
 
 MAX_OFFSET = 10**12  # pagination offsets: far beyond any store, well inside SQL's integers
+
+# A route is "fork lane id:exit lane id": a lane id of a road is never empty and never starts
+# with ':' (SUMO keeps that for a junction's internal lanes); the first ':' splits the two.
+ROUTE_PATTERN = r"^[^:]+:[^:].*$"
+RouteText = Annotated[
+    str,
+    StringConstraints(pattern=ROUTE_PATTERN, max_length=2000),
+    Field(description="fork lane id:exit lane id, from the junction's routes"),
+]
+Ident = Annotated[str, StringConstraints(min_length=1, max_length=2000)]
+
+
+def no_null_base(value: Any) -> Any:
+    """A base left out is absent; sent as null it is refused, as the schema says (one of
+    the two, an object or an id, never null)."""
+    if value is None:
+        raise ValueError("leave it out rather than send null")
+    return value
 
 
 class _Body(BaseModel):
@@ -88,9 +113,9 @@ class TestCaseCreate(_Body):
         extra="forbid",
         json_schema_extra={"examples": [{"network": EXAMPLE_NETWORK, "ego_route": EXAMPLE_EGO}]},
     )
-    network: str = Field(description="a network id from GET /networks")
-    ego_route: str = Field(description="fork lane id : exit lane id, from the junction's routes")
-    junction: str | None = Field(None, description="default: the network's only supported one")
+    network: Ident = Field(description="a network id from GET /networks")
+    ego_route: RouteText = Field(description="fork lane id:exit lane id, a route of the junction")
+    junction: Ident | None = Field(None, description="default: the network's only supported one")
     control: ControlType | None = Field(
         None,
         strict=False,
@@ -164,11 +189,13 @@ class ExtendRequest(_Body):
     """Extend a test-case (inline, or stored by id) with new cars on `routes`."""
 
     testcase: dict[str, Any] | None = Field(None, description="the old test-case document")
-    testcase_id: str | None = Field(None, description="or the id of a stored test-case")
-    routes: list[str] = Field(min_length=1, max_length=6, description="one new car per route")
+    testcase_id: Ident | None = Field(None, description="or the id of a stored test-case")
+    routes: list[RouteText] = Field(min_length=1, max_length=6, description="one new car per route")
     seed: int = Field(0, ge=0, le=MAX_SEED, description="same seed, same bytes")
     budget: float | None = Field(None, gt=0, description="seconds (default SCENGEN_EXTEND_BUDGET)")
     start_distance: StartDistancesField = Field(None, description=START_DISTANCES)
+
+    _no_null = field_validator("testcase", "testcase_id", mode="before")(no_null_base)
 
     @model_validator(mode="after")
     def _one_base(self) -> ExtendRequest:
@@ -187,16 +214,14 @@ class ExtensionPublic(TestCasePublic):
 class EvaluationCreate(_Body):
     """Drive a controller through a test-case in SUMO and judge it."""
 
-    model_config = ConfigDict(
-        extra="forbid",
-        json_schema_extra={"examples": [{"testcase": None, "controller": "sumo"}]},
-    )
-    testcase_id: str | None = Field(None, description="a stored test-case")
+    testcase_id: Ident | None = Field(None, description="a stored test-case")
     testcase: dict[str, Any] | None = Field(None, description="or an inline test-case")
-    controller: str = Field("sumo", description="a name from GET /controllers")
+    controller: Ident = Field("sumo", description="a name from GET /controllers")
     budget: float | None = Field(
         None, gt=0, description="seconds (default SCENGEN_EVALUATE_BUDGET)"
     )
+
+    _no_null = field_validator("testcase", "testcase_id", mode="before")(no_null_base)
 
     @model_validator(mode="after")
     def _one_base(self) -> EvaluationCreate:

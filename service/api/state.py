@@ -130,7 +130,12 @@ State = Annotated[AppState, Depends(get_state)]
 
 # Declares the scheme in the OpenAPI document; the token itself is read by token_matches,
 # the one parser that the body-limit middleware and the routes share.
-_bearer = HTTPBearer(auto_error=False, description="the server's SCENGEN_API_TOKEN, if set")
+_bearer = HTTPBearer(
+    auto_error=False,
+    description="the server's SCENGEN_API_TOKEN: an operation that lists it needs it. A "
+    "server serves the document of its settings at /openapi.json: without a token no "
+    "operation lists it, with SCENGEN_PROTECT_READS every one but /healthz does",
+)
 
 
 def token_matches(headers: Iterable[tuple[bytes, bytes]], expected: str) -> bool:

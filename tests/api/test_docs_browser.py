@@ -38,7 +38,8 @@ def chromium() -> str:
 
 @contextmanager
 def opened_page() -> Iterator[tuple[Page, list[str], list[str]]]:
-    """A page in headless Chromium, the URLs it requested and its script errors so far."""
+    """A page in headless Chromium, the URLs it requested and its script errors so far
+    (with what the Content-Security-Policy blocked)."""
     SCREENSHOTS.mkdir(parents=True, exist_ok=True)
     requested: list[str] = []
     errors: list[str] = []
@@ -48,6 +49,13 @@ def opened_page() -> Iterator[tuple[Page, list[str], list[str]]]:
         opened = context.new_page()
         opened.on("request", lambda request: requested.append(request.url))
         opened.on("pageerror", lambda error: errors.append(str(error)))
+        # what the Content-Security-Policy blocked (Chromium says so on the console)
+        opened.on(
+            "console",
+            lambda message: (
+                errors.append(message.text) if "Content Security Policy" in message.text else None
+            ),
+        )
         try:
             yield opened, requested, errors
         finally:
@@ -56,8 +64,9 @@ def opened_page() -> Iterator[tuple[Page, list[str], list[str]]]:
 
 @pytest.fixture(scope="module")
 def page(server: Server) -> Iterator[tuple[Page, list[str]]]:
-    with opened_page() as (opened, requested, _):
+    with opened_page() as (opened, requested, errors):
         yield opened, requested
+    assert [e for e in errors if "Content Security Policy" in e] == []  # the docs run as sent
 
 
 def external(server: Server, requested: list[str]) -> list[str]:

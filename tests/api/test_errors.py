@@ -376,11 +376,11 @@ def test_bad_parameters_and_seeds_are_422_not_worker_failures(client: TestClient
 def test_method_not_allowed_says_which_are(client: TestClient) -> None:
     reply = client.put("/networks")
     body = assert_problem(reply, 405, "method-not-allowed", "PUT")
-    assert reply.headers["allow"] == "GET, POST" and body["status"] == 405
+    assert reply.headers["allow"] == "GET, HEAD, POST" and body["status"] == 405
     # every method of the path, not only the first route's (GET said Allow: GET alone)
     reply = client.put("/testcases/0123456789abcdef")
-    assert_problem(reply, 405, "method-not-allowed", "it has DELETE, GET")
-    assert reply.headers["allow"] == "DELETE, GET"
+    assert_problem(reply, 405, "method-not-allowed", "it has DELETE, GET, HEAD")
+    assert reply.headers["allow"] == "DELETE, GET, HEAD"
 
 
 def test_a_browser_gets_evaluations_as_json() -> None:

@@ -21,11 +21,13 @@ ROOT = Path(__file__).parents[2]
 
 
 def shell_blocks() -> list[str]:
-    """The ```sh blocks of the README's HTTP section, in order."""
+    """The ```sh blocks of the README's HTTP section that are marked to run against a
+    server (``curl-example``, ``readme: server``), in order."""
     text = (ROOT / "README.md").read_text()
     section = text[text.index("## HTTP service") :]
     section = section[: section.index("\n## ", 3)]
-    return re.findall(r"```sh\n(.*?)```", section, flags=re.S)
+    marked = re.findall(r"(<!--[^\n]*-->)\n```sh\n(.*?)```", section, flags=re.S)
+    return [block for marker, block in marked if "readme: not run" not in marker]
 
 
 def run_block(block: str, server: Server, cwd: Path) -> None:

@@ -300,3 +300,20 @@ def test_the_report_works_from_a_file_offline(
     page.wait_for_selector("#time-distance")
     page.screenshot(path=str(SCREENSHOTS / "ui-report.png"))
     assert [url for url in loaded if not url.startswith(("file:", "data:", "blob:"))] == []
+
+
+def test_the_served_report_runs_under_its_content_security_policy(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    """Served, the report's inline script and data run by their hashes and nothing else
+    would (a violation is a script error of the page: browser_page fails on it)."""
+    server, job, _ = served
+    page, _ = browser_page
+    answer = server.client.get(f"/jobs/{job}/campaign/report")
+    policy = answer.headers["content-security-policy"]
+    scripts = next(d for d in policy.split(";") if d.strip().startswith("script-src"))
+    assert scripts.count("'sha256-") == 2 and "unsafe" not in scripts, policy
+    assert answer.headers["x-frame-options"] == "DENY"
+    page.goto(f"{server.url}/jobs/{job}/campaign/report")
+    page.wait_for_selector("#verdict-matrix")
+    assert page.locator("#verdict-matrix a").count() > 0

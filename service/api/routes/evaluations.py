@@ -10,7 +10,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Request, Response, status
 
 from service.api.bodies import OffLoopValidation
-from service.api.media import wants_junit
+from service.api.media import BINARY, VerdictFormat, wants_junit
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import evaluation_public
 from service.api.routes.testcases import check_controller
@@ -28,14 +28,18 @@ from service.jobs import tasks
 from service.store import DRIVE_COLUMNS, EvaluationRecord, TestCaseRecord
 
 router = APIRouter(tags=["evaluations"], route_class=OffLoopValidation)
-VerdictFormat = Annotated[str | None, Query(description="json or junit (default: by Accept)")]
 JUNIT = "application/xml"
-JUNIT_RESPONSE: dict[int | str, dict[str, Any]] = {
-    200: {
-        "content": {"application/json": {}, JUNIT: {"schema": {"type": "string"}}},
-        "description": "the evaluation; JUnit XML with Accept: application/xml or ?format=junit",
+
+
+def junit_response(status: int) -> dict[int | str, dict[str, Any]]:
+    """The evaluation as JSON (the response model), or as JUnit XML when asked."""
+    return {
+        status: {
+            "content": {"application/json": {}, JUNIT: {"schema": BINARY}},
+            "description": "the evaluation; JUnit XML with Accept: application/xml or "
+            "?format=junit",
+        }
     }
-}
 
 
 def _answer(record: EvaluationRecord, junit: bool) -> Response:
@@ -60,7 +64,7 @@ async def list_controllers() -> list[Controller]:
     status_code=status.HTTP_201_CREATED,
     dependencies=[Token],
     response_model=EvaluationPublic,
-    responses={**JUNIT_RESPONSE, **documented(406, *WORK_PROBLEMS)},
+    responses={**junit_response(201), **documented(406, *WORK_PROBLEMS)},
 )
 async def create_evaluation(
     state: State,
@@ -129,7 +133,7 @@ async def list_evaluations(
     "/evaluations/{evaluation}",
     operation_id="get_evaluation",
     response_model=EvaluationPublic,
-    responses={**JUNIT_RESPONSE, **documented(406)},
+    responses={**junit_response(200), **documented(406)},
 )
 async def get_evaluation(
     state: State,

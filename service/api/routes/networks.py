@@ -8,16 +8,17 @@ import json
 import time
 from pathlib import Path
 from typing import Annotated, Any
+from urllib.parse import quote
 
 from defusedxml import ElementTree as SafeElementTree
 from defusedxml.common import DefusedXmlException
 from fastapi import APIRouter, File, Form, Query, Request, Response, UploadFile, status
 from fastapi.responses import JSONResponse
 
-from service.api.media import IMAGE_RESPONSES, cached, picture_format
+from service.api.media import IMAGE_RESPONSES, PictureFormat, cached, picture_format
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import network_public
-from service.api.schemas import JunctionSummary, Links, NetworkPublic
+from service.api.schemas import JunctionSummary, Links, NetworkPublic, RouteText
 from service.api.state import AppState, State, Token
 from service.core.errors import InvalidInput, UnknownJunction
 from service.core.network import ControlType
@@ -189,8 +190,8 @@ async def list_junctions(state: State, network: str) -> list[JunctionSummary]:
             supported=record.controls.get(item["id"], item["type"]) in supported,
             approaches=item["approaches"],
             links=Links(
-                self=f"/networks/{record.id}/junctions/{item['id']}",
-                plot=f"/networks/{record.id}/junctions/{item['id']}/plot",
+                self=f"/networks/{record.id}/junctions/{quote(item['id'], safe='')}",
+                plot=f"/networks/{record.id}/junctions/{quote(item['id'], safe='')}/plot",
             ),
         )
         for item in found
@@ -229,8 +230,8 @@ async def plot_junction(
     request: Request,
     network: str,
     junction: str,
-    route: Annotated[list[str], Query(description="routes to highlight (fork:exit)")] = [],  # noqa: B006
-    format: Annotated[str | None, Query(description="png or svg (default: by Accept)")] = None,
+    route: Annotated[list[RouteText], Query(description="routes to highlight")] = [],  # noqa: B006
+    format: PictureFormat = None,
 ) -> Response:
     """A picture of the junction: connecting lanes by turn, forks, highlighted routes."""
     record = state.network_or_404(network)
@@ -350,3 +351,22 @@ def _check_xml(content: bytes, kind: str | None = None) -> None:
         )
     if kind is None and (root.find("junction") is None or root.find("edge") is None):
         raise InvalidInput("the SUMO <net> has no junctions or edges")
+    if kind is None:
+        _check_junction_ids(root)
+
+
+def _check_junction_ids(root: Any) -> None:
+    """A junction id is one segment of the junction's URL (/networks/{id}/junctions/{j}):
+    a '/' in it would make the junction's own links point elsewhere."""
+    slashed = [
+        junction.get("id", "")
+        for junction in root.iterfind("junction")
+        if junction.get("type") != "internal" and "/" in junction.get("id", "")
+    ]
+    if slashed:
+        shown = ", ".join(repr(ident[:80]) for ident in slashed[:5])
+        more = f" and {len(slashed) - 5} more" if len(slashed) > 5 else ""
+        raise InvalidInput(
+            f"junction ids may not contain '/' (a junction's id is a segment of its URL): "
+            f"{shown}{more}; rename them in the network (netconvert keeps the ids it is given)"
+        )

@@ -11,7 +11,7 @@ from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.responses import JSONResponse
 
 from service.api.bodies import OffLoopValidation
-from service.api.media import IMAGE_RESPONSES, cached, picture_format
+from service.api.media import IMAGE_RESPONSES, PictureFormat, cached, picture_format
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import testcase_public, testcase_summary
 from service.api.schemas import (
@@ -235,7 +235,7 @@ async def plot_testcase(
     state: State,
     request: Request,
     testcase: str,
-    format: Annotated[str | None, Query(description="png or svg (default: by Accept)")] = None,
+    format: PictureFormat = None,
     controller: Annotated[
         str | None, Query(description="also replay this controller and show its verdict")
     ] = None,
