@@ -71,14 +71,14 @@ def test_stored_network_is_read_from_the_first_lines() -> None:
 
 
 def test_testcase_body_is_the_public_record() -> None:
-    stored = stored_form(parse_testcase(_document("a \": b")))
+    stored = stored_form(parse_testcase(_document('a ": b')))
     record = store.TestCaseRecord(
         id=stored.id, network=stored.network.ref, junction=stored.junction, parent="p",
         name=stored.name, nonegos=stored.nonegos, document=stored.document,
         created_at=datetime(2026, 12, 4, tzinfo=UTC), level=stored.level,
         duration=stored.duration,
     )  # fmt: skip
-    body = documents.testcase_body(record)
+    body = b"".join(documents.testcase_body(record))
     model = public.testcase_public(record)
     assert json.loads(body) == json.loads(model.model_dump_json())
     assert list(json.loads(body)) == list(model.model_dump())

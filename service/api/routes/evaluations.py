@@ -12,7 +12,7 @@ from fastapi import APIRouter, Query, Request, Response, status
 
 from service.api import worker
 from service.api.bodies import OffLoopValidation, stored_inline
-from service.api.documents import stored_network
+from service.api.documents import document_thread, stored_network
 from service.api.media import wants_junit
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import evaluation_public
@@ -88,7 +88,7 @@ async def create_evaluation(
         network = stored_network(record.document)
         return record.id, record.document, state.store.network_file_of(network)
 
-    testcase, document, network_file = await asyncio.to_thread(base)
+    testcase, document, network_file = await document_thread(base)
     result = await state.run(
         "evaluate",
         worker.evaluate,

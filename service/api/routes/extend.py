@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import asyncio
 import time
 from pathlib import Path
 from typing import Any
@@ -12,7 +11,7 @@ from pydantic import BaseModel
 
 from service.api import worker
 from service.api.bodies import OffLoopValidation, stored_inline
-from service.api.documents import stored_network, testcase_body
+from service.api.documents import document_thread, stored_network, streamed, testcase_body
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.schemas import Attempt, ExtendRequest, ExtensionPublic
 from service.api.state import AppState, State, Token
@@ -46,7 +45,7 @@ async def extend_testcase(state: State, body: ExtendRequest) -> Response:
             422,
             f"budget {budget:g} s exceeds the server's limit of {state.settings.max_budget:g} s",
         )
-    old, document, network_file = await asyncio.to_thread(_base, state, body)
+    old, document, network_file = await document_thread(_base, state, body)
     result = await state.run(
         "extend",
         worker.extend,
@@ -65,7 +64,7 @@ async def extend_testcase(state: State, body: ExtendRequest) -> Response:
         started,
         GRACE,
     )
-    return await asyncio.to_thread(_store, state, old, result)
+    return await document_thread(_store, state, old, result)
 
 
 class _Tail(BaseModel):
@@ -93,9 +92,5 @@ def _store(state: AppState, old: str, result: dict[str, Any]) -> Response:
         attempts=[Attempt(**a) for a in result["attempts"]],
         seconds=result["seconds"],
     )
-    return Response(
-        testcase_body(record, tail),
-        status.HTTP_201_CREATED,
-        {"Location": f"/testcases/{record.id}"},
-        media_type="application/json",
-    )
+    location = {"Location": f"/testcases/{record.id}"}
+    return streamed(testcase_body(record, tail), status.HTTP_201_CREATED, location)

@@ -10,7 +10,7 @@ from fastapi import APIRouter, Header, Query, Response, status
 from fastapi.responses import Response as PlainResponse
 
 from service.api.bodies import OffLoopValidation
-from service.api.documents import stored_network
+from service.api.documents import document_thread, stored_network
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import job_public, store_fetch
 from service.api.routes.networks import junction_geometry
@@ -238,7 +238,7 @@ async def _zip_of(state: State, job: str, flavour: str | None, filename: str) ->
             for r in records
         ]
 
-    listed = await asyncio.to_thread(made_by)
+    listed = await document_thread(made_by)
     content = await state.run(
         "bundles" if flavour is None else "openscenario", tasks.bundles,
         (listed, state.cache_dir, flavour), state.settings.work_budget, time.monotonic(),

@@ -12,7 +12,13 @@ from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.responses import FileResponse, JSONResponse
 
 from service.api.bodies import OffLoopValidation
-from service.api.documents import stored_network, testcase_body
+from service.api.documents import (
+    document_thread,
+    pieces_of,
+    stored_network,
+    streamed,
+    testcase_body,
+)
 from service.api.media import IMAGE_RESPONSES, cached_file, picture_format
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import testcase_summary
@@ -67,14 +73,10 @@ async def create_testcase(state: State, body: TestCaseCreate) -> Response:
 
     def stored() -> Response:
         record = state.store.add_testcase(parse_testcase(document))
-        return Response(
-            testcase_body(record),
-            status.HTTP_201_CREATED,
-            {"Location": f"/testcases/{record.id}"},
-            media_type="application/json",
-        )
+        location = {"Location": f"/testcases/{record.id}"}
+        return streamed(testcase_body(record), status.HTTP_201_CREATED, location)
 
-    return await asyncio.to_thread(stored)
+    return await document_thread(stored)
 
 
 @router.get("", operation_id="list_testcases")
@@ -116,10 +118,9 @@ async def get_testcase(state: State, testcase: str) -> Response:
     """One test-case with its document and links."""
 
     def answer() -> Response:
-        body = testcase_body(state.testcase_or_404(testcase))
-        return Response(body, media_type="application/json")
+        return streamed(testcase_body(state.testcase_or_404(testcase)))
 
-    return await asyncio.to_thread(answer)
+    return await document_thread(answer)
 
 
 @router.get(
@@ -133,13 +134,10 @@ async def get_testcase_document(state: State, testcase: str) -> Response:
 
     def answer() -> Response:
         record = state.testcase_or_404(testcase)
-        return Response(
-            record.document.encode(),
-            media_type="application/json",
-            headers={"Content-Disposition": f'attachment; filename="{record.id}.json"'},
-        )
+        disposition = {"Content-Disposition": f'attachment; filename="{record.id}.json"'}
+        return streamed(pieces_of(record.document), headers=disposition)
 
-    return await asyncio.to_thread(answer)
+    return await document_thread(answer)
 
 
 @router.delete(
@@ -231,7 +229,7 @@ async def _export(state: State, testcase: str, flavour: str | None) -> Response:
     name = f"{record.id}.zip" if flavour is None else f"{record.id}-openscenario.zip"
 
     async def work() -> bytes:
-        document, network_file = await asyncio.to_thread(document_and_network, state, testcase)
+        document, network_file = await document_thread(document_and_network, state, testcase)
         args: tuple[Any, ...] = (document, network_file, state.cache_dir)
         function: Callable[..., bytes] = tasks.bundle
         if flavour is not None:
@@ -287,7 +285,7 @@ async def plot_testcase(
     budget = state.settings.work_budget + (state.settings.evaluate_budget if controller else 0)
 
     async def work() -> bytes:
-        document, network_file = await asyncio.to_thread(document_and_network, state, testcase)
+        document, network_file = await document_thread(document_and_network, state, testcase)
         content: bytes = await state.run(
             "plot",
             tasks.plot_testcase,
