@@ -104,11 +104,13 @@ _MAKING: dict[Path, asyncio.Future[Path]] = {}  # artifacts being produced, by t
 
 async def _produce(path: Path, produce: Callable[[], Awaitable[Any]], json_cache: bool) -> Path:
     value = await produce()
-    await asyncio.to_thread(_write, path, json.dumps(value).encode() if json_cache else value)
+    content = json.dumps(value).encode() if json_cache else value
+    await asyncio.to_thread(write_atomically, path, content)
     return path
 
 
-def _write(path: Path, content: bytes) -> None:
+def write_atomically(path: Path, content: bytes) -> None:
+    """``content`` at ``path``, whole or not at all (a reader never sees half a file)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(f".{path.name}.{secrets.token_hex(4)}")
     partial.write_bytes(content)

@@ -59,6 +59,12 @@ def evaluate(
     return {**result, "drive": json.dumps(result["drive"], separators=(",", ":"))}
 
 
+def on_file(function: Callable[..., Any], document_file: Path, *args: Any) -> Any:
+    """``function(document, *args)`` with the document read here from ``document_file``:
+    the server hands over a path, not 30 MB to pickle and pipe on its event loop."""
+    return function(document_file.read_text(), *args)
+
+
 def checked_upload(
     task: Callable[[Path, dict[str, str], Path], Any],
     staged: Path,

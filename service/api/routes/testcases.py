@@ -11,6 +11,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Query, Request, Response, status
 from fastapi.responses import FileResponse, JSONResponse
 
+from service.api import worker
 from service.api.bodies import OffLoopValidation
 from service.api.documents import (
     document_thread,
@@ -19,7 +20,7 @@ from service.api.documents import (
     streamed,
     testcase_body,
 )
-from service.api.media import IMAGE_RESPONSES, cached_file, picture_format
+from service.api.media import IMAGE_RESPONSES, cached_file, picture_format, write_atomically
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import testcase_summary
 from service.api.schemas import (
@@ -236,7 +237,7 @@ async def _export(state: State, testcase: str, flavour: str | None) -> Response:
             args, function = (*args, flavour), tasks.openscenario
         work = "bundle" if flavour is None else "openscenario"
         content: bytes = await state.run(
-            work, function, args, state.settings.work_budget, time.monotonic()
+            work, worker.on_file, (function, *args), state.settings.work_budget, time.monotonic()
         )
         return content
 
@@ -256,10 +257,15 @@ def head_or_404(state: AppState, testcase: str) -> TestCaseRecord:
     return record
 
 
-def document_and_network(state: AppState, testcase: str) -> tuple[str, Path]:
-    """A stored test-case's document, unparsed, and its network's file (in a thread)."""
+def document_and_network(state: AppState, testcase: str) -> tuple[Path, Path]:
+    """A file with a stored test-case's document, and its network's file (in a thread): a
+    worker gets the document's path, not 30 MB to pickle and pipe on the event loop."""
     record = state.testcase_or_404(testcase)
-    return record.document, state.store.network_file_of(stored_network(record.document))
+    network = state.store.network_file_of(stored_network(record.document))
+    path = state.cache_dir / "artifacts" / "testcases" / record.id / "document.json"
+    if not path.is_file():  # a content address: the file never changes once written
+        write_atomically(path, record.document.encode())
+    return path, network
 
 
 @router.get(
@@ -288,8 +294,9 @@ async def plot_testcase(
         document, network_file = await document_thread(document_and_network, state, testcase)
         content: bytes = await state.run(
             "plot",
-            tasks.plot_testcase,
+            worker.on_file,
             (
+                tasks.plot_testcase,
                 document,
                 network_file,
                 state.cache_dir,
