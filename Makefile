@@ -20,7 +20,7 @@ help:
 	@echo "make bench    time the checker, the generator, the API and batch jobs (docs/benchmarks.md)"
 	@echo "make bench-generator   only the generator: targets, chain growth, Step 2 theories"
 	@echo "make bench-api / bench-jobs   one of those benchmarks"
-	@echo "make bench-reliability   hostile requests against a server (docs/reliability.md)"
+	@echo "make bench-reliability   hostile requests and 30 MB documents against a server (docs/reliability.md)"
 	@echo "make demo     describe the 4-way stop, write a test-case, drive and judge an ego"
 	@echo "make coverage extend every conflicting route pair of the bundled intersections"
 	@echo "make campaign-curve  failure rate by level of five controllers (docs/campaigns.md)"
@@ -88,6 +88,7 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.bench_api
 	$(BIN)/python -m bench.bench_jobs
 	$(BIN)/python -m bench.bench_hostile
+	$(BIN)/python -m bench.bench_large
 
 bench-generator: $(STAMP)
 	$(BIN)/pip install --quiet -e '.[test,bench]'
@@ -106,6 +107,7 @@ bench-jobs: $(STAMP)
 
 bench-reliability: $(STAMP)
 	$(BIN)/python -m bench.bench_hostile
+	$(BIN)/python -m bench.bench_large
 
 coverage: $(STAMP)
 	$(BIN)/python -m bench.coverage

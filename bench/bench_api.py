@@ -32,8 +32,11 @@ BUDGET = 30.0
 POOLS = (2, 10)
 
 
-def serve(data_dir: Path, workers: int, **settings: str) -> tuple[subprocess.Popen[bytes], str]:
-    """``scengen serve`` on a free port; ``settings`` as SCENGEN_* variables (api_token=...)."""
+def serve(
+    data_dir: Path, workers: int, cwd: Path | None = None, **settings: str
+) -> tuple[subprocess.Popen[bytes], str]:
+    """``scengen serve`` on a free port; ``settings`` as SCENGEN_* variables (api_token=...);
+    ``cwd``: serve the checkout there (its ``service`` package comes first on the path)."""
     import socket
 
     with socket.socket() as probe:
@@ -44,6 +47,7 @@ def serve(data_dir: Path, workers: int, **settings: str) -> tuple[subprocess.Pop
     process = subprocess.Popen(
         [sys.executable, "-m", "service", "serve", "--port", str(port)],
         env=env,
+        cwd=cwd,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )

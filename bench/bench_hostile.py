@@ -140,6 +140,18 @@ def hostile_requests() -> list[Hostile]:
             curl="-F file=@4way-stop.net.xml -F controls='[[[[...]]]]' /networks",
         ),
         Hostile(
+            "a 15 MB XML attribute in an upload",
+            "POST",
+            "/networks",
+            files={
+                "file": (
+                    "n.net.xml",
+                    network.replace(b"<net ", b'<net junk="' + b"a" * 15_000_000 + b'" ', 1),
+                )
+            },
+            curl="-F file=@net-with-a-15-MB-attribute.net.xml /networks",
+        ),
+        Hostile(
             "name with a NUL",
             "POST",
             "/testcases",

@@ -13,7 +13,7 @@ import json
 import re
 import secrets
 from collections.abc import Collection, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Generic, TypeVar
@@ -24,6 +24,7 @@ from service.core.errors import UnknownNetwork, choices
 from service.core.network import bundled_networks, file_sha256
 from service.core.testcase import (
     MAX_SAMPLES,
+    NetworkRef,
     TestCase,
     check_samples,
     dump_testcase,
@@ -198,6 +199,42 @@ class TestCaseRecord:
 
 
 @dataclass(frozen=True)
+class StoredTestCase:
+    """A test-case as the store keeps it: its document's text and the columns beside it
+    (``stored_form``). Made where the document is parsed anyway (a worker process, for a
+    large one), it lets a server store and answer a test-case without parsing it again."""
+
+    id: str
+    document: str
+    network: NetworkRef
+    junction: str
+    name: str
+    nonegos: int
+    level: int
+    duration: float
+    timestep: float
+
+
+def stored_form(testcase: TestCase) -> StoredTestCase:
+    """What the store keeps of ``testcase``. A network's ``path`` is where a file on a
+    client's disk found its network: no place on the server, so it is not kept, and the
+    same test-case has the same id wherever it was written."""
+    kept = without_network_path(testcase)
+    document = dump_testcase(kept)
+    return StoredTestCase(
+        id=testcase_id(document),
+        document=document,
+        network=kept.network,
+        junction=testcase.junction,
+        name=testcase.name,
+        nonegos=len(testcase.nonegos),
+        level=testcase_level(testcase),
+        duration=testcase.duration,
+        timestep=testcase.timestep,
+    )
+
+
+@dataclass(frozen=True)
 class EvaluationRecord:
     id: str
     testcase: str
@@ -343,15 +380,23 @@ class Store:
         content hash of an uploaded network."""
         return self.network_file(self.network_id_for(testcase))
 
+    def network_file_of(self, network: NetworkRef) -> Path:
+        """``network_file_for`` a test-case's network reference."""
+        return self.network_file(self.network_id_of(network))
+
     def network_id_for(self, testcase: TestCase) -> str:
         """The id of a test-case's network here (``network_file_for``); UnknownNetwork
         when it is neither bundled nor uploaded."""
-        ident = testcase.network.ref
+        return self.network_id_of(testcase.network)
+
+    def network_id_of(self, network: NetworkRef) -> str:
+        """``network_id_for`` a test-case's network reference."""
+        ident = network.ref
         if self.network(ident) is None:
             with self.engine.connect() as connection:
                 same = connection.execute(
                     sa.select(networks.c.id)
-                    .where(networks.c.sha256 == testcase.network.sha256)
+                    .where(networks.c.sha256 == network.sha256)
                     .order_by(networks.c.created_at, networks.c.id)
                 ).first()
             if same is None:
@@ -386,34 +431,34 @@ class Store:
     # test-cases
 
     def add_testcase(self, testcase: TestCase, parent: str | None = None) -> TestCaseRecord:
-        """Store a test-case under its content address (idempotent). A network's ``path``
-        is where a file on a client's disk found its network: no place on the server, so it
-        is not kept, and the same test-case has the same id wherever it was written."""
-        document = dump_testcase(without_network_path(testcase))
-        ident = testcase_id(document)
-        existing = self.testcase(ident)
-        if existing is not None:
-            return existing
-        row = {
-            "id": ident,
-            "network": testcase.network.ref,
-            "junction": testcase.junction,
-            "parent": parent,
-            "name": testcase.name,
-            "nonegos": len(testcase.nonegos),
-            "document": document,
-            "created_at": now(),
-            "level": testcase_level(testcase),
-            "duration": testcase.duration,
-        }
-        try:
-            with self.engine.begin() as connection:
-                connection.execute(testcases.insert().values(**row))
-        except sa.exc.IntegrityError:
-            pass  # stored concurrently by another request: the same bytes, the same record
-        found = self.testcase(ident)
-        assert found is not None
-        return found
+        """Store a test-case under its content address (idempotent; ``stored_form``)."""
+        return self.add_stored(stored_form(testcase), parent)
+
+    def add_stored(self, stored: StoredTestCase, parent: str | None = None) -> TestCaseRecord:
+        """Store a test-case in its stored form (idempotent: the same bytes, the same
+        record). The document is written, never read back."""
+        existing = self.testcase_head(stored.id)
+        if existing is None:
+            row = {
+                "id": stored.id,
+                "network": stored.network.ref,
+                "junction": stored.junction,
+                "parent": parent,
+                "name": stored.name,
+                "nonegos": stored.nonegos,
+                "document": stored.document,
+                "created_at": now(),
+                "level": stored.level,
+                "duration": stored.duration,
+            }
+            try:
+                with self.engine.begin() as connection:
+                    connection.execute(testcases.insert().values(**row))
+            except sa.exc.IntegrityError:
+                pass  # stored concurrently by another request: the same bytes, the same record
+            existing = self.testcase_head(stored.id)
+            assert existing is not None
+        return replace(existing, document=stored.document)
 
     def stored_testcases(self, idents: Collection[str]) -> set[str]:
         """Which of ``idents`` are stored test-cases (one query, no document read)."""
@@ -432,6 +477,19 @@ class Store:
         if found["level"] is None or found["duration"] is None:  # stored by an older version
             found["level"], found["duration"] = self._fill_summary(ident, found["document"])
         return _testcase_record(found)
+
+    def testcase_head(self, ident: str) -> TestCaseRecord | None:
+        """A test-case's record without its document (``document`` is empty): whether it
+        exists, and what a summary shows, without reading its trajectories."""
+        query = sa.select(*[c for c in testcases.c if c.name != "document"])
+        with self.engine.connect() as connection:
+            row = connection.execute(query.where(testcases.c.id == ident)).first()
+        if row is None:
+            return None
+        found = dict(row._mapping)
+        if found["level"] is None or found["duration"] is None:  # stored by an older version
+            found["level"], found["duration"] = self._fill_summaries([ident])[ident]
+        return _testcase_record({**found, "document": ""})
 
     def _fill_summary(self, ident: str, document: str) -> tuple[int, float]:
         """The level and duration of a row an older version stored, written into it."""
@@ -491,12 +549,13 @@ class Store:
         return self.list_testcases(parent=ident, limit=1000).items
 
     def ancestors(self, ident: str) -> Iterator[TestCaseRecord]:
-        """The parent, its parent, ... up to a test-case without one."""
+        """The parent, its parent, ... up to a test-case without one (without documents,
+        as ``testcase_head``)."""
         seen = {ident}
-        record = self.testcase(ident)
+        record = self.testcase_head(ident)
         while record is not None and record.parent is not None and record.parent not in seen:
             seen.add(record.parent)
-            record = self.testcase(record.parent)
+            record = self.testcase_head(record.parent)
             if record is not None:
                 yield record
 
@@ -519,10 +578,10 @@ class Store:
         verdict: dict[str, Any],
         seconds: float,
         ident: str | None = None,
-        drive: list[list[float]] | None = None,
+        drive: list[list[float]] | str | None = None,
     ) -> EvaluationRecord:
-        """Store a verdict, and the ego's ``drive`` when given; with ``ident`` (a job
-        item's), at most once."""
+        """Store a verdict, and the ego's ``drive`` when given (rows, or their JSON text);
+        with ``ident`` (a job item's), at most once."""
         if ident is not None:
             existing = self.evaluation(ident)
             if existing is not None:
@@ -540,7 +599,11 @@ class Store:
             with self.engine.begin() as connection:
                 connection.execute(evaluations.insert().values(**row))
                 if drive is not None:
-                    trajectory = json.dumps(drive, separators=(",", ":"))
+                    trajectory = (
+                        drive
+                        if isinstance(drive, str)
+                        else json.dumps(drive, separators=(",", ":"))
+                    )
                     connection.execute(drives.insert().values(id=row["id"], trajectory=trajectory))
         except sa.exc.IntegrityError:
             if ident is None:
@@ -559,11 +622,16 @@ class Store:
 
     def drive(self, ident: str) -> list[list[float]] | None:
         """The ego's drive of an evaluation, or None (stored before drives were kept)."""
+        found = self.drive_text(ident)
+        return None if found is None else list(json.loads(found))
+
+    def drive_text(self, ident: str) -> str | None:
+        """``drive`` as its stored JSON text (compact), not parsed."""
         with self.engine.connect() as connection:
             found = connection.execute(
                 sa.select(drives.c.trajectory).where(drives.c.id == ident)
             ).scalar()
-        return None if found is None else list(json.loads(found))
+        return None if found is None else str(found)
 
     def evaluations_passed(self, idents: list[str]) -> list[bool]:
         """Whether each stored evaluation among ``idents`` passed (one query)."""

@@ -7,7 +7,7 @@ pydantic hold the GIL. So a JSON body over ``OFF_LOOP_BYTES`` is checked in a wo
 under the work budget, exactly as FastAPI would check it (``json.loads``, then the model),
 and only a bounded list of errors comes back. A valid body comes back as the validated model
 and is handed to FastAPI as the request's parsed JSON, which an instance of the model passes
-at once.
+at once. An inline test-case in it comes back in its stored form (``stored_inline``).
 """
 
 from __future__ import annotations
@@ -22,7 +22,8 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.routing import APIRoute
 from pydantic import BaseModel, ValidationError
 
-from service.core.testcase import first_errors, parse_testcase
+from service.core.testcase import check_samples, first_errors, parse_testcase
+from service.store import Store, StoredTestCase, TestCaseRecord, stored_form
 
 OFF_LOOP_BYTES = 256 * 1024
 
@@ -55,9 +56,27 @@ def validate_body(model: type[BaseModel], raw: bytes, max_errors: int) -> tuple[
         ]
         return "invalid", (shown, error.error_count())
     inline = getattr(validated, "testcase", None)
-    if isinstance(inline, dict):  # an inline test-case is checked here too (InvalidTestCase)
-        parse_testcase(inline)
+    if isinstance(inline, dict):
+        # checked here too (InvalidTestCase), and sent back in its stored form: a string
+        # the server unpickles and stores as it is, not a tree it would parse again
+        stored = stored_form(parse_testcase(inline))
+        validated = validated.model_copy(update={"testcase": stored})
     return "valid", validated
+
+
+def stored_inline(
+    store: Store, inline: dict[str, Any] | StoredTestCase | None
+) -> TestCaseRecord | None:
+    """A body's inline test-case, checked against this server's limits and networks and
+    stored (nothing submitted is lost); None when the body has none. A large body's comes
+    from ``validate_body`` in its stored form, and is not parsed here (call in a thread)."""
+    if inline is None:
+        return None
+    if isinstance(inline, StoredTestCase):
+        check_samples(inline.duration, inline.timestep, store.max_samples)
+        store.network_id_of(inline.network)
+        return store.add_stored(inline)
+    return store.keep_inline(inline)
 
 
 class OffLoopValidation(APIRoute):

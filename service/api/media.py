@@ -80,14 +80,28 @@ async def cached(
     json_cache: bool = False,
 ) -> Any:
     """The artifact ``name`` from the cache, or produced (in a worker) and cached; while it
-    is being produced, a second request for it waits for that work rather than repeating it."""
+    is being produced, a second request for it waits for that work rather than repeating it.
+    With ``json_cache``, the value as JSON; else the bytes (``cached_file`` for large ones)."""
+    path = await cached_file(state, name, produce, json_cache)
+    content = await asyncio.to_thread(path.read_bytes)
+    return await asyncio.to_thread(json.loads, content) if json_cache else content
+
+
+async def cached_file(
+    state: AppState,
+    name: str,
+    produce: Callable[[], Awaitable[Any]],
+    json_cache: bool = False,
+) -> Path:
+    """The file of the artifact ``name`` in the cache, produced first if it is not there
+    (``cached``): a route answers it with a ``FileResponse``, which streams it, rather than
+    holding it in memory."""
     root = (state.cache_dir / "artifacts").resolve()
     path = (root / name).resolve()
     if not path.is_relative_to(root) or len(path.name) > 200:
         raise Problem(404, "no such artifact")  # never a path outside the cache
-    if path.is_file():
-        content = path.read_bytes()
-        return json.loads(content) if json_cache else content
+    if await asyncio.to_thread(path.is_file):
+        return path
     making = _MAKING.get(path)
     if making is None or making.get_loop() is not asyncio.get_running_loop():
         making = asyncio.ensure_future(_produce(path, produce, json_cache))
@@ -98,20 +112,25 @@ async def cached(
     return await asyncio.shield(making)
 
 
-_MAKING: dict[Path, asyncio.Future[Any]] = {}  # artifacts being produced, by their file
+_MAKING: dict[Path, asyncio.Future[Path]] = {}  # artifacts being produced, by their file
 
 
-async def _produce(path: Path, produce: Callable[[], Awaitable[Any]], json_cache: bool) -> Any:
+async def _produce(path: Path, produce: Callable[[], Awaitable[Any]], json_cache: bool) -> Path:
     value = await produce()
     content = json.dumps(value).encode() if json_cache else value
+    await asyncio.to_thread(write_atomically, path, content)
+    return path
+
+
+def write_atomically(path: Path, content: bytes) -> None:
+    """``content`` at ``path``, whole or not at all (a reader never sees half a file)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(f".{path.name}.{secrets.token_hex(4)}")
     partial.write_bytes(content)
     partial.replace(path)
-    return value
 
 
-def _made(path: Path, done: asyncio.Future[Any]) -> None:
+def _made(path: Path, done: asyncio.Future[Path]) -> None:
     if _MAKING.get(path) is done:
         del _MAKING[path]
     if not done.cancelled():

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import asyncio
+import json
 import time
 from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, Response, status
 
-from service.api.bodies import OffLoopValidation
+from service.api import worker
+from service.api.bodies import OffLoopValidation, stored_inline
+from service.api.documents import document_thread, stored_network
 from service.api.media import BINARY, VerdictFormat, wants_junit
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import evaluation_public
@@ -24,8 +27,7 @@ from service.api.schemas import (
 from service.api.state import State, Token, json_answer
 from service.core.checker.verdict import Verdict
 from service.core.sim.controllers import BUILT_IN, controller_names
-from service.jobs import tasks
-from service.store import DRIVE_COLUMNS, EvaluationRecord, TestCaseRecord
+from service.store import DRIVE_COLUMNS, EvaluationRecord
 
 router = APIRouter(tags=["evaluations"], route_class=OffLoopValidation)
 JUNIT = "application/xml"
@@ -83,28 +85,32 @@ async def create_evaluation(
         )
     started = time.monotonic()
 
-    def base() -> tuple[TestCaseRecord, Path]:
-        if body.testcase is not None:
-            record = state.store.keep_inline(body.testcase)
-        else:
+    def base() -> tuple[str, str, Path]:
+        record = stored_inline(state.store, body.testcase)
+        if record is None:
             record = state.testcase_named_in_body(str(body.testcase_id))
-        return record, state.store.network_file_for(record.testcase)
+        network = stored_network(record.document)
+        return record.id, record.document, state.store.network_file_of(network)
 
-    record, network_file = await asyncio.to_thread(base)
+    testcase, document, network_file = await document_thread(base)
     result = await state.run(
         "evaluate",
-        tasks.evaluate_controller,
-        (record.document, network_file, state.cache_dir, body.controller, budget),
+        worker.evaluate,
+        (document, network_file, state.cache_dir, body.controller, budget),
         budget + state.settings.work_budget,
         started,
     )
-    stored = state.store.add_evaluation(
-        record.id, body.controller, result["verdict"], result["seconds"], drive=result["drive"]
-    )
-    answer = _answer(stored, junit)
-    answer.status_code = status.HTTP_201_CREATED
-    answer.headers["Location"] = f"/evaluations/{stored.id}"
-    return answer
+
+    def stored() -> Response:
+        kept = state.store.add_evaluation(
+            testcase, body.controller, result["verdict"], result["seconds"], drive=result["drive"]
+        )
+        answer = _answer(kept, junit)
+        answer.status_code = status.HTTP_201_CREATED
+        answer.headers["Location"] = f"/evaluations/{kept.id}"
+        return answer
+
+    return await asyncio.to_thread(stored)
 
 
 @router.get("/evaluations", operation_id="list_evaluations")
@@ -115,7 +121,7 @@ async def list_evaluations(
     offset: Annotated[int, Query(ge=0, le=MAX_OFFSET)] = 0,
 ) -> EvaluationPage:
     """List stored evaluations, newest first."""
-    page = state.store.list_evaluations(testcase, limit, offset)
+    page = await asyncio.to_thread(state.store.list_evaluations, testcase, limit, offset)
     following = None
     if offset + limit < page.total:
         where = f"testcase={testcase}&" if testcase else ""
@@ -143,22 +149,34 @@ async def get_evaluation(
 ) -> Any:
     """One evaluation: verdict and reasons, or JUnit XML."""
     junit = wants_junit(format, request.headers.get("accept"))
-    record = state.store.evaluation(evaluation)
-    if record is None:
-        raise Problem(404, f"no evaluation {evaluation!r}; GET /evaluations lists them")
-    return _answer(record, junit)
+
+    def answer() -> Response:
+        record = state.store.evaluation(evaluation)
+        if record is None:
+            raise Problem(404, f"no evaluation {evaluation!r}; GET /evaluations lists them")
+        return _answer(record, junit)
+
+    return await asyncio.to_thread(answer)
 
 
-@router.get("/evaluations/{evaluation}/drive", operation_id="get_evaluation_drive")
-async def get_evaluation_drive(state: State, evaluation: str) -> dict[str, Any]:
+@router.get(
+    "/evaluations/{evaluation}/drive",
+    operation_id="get_evaluation_drive",
+    response_model=dict[str, Any],
+)
+async def get_evaluation_drive(state: State, evaluation: str) -> Response:
     """The ego's drive in the evaluation: rows of t, x, y, heading, speed, distance (the
     centre of its footprint; SUMO's coordinates and headings); empty when it was evaluated
     before drives were kept."""
 
-    def found() -> dict[str, Any]:
+    def found() -> Response:
         if state.store.evaluation(evaluation) is None:
             raise Problem(404, f"no evaluation {evaluation!r}; GET /evaluations lists them")
-        trajectory = state.store.drive(evaluation) or []
-        return {"evaluation": evaluation, "columns": DRIVE_COLUMNS, "trajectory": trajectory}
+        # the stored rows spliced in as they are (the same bytes FastAPI would write)
+        head = json.dumps({"evaluation": evaluation, "columns": DRIVE_COLUMNS, "trajectory": []},
+                          ensure_ascii=False, separators=(",", ":"))  # fmt: skip
+        rows = state.store.drive_text(evaluation) or "[]"
+        body = f"{head[: -len('[]}')]}{rows}}}".encode()
+        return Response(body, media_type="application/json")
 
     return await asyncio.to_thread(found)

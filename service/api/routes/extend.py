@@ -2,22 +2,19 @@
 
 from __future__ import annotations
 
-import asyncio
-import json
 import time
 from pathlib import Path
 from typing import Any
 
 from fastapi import APIRouter, Response, status
+from pydantic import BaseModel
 
-from service.api.bodies import OffLoopValidation
+from service.api import worker
+from service.api.bodies import OffLoopValidation, stored_inline
+from service.api.documents import document_thread, stored_network, streamed, testcase_body
 from service.api.problems import WORK_PROBLEMS, Problem, documented
-from service.api.public import testcase_public
 from service.api.schemas import Attempt, ExtendRequest, ExtensionPublic
-from service.api.state import AppState, State, Token, json_answer
-from service.core.testcase import parse_testcase
-from service.jobs import tasks
-from service.store import TestCaseRecord
+from service.api.state import AppState, State, Token
 
 router = APIRouter(tags=["extend"], route_class=OffLoopValidation)
 
@@ -48,12 +45,12 @@ async def extend_testcase(state: State, body: ExtendRequest) -> Response:
             422,
             f"budget {budget:g} s exceeds the server's limit of {state.settings.max_budget:g} s",
         )
-    old, network_file = await asyncio.to_thread(_base, state, body)
+    old, document, network_file = await document_thread(_base, state, body)
     result = await state.run(
         "extend",
-        tasks.extend,
+        worker.extend,
         (
-            old.document,
+            document,
             network_file,
             state.cache_dir,
             body.routes,
@@ -67,26 +64,33 @@ async def extend_testcase(state: State, body: ExtendRequest) -> Response:
         started,
         GRACE,
     )
-    return await asyncio.to_thread(_store, state, old, result)
+    return await document_thread(_store, state, old, result)
 
 
-def _base(state: AppState, body: ExtendRequest) -> tuple[TestCaseRecord, Path]:
-    """The old test-case (an inline one is stored: nothing submitted is lost) and its network."""
-    if body.testcase is not None:
-        old = state.store.keep_inline(body.testcase)
-    else:
+class _Tail(BaseModel):
+    """``ExtensionPublic``'s fields after the document."""
+
+    new_cars: list[str]
+    attempts: list[Attempt]
+    seconds: dict[str, float]
+
+
+def _base(state: AppState, body: ExtendRequest) -> tuple[str, str, Path]:
+    """The old test-case's id and document (an inline one is stored: nothing submitted is
+    lost), and its network's file."""
+    old = stored_inline(state.store, body.testcase)
+    if old is None:
         old = state.testcase_named_in_body(str(body.testcase_id))
-    return old, state.store.network_file_for(old.testcase)
+    network = stored_network(old.document)
+    return old.id, old.document, state.store.network_file_of(network)
 
 
-def _store(state: AppState, old: TestCaseRecord, result: dict[str, Any]) -> Response:
-    testcase = parse_testcase(result["document"])
-    record = state.store.add_testcase(testcase, parent=old.id)
-    old_ids = {car["id"] for car in json.loads(old.document).get("nonegos", [])}
-    answer = ExtensionPublic(
-        **testcase_public(record).model_dump(),
-        new_cars=[car.id for car in testcase.nonegos if car.id not in old_ids],
+def _store(state: AppState, old: str, result: dict[str, Any]) -> Response:
+    record = state.store.add_stored(result["stored"], parent=old)
+    tail = _Tail(
+        new_cars=result["new_cars"],
         attempts=[Attempt(**a) for a in result["attempts"]],
         seconds=result["seconds"],
     )
-    return json_answer(answer, status.HTTP_201_CREATED, f"/testcases/{record.id}")
+    location = {"Location": f"/testcases/{record.id}"}
+    return streamed(testcase_body(record, tail), status.HTTP_201_CREATED, location)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import time
 
 from fastapi import APIRouter
@@ -32,6 +33,12 @@ async def get_health(state: State) -> Health:
 async def get_metrics(state: State) -> PlainTextResponse:
     """Counters and gauges in the Prometheus text exposition format."""
     metrics, stats = state.metrics, state.executor.stats
+    testcases, evaluations = await asyncio.to_thread(
+        lambda: (
+            state.store.list_testcases(limit=1).total,
+            state.store.list_evaluations(limit=1).total,
+        )
+    )
     lines = [
         "# HELP scengen_up_seconds Seconds since the server started.",
         "# TYPE scengen_up_seconds gauge",
@@ -85,10 +92,10 @@ async def get_metrics(state: State) -> PlainTextResponse:
         f"scengen_job_items_running {len(getattr(state.dispatcher, 'running', ()))}",
         "# HELP scengen_testcases Stored test-cases.",
         "# TYPE scengen_testcases gauge",
-        f"scengen_testcases {state.store.list_testcases(limit=1).total}",
+        f"scengen_testcases {testcases}",
         "# HELP scengen_evaluations Stored evaluations.",
         "# TYPE scengen_evaluations gauge",
-        f"scengen_evaluations {state.store.list_evaluations(limit=1).total}",
+        f"scengen_evaluations {evaluations}",
     ]
     return PlainTextResponse("\n".join(lines) + "\n", media_type="text/plain; version=0.0.4")
 

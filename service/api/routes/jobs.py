@@ -10,6 +10,7 @@ from fastapi import APIRouter, Header, Query, Response, status
 from fastapi.responses import Response as PlainResponse
 
 from service.api.bodies import OffLoopValidation
+from service.api.documents import document_thread, stored_network
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import job_public, store_fetch
 from service.api.routes.networks import junction_geometry
@@ -229,9 +230,12 @@ async def _zip_of(state: State, job: str, flavour: str | None, filename: str) ->
         records = [
             r for i in found.items for r in map(state.store.testcase, i.testcases) if r is not None
         ]
-        return [(r.id, r.document, state.store.network_file_for(r.testcase)) for r in records]
+        return [
+            (r.id, r.document, state.store.network_file_of(stored_network(r.document)))
+            for r in records
+        ]
 
-    listed = await asyncio.to_thread(made_by)
+    listed = await document_thread(made_by)
     content = await state.run(
         "bundles" if flavour is None else "openscenario", tasks.bundles,
         (listed, state.cache_dir, flavour), state.settings.work_budget, time.monotonic(),

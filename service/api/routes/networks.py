@@ -10,11 +10,11 @@ from pathlib import Path
 from typing import Annotated, Any
 from urllib.parse import quote
 
-from defusedxml import ElementTree as SafeElementTree
-from defusedxml.common import DefusedXmlException
 from fastapi import APIRouter, File, Form, Query, Request, Response, UploadFile, status
-from fastapi.responses import JSONResponse
+from fastapi.responses import FileResponse, JSONResponse
 
+from service.api import worker
+from service.api.bodies import OFF_LOOP_BYTES
 from service.api.media import IMAGE_RESPONSES, PictureFormat, cached, picture_format
 from service.api.problems import WORK_PROBLEMS, Problem, documented
 from service.api.public import network_public
@@ -39,7 +39,8 @@ CONTROLS_FIELD = (
 @router.get("", operation_id="list_networks")
 async def list_networks(state: State) -> list[NetworkPublic]:
     """List the bundled and uploaded networks."""
-    return [network_public(record) for record in state.store.list_networks()]
+    found = await asyncio.to_thread(state.store.list_networks)
+    return [network_public(record) for record in found]
 
 
 @router.post(
@@ -65,40 +66,57 @@ async def upload_network(
     overrides = _parse_controls(controls)
     filename = file.filename or "network.net.xml"
     kind = source_format(filename)
-    await asyncio.to_thread(_check_xml, content, kind)
-    record = await asyncio.to_thread(state.store.network, network_id(filename, content, overrides))
+    if len(content) <= OFF_LOOP_BYTES:  # a small file is checked here, at once
+        _refuse(await asyncio.to_thread(worker.xml_refusal, content, kind))
+    ident = await asyncio.to_thread(network_id, filename, content, overrides)
+    record = await asyncio.to_thread(state.store.network, ident)
     if record is None and kind is not None:  # a map: converted, stored with its original
         converted = await _run_staged(
-            state, tasks.convert_upload, f"map{Path(filename).suffix.lower()}", content, overrides
-        )
+            state, tasks.convert_upload, f"map{Path(filename).suffix.lower()}", content,
+            overrides, kind,
+        )  # fmt: skip
         record = await asyncio.to_thread(
             state.store.add_network, f"{Path(filename).name}.net.xml", converted, overrides,
             (kind, filename, content),
         )  # fmt: skip
     if record is None:
-        await _run_staged(state, tasks.check_controls, safe_filename(filename), content, overrides)
+        await _run_staged(
+            state, tasks.check_controls, safe_filename(filename), content, overrides, kind
+        )
         record = await asyncio.to_thread(state.store.add_network, filename, content, overrides)
     response.headers["Location"] = f"/networks/{record.id}"
     return network_public(record)
 
 
+def _refuse(refusal: str | None) -> None:
+    if refusal is not None:
+        raise Problem(400, refusal)
+
+
 async def _run_staged(
-    state: AppState, task: Any, name: str, content: bytes, overrides: dict[str, str]
+    state: AppState,
+    task: Any,
+    name: str,
+    content: bytes,
+    overrides: dict[str, str],
+    kind: str | None,
 ) -> Any:
-    """``task(file, overrides, cache_dir)`` in a worker on the upload staged as ``name``."""
+    """``task(file, overrides, cache_dir)`` in a worker on the upload staged as ``name``,
+    after the check of its XML (there too: parsing a large file holds the GIL)."""
     staged = state.cache_dir / "uploads" / str(time.monotonic_ns()) / name
     await asyncio.to_thread(_stage, staged, content)
     try:
-        return await state.run(
+        outcome, value = await state.run(
             "upload",
-            task,
-            (staged, overrides, state.cache_dir),
+            worker.checked_upload,
+            (task, staged, overrides, state.cache_dir, kind),
             state.settings.work_budget,
             time.monotonic(),
         )
     finally:
-        staged.unlink(missing_ok=True)
-        staged.parent.rmdir()
+        await asyncio.to_thread(_unstage, staged)
+    _refuse(value if outcome == "refused" else None)
+    return value
 
 
 @router.get(
@@ -113,7 +131,7 @@ async def _run_staged(
 async def get_network_source(state: State, network: str) -> Response:
     """The original file of a network imported from OpenDRIVE or OpenStreetMap (its SUMO
     network, converted by netconvert, is at /networks/{id}/file)."""
-    record = state.network_or_404(network)
+    record = await asyncio.to_thread(state.network_or_404, network)
     found = await asyncio.to_thread(state.store.network_source, record.id)
     if found is None:
         raise Problem(404, f"network {network!r} was uploaded as a SUMO network, not imported")
@@ -128,7 +146,7 @@ async def get_network_source(state: State, network: str) -> Response:
 @router.get("/{network}", operation_id="get_network")
 async def get_network(state: State, network: str) -> NetworkPublic:
     """One network."""
-    return network_public(state.network_or_404(network))
+    return network_public(await asyncio.to_thread(state.network_or_404, network))
 
 
 @router.get(
@@ -139,10 +157,10 @@ async def get_network(state: State, network: str) -> NetworkPublic:
 )
 async def get_network_file(state: State, network: str) -> Response:
     """The network's .net.xml as uploaded (`scengen ... --network FILE` takes it)."""
-    record = state.network_or_404(network)
+    record = await asyncio.to_thread(state.network_or_404, network)
     path = await asyncio.to_thread(state.store.network_file, record.id)
-    return Response(
-        await asyncio.to_thread(path.read_bytes),
+    return FileResponse(
+        path,
         media_type="application/xml",
         headers={"Content-Disposition": f'attachment; filename="{record.filename}"'},
     )
@@ -157,13 +175,17 @@ async def get_network_file(state: State, network: str) -> Response:
 )
 async def delete_network(state: State, network: str) -> None:
     """Delete an uploaded network that no stored test-case uses."""
-    record = state.network_or_404(network)
-    if record.bundled:
-        raise Problem(409, f"{network!r} is bundled with the service and cannot be deleted")
-    used = state.store.count_testcases_on(network)
-    if used:
-        raise Problem(409, f"{used} stored test-case(s) use {network!r}; delete them first")
-    state.store.delete_network(network)
+
+    def delete() -> None:
+        record = state.network_or_404(network)
+        if record.bundled:
+            raise Problem(409, f"{network!r} is bundled with the service and cannot be deleted")
+        used = state.store.count_testcases_on(network)
+        if used:
+            raise Problem(409, f"{used} stored test-case(s) use {network!r}; delete them first")
+        state.store.delete_network(network)
+
+    await asyncio.to_thread(delete)
 
 
 @router.get(
@@ -171,8 +193,7 @@ async def delete_network(state: State, network: str) -> None:
 )
 async def list_junctions(state: State, network: str) -> list[JunctionSummary]:
     """The network's junctions with three or more approaches."""
-    record = state.network_or_404(network)
-    path = state.store.network_file(network)
+    record, path = await asyncio.to_thread(_network_and_file, state, network)
     found = await cached(
         state,
         f"networks/{record.id}/junctions.json",
@@ -205,9 +226,8 @@ async def list_junctions(state: State, network: str) -> list[JunctionSummary]:
 )
 async def describe_junction(state: State, network: str, junction: str) -> JSONResponse:
     """The intersection: forks, exits, routes, conflicts and right-of-way relations."""
-    record = state.network_or_404(network)
+    record, path = await asyncio.to_thread(_network_and_file, state, network)
     control = record.controls.get(junction)
-    path = state.store.network_file(network)
     description = await _junction_work(
         state,
         record,
@@ -234,9 +254,8 @@ async def plot_junction(
     format: PictureFormat = None,
 ) -> Response:
     """A picture of the junction: connecting lanes by turn, forks, highlighted routes."""
-    record = state.network_or_404(network)
+    record, path = await asyncio.to_thread(_network_and_file, state, network)
     suffix, media = picture_format(format, request.headers.get("accept"))
-    path = state.store.network_file(network)
     chosen = sorted(set(route))
     key = hashlib.sha256(json.dumps(chosen).encode()).hexdigest()[:16] if chosen else "all"
     content = await _junction_work(
@@ -264,7 +283,7 @@ async def get_junction_geometry(
     ] = None,
 ) -> JSONResponse:
     """The junction's shapes for drawing: roads, area, paths through it, stop lines (m)."""
-    record = state.network_or_404(network)
+    record = await asyncio.to_thread(state.network_or_404, network)
     chosen = control.value if control else record.controls.get(junction)
     return JSONResponse(await junction_geometry(state, record, junction, chosen))
 
@@ -274,7 +293,7 @@ async def junction_geometry(
 ) -> Any:
     """The junction's shapes under ``control`` (None: the map's own), computed once per
     network, junction and control, then answered from the cache."""
-    path = state.store.network_file(record.id)
+    path = await asyncio.to_thread(state.store.network_file, record.id)
     return await _junction_work(
         state, record, junction, f"geometry-{control or 'own'}.json", tasks.junction_geometry,
         (path, junction, control, state.cache_dir),
@@ -300,9 +319,19 @@ async def _junction_work(
     )
 
 
+def _network_and_file(state: AppState, network: str) -> tuple[NetworkRecord, Path]:
+    record = state.network_or_404(network)
+    return record, state.store.network_file(record.id)
+
+
 def _stage(path: Path, content: bytes) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_bytes(content)
+
+
+def _unstage(path: Path) -> None:
+    path.unlink(missing_ok=True)
+    path.parent.rmdir()
 
 
 def _parse_controls(text: str) -> dict[str, str]:
@@ -323,50 +352,3 @@ def _parse_controls(text: str) -> dict[str, str]:
                 f"valid choices: {', '.join(CONTROLS)}"
             )
     return dict(value)
-
-
-ROOTS = {  # the root element of each kind of upload, and what it is
-    None: ("net", "a SUMO <net>"),
-    "opendrive": ("OpenDRIVE", "an OpenDRIVE map's <OpenDRIVE>"),
-    "openstreetmap": ("osm", "an OpenStreetMap extract's <osm>"),
-}
-
-
-def _check_xml(content: bytes, kind: str | None = None) -> None:
-    """Parse with entities and DTDs forbidden; the root must be a SUMO <net> (or, for a
-    map to convert, <OpenDRIVE> or <osm>)."""
-    try:
-        root = SafeElementTree.fromstring(content, forbid_dtd=True)
-    except DefusedXmlException as error:
-        raise Problem(
-            400, f"the network XML is refused: {type(error).__name__} ({error})"
-        ) from None
-    except SafeElementTree.ParseError as error:
-        raise Problem(400, f"the network is not well-formed XML: {error}") from None
-    tag, what = ROOTS[kind]
-    if root.tag != tag:
-        raise InvalidInput(
-            f"the upload's root element is <{root.tag}>, not {what} (the file name says "
-            "which: .xodr for OpenDRIVE, .osm for OpenStreetMap, else a SUMO .net.xml)"
-        )
-    if kind is None and (root.find("junction") is None or root.find("edge") is None):
-        raise InvalidInput("the SUMO <net> has no junctions or edges")
-    if kind is None:
-        _check_junction_ids(root)
-
-
-def _check_junction_ids(root: Any) -> None:
-    """A junction id is one segment of the junction's URL (/networks/{id}/junctions/{j}):
-    a '/' in it would make the junction's own links point elsewhere."""
-    slashed = [
-        junction.get("id", "")
-        for junction in root.iterfind("junction")
-        if junction.get("type") != "internal" and "/" in junction.get("id", "")
-    ]
-    if slashed:
-        shown = ", ".join(repr(ident[:80]) for ident in slashed[:5])
-        more = f" and {len(slashed) - 5} more" if len(slashed) > 5 else ""
-        raise InvalidInput(
-            f"junction ids may not contain '/' (a junction's id is a segment of its URL): "
-            f"{shown}{more}; rename them in the network (netconvert keeps the ids it is given)"
-        )

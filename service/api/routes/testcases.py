@@ -4,16 +4,31 @@ from __future__ import annotations
 
 import asyncio
 import time
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable
+from pathlib import Path
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Query, Request, Response, status
-from fastapi.responses import JSONResponse
+from fastapi.responses import FileResponse, JSONResponse
 
+from service.api import worker
 from service.api.bodies import OffLoopValidation
-from service.api.media import IMAGE_RESPONSES, PictureFormat, cached, picture_format
+from service.api.documents import (
+    document_thread,
+    pieces_of,
+    stored_network,
+    streamed,
+    testcase_body,
+)
+from service.api.media import (
+    IMAGE_RESPONSES,
+    PictureFormat,
+    cached_file,
+    picture_format,
+    write_atomically,
+)
 from service.api.problems import WORK_PROBLEMS, Problem, documented
-from service.api.public import testcase_public, testcase_summary
+from service.api.public import testcase_summary
 from service.api.schemas import (
     MAX_OFFSET,
     Lineage,
@@ -21,12 +36,13 @@ from service.api.schemas import (
     TestCasePage,
     TestCasePublic,
 )
-from service.api.state import State, Token, json_answer
+from service.api.state import AppState, State, Token
 from service.core.errors import InvalidInput, choices
 from service.core.export import Flavour
 from service.core.sim.controllers import controller_names
 from service.core.testcase import NetworkRef, check_samples, parse_testcase
 from service.jobs import tasks
+from service.store import TestCaseRecord
 
 router = APIRouter(prefix="/testcases", tags=["testcases"], route_class=OffLoopValidation)
 
@@ -42,7 +58,7 @@ router = APIRouter(prefix="/testcases", tags=["testcases"], route_class=OffLoopV
 async def create_testcase(state: State, body: TestCaseCreate) -> Response:
     """Create an ego-only test-case on a network."""
     check_samples(body.duration, body.timestep, state.settings.max_samples)
-    network = state.network_named_in_body(body.network)
+    network = await asyncio.to_thread(state.network_named_in_body, body.network)
     junction, control = network.junction_and_control(
         body.junction, body.control.value if body.control else None
     )
@@ -64,11 +80,10 @@ async def create_testcase(state: State, body: TestCaseCreate) -> Response:
 
     def stored() -> Response:
         record = state.store.add_testcase(parse_testcase(document))
-        return json_answer(
-            testcase_public(record), status.HTTP_201_CREATED, f"/testcases/{record.id}"
-        )
+        location = {"Location": f"/testcases/{record.id}"}
+        return streamed(testcase_body(record), status.HTTP_201_CREATED, location)
 
-    return await asyncio.to_thread(stored)
+    return await document_thread(stored)
 
 
 @router.get("", operation_id="list_testcases")
@@ -81,7 +96,9 @@ async def list_testcases(
     offset: Annotated[int, Query(ge=0, le=MAX_OFFSET)] = 0,
 ) -> TestCasePage:
     """List stored test-cases, newest first."""
-    page = state.store.list_testcases(network, parent, roots, limit, offset)
+    page = await asyncio.to_thread(
+        state.store.list_testcases, network, parent, roots, limit, offset
+    )
     following = None
     if offset + limit < page.total:
         query = "&".join(
@@ -106,9 +123,11 @@ async def list_testcases(
 @router.get("/{testcase}", operation_id="get_testcase", response_model=TestCasePublic)
 async def get_testcase(state: State, testcase: str) -> Response:
     """One test-case with its document and links."""
-    return await asyncio.to_thread(
-        lambda: json_answer(testcase_public(state.testcase_or_404(testcase)))
-    )
+
+    def answer() -> Response:
+        return streamed(testcase_body(state.testcase_or_404(testcase)))
+
+    return await document_thread(answer)
 
 
 @router.get(
@@ -119,12 +138,13 @@ async def get_testcase(state: State, testcase: str) -> Response:
 )
 async def get_testcase_document(state: State, testcase: str) -> Response:
     """The bare test-case document, as `scengen` commands read it."""
-    record = state.testcase_or_404(testcase)
-    return Response(
-        record.document,
-        media_type="application/json",
-        headers={"Content-Disposition": f'attachment; filename="{record.id}.json"'},
-    )
+
+    def answer() -> Response:
+        record = state.testcase_or_404(testcase)
+        disposition = {"Content-Disposition": f'attachment; filename="{record.id}.json"'}
+        return streamed(pieces_of(record.document), headers=disposition)
+
+    return await document_thread(answer)
 
 
 @router.delete(
@@ -136,26 +156,34 @@ async def get_testcase_document(state: State, testcase: str) -> Response:
 )
 async def delete_testcase(state: State, testcase: str) -> None:
     """Delete a test-case without extensions, and its evaluations."""
-    state.testcase_or_404(testcase)
-    children = state.store.children(testcase)
-    if children:
-        raise Problem(
-            409,
-            f"{len(children)} extension(s) descend from {testcase!r}; delete them first",
-            children=[c.id for c in children],
-        )
-    state.store.delete_testcase(testcase)
+
+    def delete() -> None:
+        head_or_404(state, testcase)
+        children = state.store.children(testcase)
+        if children:
+            raise Problem(
+                409,
+                f"{len(children)} extension(s) descend from {testcase!r}; delete them first",
+                children=[c.id for c in children],
+            )
+        state.store.delete_testcase(testcase)
+
+    await asyncio.to_thread(delete)
 
 
 @router.get("/{testcase}/lineage", operation_id="get_lineage")
 async def get_lineage(state: State, testcase: str) -> Lineage:
     """Ancestors (parent first) and children of a test-case."""
-    state.testcase_or_404(testcase)
-    return Lineage(
-        id=testcase,
-        ancestors=[testcase_summary(r) for r in state.store.ancestors(testcase)],
-        children=[testcase_summary(r) for r in state.store.children(testcase)],
-    )
+
+    def lineage() -> Lineage:
+        head_or_404(state, testcase)
+        return Lineage(
+            id=testcase,
+            ancestors=[testcase_summary(r) for r in state.store.ancestors(testcase)],
+            children=[testcase_summary(r) for r in state.store.children(testcase)],
+        )
+
+    return await asyncio.to_thread(lineage)
 
 
 @router.get(
@@ -203,26 +231,47 @@ async def get_openscenario(
 
 async def _export(state: State, testcase: str, flavour: str | None) -> Response:
     """The SUMO bundle (``flavour`` None) or the OpenSCENARIO export as a zip, cached."""
-    record = state.testcase_or_404(testcase)
-    loaded = record.testcase
+    record = await asyncio.to_thread(head_or_404, state, testcase)
     key = "bundle.zip" if flavour is None else f"openscenario-{flavour}.zip"
     name = f"{record.id}.zip" if flavour is None else f"{record.id}-openscenario.zip"
 
-    def work() -> Awaitable[bytes]:
-        network_file = state.store.network_file_for(loaded)
-        args: tuple[Any, ...] = (record.document, network_file, state.cache_dir)
+    async def work() -> bytes:
+        document, network_file = await document_thread(document_and_network, state, testcase)
+        args: tuple[Any, ...] = (document, network_file, state.cache_dir)
         function: Callable[..., bytes] = tasks.bundle
         if flavour is not None:
             args, function = (*args, flavour), tasks.openscenario
         work = "bundle" if flavour is None else "openscenario"
-        return state.run(work, function, args, state.settings.work_budget, time.monotonic())
+        content: bytes = await state.run(
+            work, worker.on_file, (function, *args), state.settings.work_budget, time.monotonic()
+        )
+        return content
 
-    content = await cached(state, f"testcases/{record.id}/{key}", work)
-    return Response(
-        content,
+    path = await cached_file(state, f"testcases/{record.id}/{key}", work)
+    return FileResponse(
+        path,
         media_type="application/zip",
         headers={"Content-Disposition": f'attachment; filename="{name}"'},
     )
+
+
+def head_or_404(state: AppState, testcase: str) -> TestCaseRecord:
+    """The stored test-case's record without its document (in a thread)."""
+    record = state.store.testcase_head(testcase)
+    if record is None:
+        raise Problem(404, f"no test-case {testcase!r}; GET /testcases lists them")
+    return record
+
+
+def document_and_network(state: AppState, testcase: str) -> tuple[Path, Path]:
+    """A file with a stored test-case's document, and its network's file (in a thread): a
+    worker gets the document's path, not 30 MB to pickle and pipe on the event loop."""
+    record = state.testcase_or_404(testcase)
+    network = state.store.network_file_of(stored_network(record.document))
+    path = state.cache_dir / "artifacts" / "testcases" / record.id / "document.json"
+    if not path.is_file():  # a content address: the file never changes once written
+        write_atomically(path, record.document.encode())
+    return path, network
 
 
 @router.get(
@@ -241,21 +290,21 @@ async def plot_testcase(
     ] = None,
 ) -> Response:
     """A picture of the test-case: paths, certificates, and a time-distance panel."""
-    record = state.testcase_or_404(testcase)
+    record = await asyncio.to_thread(head_or_404, state, testcase)
     suffix, media = picture_format(format, request.headers.get("accept"))
     if controller is not None:
         check_controller(controller)
-    loaded = record.testcase
     budget = state.settings.work_budget + (state.settings.evaluate_budget if controller else 0)
-    content = await cached(
-        state,
-        f"testcases/{record.id}/plot-{controller or 'testcase'}.{suffix}",
-        lambda: state.run(
+
+    async def work() -> bytes:
+        document, network_file = await document_thread(document_and_network, state, testcase)
+        content: bytes = await state.run(
             "plot",
-            tasks.plot_testcase,
+            worker.on_file,
             (
-                record.document,
-                state.store.network_file_for(loaded),
+                tasks.plot_testcase,
+                document,
+                network_file,
                 state.cache_dir,
                 suffix,
                 controller,
@@ -263,9 +312,13 @@ async def plot_testcase(
             ),
             budget,
             time.monotonic(),
-        ),
+        )
+        return content
+
+    path = await cached_file(
+        state, f"testcases/{record.id}/plot-{controller or 'testcase'}.{suffix}", work
     )
-    return Response(content, media_type=media)
+    return FileResponse(path, media_type=media)
 
 
 def check_controller(name: str) -> None:
