@@ -41,11 +41,11 @@ def extend(
         document, network_file, cache_dir, routes, seed, budget, start_distance, deadline
     )
     new = parse_testcase(result.pop("document"))
-    old_ids = {car["id"] for car in json.loads(document).get("nonegos", [])}
+    assert new.provenance is not None  # an extension always says which cars it added
     return {
         **result,
         "stored": stored_form(new),
-        "new_cars": [car.id for car in new.nonegos if car.id not in old_ids],
+        "new_cars": list(new.provenance["new_nonegos"]),
     }
 
 
