@@ -110,7 +110,17 @@ def test_core_does_not_import_libsumo_outside_a_drive() -> None:
 
 def test_network_public_surface_is_complete() -> None:
     public = {name for name in vars(network) if not name.startswith("_")}
-    submodules = {"load", "model", "lanes", "major", "relations", "override", "describe", "convert"}
+    submodules = {
+        "load",
+        "model",
+        "lanes",
+        "major",
+        "relations",
+        "override",
+        "describe",
+        "convert",
+        "signals",
+    }
     assert set(network.__all__) == public - submodules
 
 

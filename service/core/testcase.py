@@ -25,7 +25,7 @@ from pydantic import (
     model_validator,
 )
 
-from service.core.errors import InvalidTestCase, UnknownNetwork
+from service.core.errors import InvalidInput, InvalidTestCase, UnknownNetwork
 from service.core.motion.events import EventKind
 from service.core.motion.plausibility import first_jump
 from service.core.motion.poses import (
@@ -35,13 +35,22 @@ from service.core.motion.poses import (
     start_speed_limit,
 )
 from service.core.network import (
+    ControlType,
     Intersection,
+    SignalProgram,
     bundled_networks,
     file_sha256,
     load_intersection,
     resolve_network,
+    with_signals,
 )
 from service.core.network.convert import source_format
+from service.core.network.signals import (
+    MAX_PHASE_DURATION,
+    MAX_PHASES,
+    make_program,
+    program_problems,
+)
 
 SCHEMA = "scengen/testcase/1"
 RESERVED_IDS = frozenset({"ego", "illegal"})
@@ -209,6 +218,47 @@ class NonEgo(_Model):
         return samples
 
 
+class SignalPhaseDoc(_Model):
+    duration: float = Field(gt=0, le=MAX_PHASE_DURATION, description="seconds")
+    state: str = Field(
+        min_length=1,
+        max_length=1000,
+        description="one SUMO colour per link of the traffic light, by link index: G "
+        "protected green, g permissive green, y yellow, r red, u red-yellow, s right on red "
+        "after a stop",
+    )
+
+
+class Signals(_Model):
+    """A fixed-time traffic-light program, as SUMO's tlLogic (service.core.network.signals)."""
+
+    tls: str = Field(min_length=1, description="the traffic light's id in the network")
+    program: str = Field("0", min_length=1, description="the program's id (programID)")
+    offset: float = Field(0.0, ge=-1e6, le=1e6, description="s: phase 0 starts at offset")
+    phases: list[SignalPhaseDoc] = Field(min_length=1, max_length=MAX_PHASES)
+
+    @model_validator(mode="after")
+    def _consistent(self) -> Signals:
+        problems = program_problems((p.duration, p.state) for p in self.phases)
+        if problems:
+            raise ValueError("; ".join(problems))
+        return self
+
+    def to_program(self) -> SignalProgram:
+        return make_program(
+            self.tls, self.program, self.offset, [(p.duration, p.state) for p in self.phases]
+        )
+
+
+Control = Literal[
+    "allway_stop",
+    "priority_stop",
+    "right_before_left",
+    "traffic_light",
+    "traffic_light_right_on_red",
+]
+
+
 class Certificates(_Model):
     complexity: list[Sample] = Field(min_length=2)
     solvability: list[Sample] = Field(min_length=2)
@@ -223,7 +273,7 @@ class TestCase(_Model):
     name: str = Field("", max_length=MAX_NAME_LENGTH)
     network: NetworkRef
     junction: str = Field(min_length=1)
-    control: Literal["allway_stop", "priority_stop", "right_before_left"]
+    control: Control
     major_road: list[Annotated[str, Field(min_length=1)]] | None = Field(
         None,
         min_length=2,
@@ -232,6 +282,11 @@ class TestCase(_Model):
         "right of way, as the user named them; absent: the network's, or scengen's choice",
     )
     rules: str
+    signals: Signals | None = Field(
+        None,
+        description="the traffic-light program of a signalized junction (fixed-time); "
+        "extending never changes it",
+    )
     timestep: float = Field(0.1, ge=MIN_TIMESTEP, le=MAX_TIMESTEP)
     duration: float = Field(20.0, gt=0, le=MAX_DURATION)
     params: Params = Params()
@@ -251,11 +306,19 @@ class TestCase(_Model):
 
     @model_validator(mode="after")
     def _consistent(self) -> TestCase:
-        if self.rules != self.control:
+        expected = ControlType(self.control).rule_set
+        if self.rules != expected:
             raise ValueError(
-                f"rules {self.rules!r} do not match the control type {self.control!r}; the "
-                "rule set is chosen by the control type"
+                f"rules {self.rules!r} do not match the control type {self.control!r} (rule "
+                f"set {expected!r}); the rule set is chosen by the control type"
             )
+        signalized = ControlType(self.control).signalized
+        if signalized and self.signals is None:
+            raise ValueError(
+                f"a {self.control} junction needs its signal program: the signals field"
+            )
+        if not signalized and self.signals is not None:
+            raise ValueError(f"signals applies to a signalized junction, not to {self.control}")
         if self.major_road is not None and self.control != "priority_stop":
             raise ValueError(
                 f"major_road applies to a priority_stop junction, not to {self.control}"
@@ -517,6 +580,7 @@ def new_testcase(
     cache_dir: Path | None = None,
     name: str = "",
     major_road: Sequence[str] | None = None,
+    signals: SignalProgram | None = None,
 ) -> TestCase:
     """An ego-only test-case; checks that the route exists and the start lies on the map.
 
@@ -526,8 +590,10 @@ def new_testcase(
     the ego starts on (or v_max) where that is lower; a speed given above either is refused.
     ``major_road``: two roads into a priority_stop junction that keep the right of way
     (service.core.network.load_intersection); the test-case keeps it (``major_road``), so
-    every later command rebuilds the same network."""
+    every later command rebuilds the same network. ``signals``: the program of a signalized
+    junction (default: the network's, when it is fixed-time); the test-case carries it."""
     intersection = load_intersection(network, junction, control, cache_dir, major_road=major_road)
+    intersection = _signalled(intersection, signals)
     route = intersection.route(ego_route)
     chosen = params or Params()
     if start_speed is not None and start_speed > chosen.v_max:
@@ -543,7 +609,7 @@ def new_testcase(
         "network": network_ref(network).model_dump(),
         "junction": intersection.junction,
         "control": intersection.control.value,
-        "rules": intersection.control.value,
+        "rules": intersection.control.rule_set,
         "timestep": timestep,
         "duration": duration,
         "params": chosen.model_dump(),
@@ -554,6 +620,8 @@ def new_testcase(
     }
     if major_road is not None:
         document["major_road"] = list(major_road)
+    if intersection.signals is not None:
+        document["signals"] = intersection.signals.to_document()
     testcase = parse_testcase(document)
     # Fails with a clear message when the start lies beyond the mapped road.
     plan = plan_drive(intersection, route, start_distance, max(speed, 1.0), duration, timestep)
@@ -576,9 +644,25 @@ def load_testcase_intersection(
     the test-case names a network that only a server knows; ``near`` is the folder the
     test-case was read from)."""
     path, _ = find_network_file(testcase, network_file, near)
-    return load_intersection(
+    intersection = load_intersection(
         path, testcase.junction, testcase.control, cache_dir, major_road=testcase.major_road
     )
+    if testcase.signals is None:
+        return intersection
+    try:
+        return with_signals(intersection, testcase.signals.to_program())
+    except InvalidInput as exc:
+        raise InvalidTestCase(f"signals: {exc}") from None
+
+
+def _signalled(intersection: Intersection, signals: SignalProgram | None) -> Intersection:
+    """The intersection under the program given, or its network's; InvalidInput when a
+    signalized junction has no fixed-time program, or a program is given to another."""
+    if signals is not None:
+        return with_signals(intersection, signals)
+    if intersection.control.signalized and intersection.signals is None:
+        raise InvalidInput(intersection.signals_refused or "the junction has no signal program")
+    return intersection
 
 
 def check_samples(duration: float, timestep: float, limit: int) -> None:

@@ -105,7 +105,6 @@ def test_drive_lists_events(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     [
         (["intersection", "nowhere"], "is neither a bundled network"),
         (["intersection", str(TOWN07), "--junction", "358"], "has control type 'priority'"),
-        (["intersection", str(TOWN05), "--junction", "1126"], "'traffic_light'"),
         (["intersection", str(TOWN07)], "name one with --junction"),
         (["new", "4way-stop", "--ego", "S2C_1:C2E_1"], "no connection from fork 'S2C_1'"),
         (["new", "4way-stop", "--ego", "Q_0:C2E_1"], "valid forks"),
@@ -121,10 +120,10 @@ def test_bad_input_exits_2_with_one_line(args: list[str], message: str) -> None:
 
 
 def test_unknown_control_choice_exits_2() -> None:
-    result = run("intersection", "4way-stop", "--control", "traffic_light")
+    result = run("intersection", "4way-stop", "--control", "traffic_light_unregulated")
     assert result.returncode == 2
-    assert "invalid choice: 'traffic_light'" in result.stderr
-    assert "'allway_stop', 'priority_stop', 'right_before_left'" in result.stderr
+    assert "invalid choice: 'traffic_light_unregulated'" in result.stderr
+    assert "'allway_stop', 'priority_stop', 'right_before_left', 'traffic_light'" in result.stderr
 
 
 def _subclasses(root: type[errors.ScengenError]) -> list[type[errors.ScengenError]]:

@@ -121,7 +121,11 @@ def test_new_testcase_rejects_start_faster_than_its_lane_allows() -> None:
             lambda d: d["ego"]["start"].update(speed=-1),
             r"ego\.start\.speed: .*greater than or equal to 0",
         ),
-        (lambda d: d.update(control="traffic_light"), r"control: Input should be 'allway_stop'"),
+        (lambda d: d.update(control="zipper"), r"control: Input should be 'allway_stop'"),
+        (
+            lambda d: d.update(control="traffic_light", rules="traffic_light"),
+            r"a traffic_light junction needs its signal program",
+        ),
         (lambda d: d.update(rules="right_before_left"), r"rules 'right_before_left' do not match"),
         (lambda d: d.update(schema="other/1"), r"schema: Input should be 'scengen/testcase/1'"),
         (lambda d: d["params"].update(v_run=0.05), r"params: .*v_stop < v_run < v_max"),

@@ -23,6 +23,8 @@ from service.core.checker.rules import (
     event_facts,
     geometry_facts,
     perceptible_order,
+    phase_facts,
+    signal_facts,
     solve_rules,
     time_symbol,
 )
@@ -147,7 +149,9 @@ class Judge:
             goal_reached=goal_time is not None,
             goal_time=goal_time,
             collisions=tuple(_collisions(cars)),
-            violations=tuple(_violations(self.junction, cars, self.testcase.params.m)),
+            violations=tuple(
+                _violations(self.junction, cars, self.testcase.params.m, self.testcase.duration)
+            ),
             ego_events=tuple(_refs(car)),
             duration=self.testcase.duration,
         )
@@ -214,9 +218,12 @@ def _timed(cars: Sequence[Car]) -> list[TimedEvent]:
 VERDICT_ATOMS = (("law", 2), ("violatesRightOfForRuleAt", 4), ("violatesRuleAt", 3))
 
 
-def _violations(junction: Intersection, cars: Sequence[Car], m: float) -> list[Violation]:
+def _violations(
+    junction: Intersection, cars: Sequence[Car], m: float, duration: float
+) -> list[Violation]:
     timed = _timed(cars)
     facts = geometry_facts(junction) + perceptible_order(timed, m)
+    facts += signal_facts(junction, duration) + phase_facts(junction, timed, duration)
     for car in cars:
         facts.append(REQUESTED_LANE(car.id, car.lane))
         facts += event_facts(car.id, car.fork, [t for t in timed if t.car == car.id])

@@ -10,6 +10,7 @@ such as ``-35_0`` or ``:C_11_0`` need no escaping. Time symbols are ``t(Car, K)`
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +20,7 @@ import clingo
 from service.core.errors import ScengenError
 from service.core.motion.events import EventKind, LaneEvent
 from service.core.network import ControlType, Intersection
+from service.core.network.signals import RULE_COLOURS
 
 Fact = clingo.Symbol
 EPSILON = 1e-9  # seconds: float noise below this never flips a perceptible order
@@ -35,7 +37,7 @@ def asp_dir() -> Path:
 
 def rule_set_file(control: ControlType) -> Path:
     """The rule set of a control type: chosen by the junction, never by hand."""
-    return asp_dir() / "rules" / f"{control.value}.lp"
+    return asp_dir() / "rules" / f"{control.rule_set}.lp"
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,11 @@ IS_OPPOSITE_OF = Predicate("isOppositeOf", 2)
 SAME_DIRECTION = Predicate("sameDirection", 2)
 HAS_STOP_SIGN = Predicate("hasStopSign", 1)
 REQUESTED_LANE = Predicate("requestedLane", 2)
+# Signals (signals.lp)
+SIGNAL_LANE = Predicate("signalLane", 1)
+LANE_COLOUR = Predicate("laneColour", 3)
+PHASE_SPAN = Predicate("phaseSpan", 3)
+PHASE_AT = Predicate("phaseAt", 2)
 # Events (events.lp)
 ARRIVED_AT_FORK = Predicate("arrivedAtForkAtTime", 3)
 STOPPED_AT_FORK = Predicate("stoppedAtForkAtTime", 3)
@@ -89,7 +96,8 @@ REAL_LTE = Predicate("realLTE", 2)
 INPUT_PREDICATES = (
     IS_FORK, LANE_FROM_FORK, LANE_TURN, OVERLAPS, IS_TO_THE_RIGHT_OF, IS_OPPOSITE_OF,
     SAME_DIRECTION, HAS_STOP_SIGN, REQUESTED_LANE, ARRIVED_AT_FORK, STOPPED_AT_FORK,
-    ENTERED_FORK, ENTERED_LANE, LEFT_LANE, TIME, EQUAL, LESS_THAN, REAL_LTE,
+    ENTERED_FORK, ENTERED_LANE, LEFT_LANE, TIME, EQUAL, LESS_THAN, REAL_LTE, SIGNAL_LANE,
+    LANE_COLOUR, PHASE_SPAN, PHASE_AT,
 )  # fmt: skip
 
 
@@ -113,6 +121,38 @@ def geometry_facts(intersection: Intersection) -> list[Fact]:
         for other in sorted(intersection.conflicts[route.id]):
             facts.append(OVERLAPS(lane, intersection.routes[other].connecting_lane))
     return facts
+
+
+def signal_facts(intersection: Intersection, horizon: float) -> list[Fact]:
+    """The signal program over [0, horizon] s as facts (signals.lp): the phase instances
+    and every signalled lane's colour in each; none for a junction without signals."""
+    program = intersection.signals
+    if program is None:
+        return []
+    signalled = [r for r in intersection.routes.values() if r.link_index >= 0]
+    facts = [SIGNAL_LANE(r.connecting_lane) for r in signalled]
+    for instance in program.instances(horizon):
+        low, high = math.floor(instance.start * 1000), math.floor(instance.end * 1000)
+        facts.append(PHASE_SPAN(instance.index, low, high))
+        for route in signalled:
+            colour = constant(RULE_COLOURS[instance.state[route.link_index]])
+            facts.append(LANE_COLOUR(route.connecting_lane, instance.index, colour))
+    return facts
+
+
+def phase_facts(
+    intersection: Intersection, timed: Iterable[TimedEvent], horizon: float
+) -> list[Fact]:
+    """phaseAt for every entry into the junction, from its number (signals.lp)."""
+    program = intersection.signals
+    if program is None:
+        return []
+    instances = program.instances(horizon)
+    return [
+        PHASE_AT(t.symbol, program.instance_at(t.event.time, instances).index)
+        for t in timed
+        if t.event.kind is EventKind.ENTERED
+    ]
 
 
 @dataclass(frozen=True)

@@ -239,8 +239,9 @@ def extend_testcase(
             result = solve_timing(problem)
             seconds["timing"] += time.monotonic() - clock
             if isinstance(result, TimingFailure):
-                if result.core:
-                    ruled_out.append([ordering.relations[i] for i in result.core])
+                if result.core:  # given the phases chosen: their bounds are part of it
+                    core = [ordering.relations[i] for i in result.core]
+                    ruled_out.append([*core, *ordering.phases])
                     search.forbid(ruled_out[-1])
                 attempts.append(Attempt(number, f"timing: {result.reason}"))
                 say(f"step 2/3 answer set {number + 1}: {result.reason}")
@@ -751,8 +752,10 @@ def _timing_problem(
             for a, b, gap in bounds.headways
             if str(a) in knotted and str(b) in knotted
         ),
-        earliest=tuple((str(s), t) for s, t in bounds.earliest if str(s) in knotted),
-        latest=tuple((str(s), t) for s, t in bounds.latest if str(s) in knotted),
+        earliest=tuple((str(s), t) for s, t in bounds.earliest if str(s) in knotted)
+        + tuple((s, start + _margin(old)) for s, start, _ in ordering.spans if s in knotted),
+        latest=tuple((str(s), t) for s, t in bounds.latest if str(s) in knotted)
+        + tuple((s, end - 0.001 - _margin(old)) for s, _, end in ordering.spans if s in knotted),
         follows=follows,
         timestep=old.timestep,
         duration=old.duration,

@@ -37,7 +37,9 @@ from service.core.checker.rules import (
     event_facts,
     geometry_facts,
     perceptible_order,
+    phase_facts,
     rule_set_file,
+    signal_facts,
     time_symbol,
 )
 from service.core.motion.events import EventKind, LaneEvent
@@ -126,6 +128,10 @@ class Ordering:
     violated: tuple[tuple[str, str], ...] = field(default=())  # (new car, rule) by "illegal"
     times: tuple[tuple[str, float], ...] = field(default=())  # (symbol, seconds)
     named: tuple[tuple[str, str, str], ...] = field(default=())  # the relations as text
+    # the phase instance chosen for each symbolic entry at a signalized junction:
+    # ("phaseAt", symbol, instance) and the instance's span in seconds
+    phases: tuple[tuple[str, clingo.Symbol, clingo.Symbol], ...] = field(default=())
+    spans: tuple[tuple[str, float, float], ...] = field(default=())  # (symbol, start, end)
 
     def describe(self) -> list[str]:
         return [f"{kind}({a},{b})" for kind, a, b in self.named]
@@ -220,12 +226,17 @@ def stand_distance(car: OrderingCar) -> float | None:
 
 
 def _time_facts(
-    car: OrderingCar, timed: Sequence[TimedEvent], stop_sign: bool, limits: Limits
+    car: OrderingCar,
+    timed: Sequence[TimedEvent],
+    stop_sign: bool,
+    limits: Limits,
+    may_stop: bool = False,
 ) -> list[Fact]:
     """Difference-constraint facts of a symbolic car: least gaps between its consecutive
     symbols however it drives, the stronger ones when it stops at its sign (braking to the
     stand, standing, pulling away), and the longest gap from arriving to entering when it
-    runs the sign (at least v_run all the way)."""
+    runs the sign (at least v_run all the way). ``may_stop``: the car may stop at its line
+    without a sign (a signal): its stop is a choice, with no longest gap when it does not."""
     points: list[tuple[clingo.Symbol | None, float]] = list(_points(timed))
     facts = [MIN_GAP(a, b, g) for a, b, g in _gap_facts(points, car.start_speed, limits.bounds)]
     facts += [SYMBOLIC_TIME(s) for s, _ in points if s is not None]
@@ -238,7 +249,7 @@ def _time_facts(
         longest = math.ceil(inside / limits.crossing * 1000)
         facts.append(MAX_GAP_INSIDE(entered.symbol, leaves.symbol, longest))
     stand = stand_distance(car)
-    if not stop_sign or arrived is None or entered is None or stand is None:
+    if not (stop_sign or may_stop) or arrived is None or entered is None or stand is None:
         return facts
     stop = stop_symbol(car.car)
     facts += [SYMBOLIC_TIME(stop), STOP_TIME(car.car, stop)]
@@ -246,6 +257,8 @@ def _time_facts(
     stopping = [*behind, (stop, stand), (None, stand), *points[len(behind) :]]
     stopped_gaps = _gap_facts(stopping, car.start_speed, limits.bounds)
     facts += [MIN_GAP_STOPPED(car.car, a, b, g) for a, b, g in stopped_gaps]
+    if not stop_sign:
+        return facts
     run = entered.event.distance - arrived.event.distance
     longest = math.ceil(run / limits.v_run * 1000)
     facts.append(MAX_GAP_RUNNING(car.car, arrived.symbol, entered.symbol, longest))
@@ -309,7 +322,7 @@ def ordering_facts(
 ) -> tuple[list[clingo.Symbol], dict[clingo.Symbol, TimedEvent]]:
     """Facts of Step 2 and the events behind every time symbol; ``queue``: what the
     queues ask of the symbolic cars (service.core.generator.following)."""
-    facts = geometry_facts(intersection)
+    facts = geometry_facts(intersection) + signal_facts(intersection, limits.duration)
     symbols: dict[clingo.Symbol, TimedEvent] = {}
     old_timed: list[TimedEvent] = []
     requested = {car.lane for car in cars}
@@ -332,12 +345,14 @@ def ordering_facts(
                 facts.append(OLD_TIME(t.symbol, math.floor(ms), math.ceil(ms)))
             continue
         stop_sign = intersection.forks[car.fork].stop_sign
-        facts += _time_facts(car, timed, stop_sign, limits)
+        may_stop = car.fork in intersection.signal_forks
+        facts += _time_facts(car, timed, stop_sign, limits, may_stop)
         facts += _nominal(car, timed, stop_sign, seed)
         distinct = list(dict.fromkeys(t.symbol for t in timed))
         facts += [TIME(s) for s in distinct]
         facts += [REAL_LTE(a, b) for a, b in itertools.pairwise(distinct)]
     facts += perceptible_order(old_timed, m)
+    facts += phase_facts(intersection, old_timed, limits.duration)
     facts += [NOMINAL(t.symbol, round(t.event.time * 1000)) for t in old_timed]
     horizon = math.floor((limits.duration - limits.margin) * 1000)
     facts.append(HORIZON(horizon))
@@ -395,6 +410,12 @@ class OrderingSearch:
         for group in GROUPS:
             self._enforce(group, True)
         self.symbolic = {c for c, car in self.cars.items() if car.kind is not CarKind.OLD}
+        self.spans = {
+            instance.index: (instance.start, instance.end)
+            for instance in (
+                intersection.signals.instances(limits.duration) if intersection.signals else []
+            )
+        }
         self.drawn = 0
         self.learned = 0
         self._names: dict[clingo.Symbol, tuple[str, str]] = {}
@@ -453,7 +474,7 @@ class OrderingSearch:
 
     def block(self, ordering: Ordering) -> None:
         """Rule out this answer set (its relations and stops) from the search that follows."""
-        literals = [f"{kind}({a},{b})" for kind, a, b in ordering.named]
+        literals = [f"{kind}({a},{b})" for kind, a, b in (*ordering.named, *ordering.phases)]
         for car in sorted(self.symbolic):
             stop = f'stoppedAtForkAtTime("{car}",_,{stop_symbol(car)})'
             literals.append(stop if car in ordering.stops else f"not {stop}")
@@ -482,6 +503,7 @@ class OrderingSearch:
         relations = []
         stops = set()
         violated = []
+        phases = []
         symbolic = self.symbolic
         for atom in atoms:  # only the shown atoms (extension.lp's #show)
             name, arguments = atom.name, atom.arguments
@@ -496,6 +518,8 @@ class OrderingSearch:
                 stops.add(arguments[0].string)
             elif name == "violatesRightOfForRule" and arguments[0].string == "illegal":
                 violated.append((arguments[1].string, str(arguments[2])))
+            elif name == "phaseAt" and self._named(arguments[0])[1] in symbolic:
+                phases.append(("phaseAt", arguments[0], arguments[1]))
         relations.sort(key=lambda pair: pair[0])
         return Ordering(
             index,
@@ -504,6 +528,11 @@ class OrderingSearch:
             tuple(sorted(violated)),
             tuple(sorted(times.items())),
             tuple(named for named, _ in relations),
+            tuple(sorted(phases, key=lambda p: str(p[1]))),
+            tuple(
+                (str(symbol), *self.spans[instance.number])
+                for _, symbol, instance in sorted(phases, key=lambda p: str(p[1]))
+            ),
         )
 
     def explain_unsatisfiable(self) -> str:

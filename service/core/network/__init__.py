@@ -6,6 +6,7 @@ from service.core.network.load import (
     parsed_network,
     read_network,
     resolve_network,
+    with_signals,
 )
 from service.core.network.model import (
     ConnectingLane,
@@ -18,6 +19,7 @@ from service.core.network.model import (
     route_id,
 )
 from service.core.network.override import file_sha256
+from service.core.network.signals import SignalPhase, SignalProgram
 
 __all__ = [
     "ConnectingLane",
@@ -26,6 +28,8 @@ __all__ = [
     "Fork",
     "Intersection",
     "Route",
+    "SignalPhase",
+    "SignalProgram",
     "Turn",
     "bundled_networks",
     "file_sha256",
@@ -34,4 +38,5 @@ __all__ = [
     "read_network",
     "resolve_network",
     "route_id",
+    "with_signals",
 ]

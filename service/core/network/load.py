@@ -49,6 +49,7 @@ from service.core.network.relations import (
     conflicting_routes,
     fork_relations,
 )
+from service.core.network.signals import SignalProgram, network_program
 
 SUPPORTED = tuple(c.value for c in ControlType)
 TURNS = {"s": Turn.STRAIGHT, "l": Turn.LEFT, "L": Turn.LEFT, "r": Turn.RIGHT, "R": Turn.RIGHT}
@@ -91,7 +92,7 @@ def resolve_network(ref: str | Path) -> Path:
 
 def read_network(path: Path) -> Any:
     try:
-        net = sumolib.net.readNet(str(path), withInternal=True)
+        net = sumolib.net.readNet(str(path), withInternal=True, withPrograms=True)
     except Exception as exc:  # sumolib raises bare SAX and key errors on bad files
         raise InvalidInput(f"cannot read SUMO network {path}: {exc}", network=str(path)) from exc
     _check_geometry(net, path)
@@ -300,6 +301,7 @@ def _build(
     exits: dict[str, Exit] = {}
     lanes: dict[str, ConnectingLane] = {}
     routes: dict[str, Route] = {}
+    lights: set[str] = set()
     for edge in node.getIncoming():
         if edge.getFunction() == "internal":
             continue
@@ -319,12 +321,16 @@ def _build(
                         junction=junction,
                     )
                 lanes[chain[0]] = _connecting_lane(net, chain, lane, to_lane)
+                tls = connection.getTLSID() if control.signalized else ""
+                if tls:
+                    lights.add(str(tls))
                 route = Route(
                     fork=lane.getID(),
                     exit=to_lane.getID(),
                     connecting_lane=chain[0],
                     turn=turn,
                     link_state=connection.getState(),
+                    link_index=int(connection.getTLLinkIndex()) if tls else -1,
                 )
                 routes[route.id] = route
                 exits.setdefault(to_lane.getID(), _exit(net, to_lane, junction))
@@ -335,6 +341,7 @@ def _build(
             f"junction {junction!r} has no connections for cars", junction=junction
         )
     right, opposite, same = fork_relations(forks)
+    tls, links, program, refused = _traffic_light(net, junction, control, lights)
     return Intersection(
         network_file=effective,
         source_file=source,
@@ -351,7 +358,49 @@ def _build(
         opposite=opposite,
         same_direction=same,
         side_lanes=_side_lanes(net, [*forks, *exits], set(forks)),
+        tls=tls,
+        tls_links=links,
+        signals=program,
+        signals_refused=refused,
     )
+
+
+def _traffic_light(
+    net: Any, junction: str, control: ControlType, lights: set[str]
+) -> tuple[str | None, int, SignalProgram | None, str | None]:
+    """The traffic light of a signalized junction: its id, how many links it controls, its
+    program when that is fixed-time, and otherwise why not (a test-case may give one)."""
+    if not control.signalized:
+        return None, 0, None, None
+    if len(lights) != 1:
+        what = (
+            f"{len(lights)} traffic lights ({', '.join(sorted(lights))})"
+            if lights
+            else ("no traffic light")
+        )
+        raise UnsupportedIntersection(
+            f"junction {junction!r} is of type {control.value} but its connections have "
+            f"{what}; scengen tests a junction controlled by one traffic light",
+            junction=junction,
+        )
+    tls = next(iter(lights))
+    links = 1 + max(int(c[2]) for c in net.getTLS(tls).getConnections())
+    try:
+        program = network_program(net, tls)
+    except InvalidInput as refused:
+        return tls, links, None, str(refused)
+    if program.links != links:
+        return (
+            tls,
+            links,
+            None,
+            (
+                f"the program {program.program_id!r} of traffic light {tls!r} has "
+                f"{program.links} colours per phase but the light controls {links} links; give "
+                "a program with --signals FILE"
+            ),
+        )
+    return tls, links, program, None
 
 
 def _side_lanes(net: Any, lanes: Sequence[str], forks: set[str]) -> dict[str, str]:
@@ -499,3 +548,36 @@ def _exit(net: Any, lane: Any, junction: str) -> Exit:
         width=lane.getWidth(),
         departure=_clip(polyline, DRAWN_LENGTH, at_end=False),
     )
+
+
+def with_signals(intersection: Intersection, program: SignalProgram) -> Intersection:
+    """``intersection`` under ``program`` (a test-case's or the user's): InvalidInput when
+    the junction has no traffic light, or the program is for another light or has the
+    wrong number of colours per phase. A program without a light's id is this one's."""
+    if not intersection.control.signalized or intersection.tls is None:
+        raise InvalidInput(
+            f"junction {intersection.junction!r} is of type {intersection.control.value}, "
+            "without traffic lights: a signal program applies to a traffic_light junction"
+        )
+    if program.tls and program.tls != intersection.tls:
+        raise InvalidInput(
+            f"the signal program is for traffic light {program.tls!r}, but junction "
+            f"{intersection.junction!r} is controlled by traffic light {intersection.tls!r}"
+        )
+    if program.links != intersection.tls_links:
+        raise InvalidInput(
+            f"the signal program's states have {program.links} colours, but traffic light "
+            f"{intersection.tls!r} controls {intersection.tls_links} links (indices 0 to "
+            f"{intersection.tls_links - 1}, one colour each: "
+            f"{_link_listing(intersection)})"
+        )
+    if not program.tls:
+        program = dataclasses.replace(program, tls=intersection.tls)
+    return dataclasses.replace(intersection, signals=program, signals_refused=None)
+
+
+def _link_listing(intersection: Intersection) -> str:
+    """Which route each link index is (the first few)."""
+    named = sorted((r.link_index, r.id) for r in intersection.routes.values() if r.link_index >= 0)
+    text = ", ".join(f"{k} {route}" for k, route in named[:6])
+    return text + (", ..." if len(named) > 6 else "")

@@ -13,6 +13,7 @@ from pathlib import Path
 from shapely.geometry import LineString, Polygon
 
 from service.core.errors import UnknownLane, UnknownRoute, choices
+from service.core.network.signals import SignalProgram
 
 Point = tuple[float, float]
 
@@ -23,6 +24,19 @@ class ControlType(StrEnum):
     ALLWAY_STOP = "allway_stop"
     PRIORITY_STOP = "priority_stop"
     RIGHT_BEFORE_LEFT = "right_before_left"
+    TRAFFIC_LIGHT = "traffic_light"
+    TRAFFIC_LIGHT_RIGHT_ON_RED = "traffic_light_right_on_red"
+
+    @property
+    def signalized(self) -> bool:
+        """Traffic lights control the junction (its program is part of the test-case)."""
+        return self in (ControlType.TRAFFIC_LIGHT, ControlType.TRAFFIC_LIGHT_RIGHT_ON_RED)
+
+    @property
+    def rule_set(self) -> str:
+        """The name of the rule set (asp/rules/NAME.lp): both signal types share one, the
+        program's colours (``s``: right on red) say what each lane may do."""
+        return "traffic_light" if self.signalized else self.value
 
 
 class Turn(StrEnum):
@@ -81,6 +95,7 @@ class Route:
     connecting_lane: str
     turn: Turn
     link_state: str  # SUMO's link state: 'w' all-way stop, 's' stop, 'm' minor, 'M' major, ...
+    link_index: int = -1  # the traffic light's index of this connection; -1: no signal
 
     @property
     def id(self) -> str:
@@ -116,6 +131,25 @@ class Intersection:
     # the two roads into a priority_stop junction rebuilt with netconvert that keep the
     # right of way (given or chosen by service.core.network.major); None: the network's
     major_road: tuple[str, str] | None = None
+    # the traffic light of a signalized junction, how many links it controls, and the
+    # program in force (the network's, or the test-case's: load_testcase_intersection)
+    tls: str | None = None
+    tls_links: int = 0
+    signals: SignalProgram | None = None
+    signals_refused: str | None = None  # why the network's program cannot be used
+
+    def signal_colour(self, route: Route, t: float) -> str | None:
+        """The SUMO colour of ``route``'s signal at time ``t``; None without a signal."""
+        if self.signals is None or route.link_index < 0:
+            return None
+        return self.signals.colour(route.link_index, t)
+
+    @property
+    def signal_forks(self) -> frozenset[str]:
+        """The forks with a signal on some route."""
+        if self.signals is None:
+            return frozenset()
+        return frozenset(r.fork for r in self.routes.values() if r.link_index >= 0)
 
     def offered(self, route: Route) -> bool:
         """The route is for driving through: neither its fork nor its exit is a side lane.

@@ -26,8 +26,14 @@ from service.core.network import (
 from tests.conftest import TOWN05, TOWN07
 
 
-def test_bundled_networks_are_the_three_documented_ones() -> None:
-    assert set(bundled_networks()) == {"4way-stop", "t-stop", "y-uncontrolled"}
+def test_bundled_networks_are_the_five_documented_ones() -> None:
+    assert set(bundled_networks()) == {
+        "4way-stop",
+        "t-stop",
+        "y-uncontrolled",
+        "4way-signal",
+        "t-signal",
+    }
 
 
 @pytest.mark.parametrize(
@@ -218,12 +224,18 @@ def test_unsupported_control_type_is_refused_with_its_name() -> None:
         load_intersection(TOWN07, "358")
     message = str(caught.value)
     assert "'358'" in message and "'priority'" in message
-    assert "allway_stop, priority_stop, right_before_left" in message
+    assert (
+        "allway_stop, priority_stop, right_before_left, traffic_light, "
+        "traffic_light_right_on_red" in message
+    )
 
 
-def test_traffic_light_is_refused() -> None:
-    with pytest.raises(UnsupportedIntersection, match="traffic_light"):
-        load_intersection(TOWN05, "1126")
+def test_a_real_signalized_junction_loads_with_its_fixed_time_program() -> None:
+    junction = load_intersection(TOWN05, "1126")
+    assert junction.control is ControlType.TRAFFIC_LIGHT
+    assert junction.signals is not None and junction.tls == junction.signals.tls
+    assert junction.signals.links == junction.tls_links
+    assert all(0 <= r.link_index < junction.tls_links for r in junction.routes.values())
 
 
 def test_junction_must_be_named_when_none_is_supported() -> None:
@@ -238,13 +250,13 @@ def test_unknown_junction_lists_candidates() -> None:
 
 
 def test_unknown_network_lists_bundled() -> None:
-    with pytest.raises(UnknownNetwork, match="4way-stop, t-stop, y-uncontrolled"):
+    with pytest.raises(UnknownNetwork, match="4way-signal, 4way-stop, t-signal, t-stop, y-unc"):
         load_intersection("5way-stop")
 
 
 def test_unknown_control_type_lists_choices() -> None:
     with pytest.raises(InvalidInput, match="allway_stop, priority_stop, right_before_left"):
-        load_intersection("4way-stop", control="traffic_light")
+        load_intersection("4way-stop", control="zipper")
 
 
 def test_unknown_route_and_lanes_name_valid_ones(four_way: Intersection) -> None:
@@ -353,5 +365,5 @@ def test_with_control_the_only_junction_of_three_approaches_is_taken(cache_dir: 
         r"more approaches; name one with --junction: 1126 \(traffic_light\)",
     ):
         load_intersection(TOWN05, control="allway_stop")  # fmt: skip
-    with pytest.raises(UnknownJunction, match=r"no junction of a supported control type"):
+    with pytest.raises(UnknownJunction, match=r"several junctions of a supported control type"):
         load_intersection(TOWN05)

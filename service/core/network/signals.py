@@ -1,0 +1,314 @@
+"""Fixed-time traffic-light programs: SUMO's tlLogic, as a test-case carries it.
+
+A program is a cycle of phases; each phase has a duration (s) and a state: one colour
+character per link (connection) the traffic light controls, indexed by SUMO's link index.
+Colours (SUMO's): ``G`` green with priority (a protected movement), ``g`` green without
+priority (permissive: yield to conflicting traffic), ``y`` yellow, ``r`` red, ``u``
+red-yellow (red, before green), ``s`` a green right-turn arrow that requires a stop first
+(right turn on red). ``o`` and ``O`` (signal off) are not a program to test under signal
+rules.
+
+Time: SUMO shows the phase at program position ``(t - offset) mod cycle`` at simulation
+time t (t = 0 is the test-case's start). A phase instance is one occurrence of a phase on
+the test-case's time line, from its start (inclusive) to its end (exclusive).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from defusedxml import ElementTree as SafeElementTree
+from defusedxml.common import DefusedXmlException
+
+from service.core.errors import InvalidInput
+
+# SUMO colour -> the colour the signal rules reason with (asp/signals.lp)
+RULE_COLOURS = {
+    "G": "green",
+    "g": "permissive",
+    "y": "yellow",
+    "r": "red",
+    "u": "red",
+    "s": "redTurn",
+}
+COLOUR_WORDS = {
+    "G": "protected green",
+    "g": "permissive green",
+    "y": "yellow",
+    "r": "red",
+    "u": "red-yellow",
+    "s": "right on red after a stop",
+}
+VALID_COLOURS = "".join(RULE_COLOURS)
+MAX_PHASES = 1000
+MAX_PHASE_DURATION = 3600.0  # s
+
+
+@dataclass(frozen=True)
+class SignalPhase:
+    duration: float  # s, positive
+    state: str  # one colour per link of the traffic light
+
+
+@dataclass(frozen=True)
+class PhaseInstance:
+    """One occurrence of a phase on the test-case's time line: [start, end) seconds."""
+
+    index: int  # position on the time line (0: the phase at t = 0)
+    phase: int  # which phase of the program
+    start: float
+    end: float
+    state: str
+
+
+@dataclass(frozen=True)
+class SignalProgram:
+    """A fixed-time program of traffic light ``tls``."""
+
+    tls: str
+    program_id: str
+    offset: float
+    phases: tuple[SignalPhase, ...]
+
+    @property
+    def cycle(self) -> float:
+        return sum(phase.duration for phase in self.phases)
+
+    @property
+    def links(self) -> int:
+        return len(self.phases[0].state)
+
+    def instances(self, horizon: float) -> list[PhaseInstance]:
+        """The phase instances that cover [0, horizon], in order."""
+        position = (0.0 - self.offset) % self.cycle
+        phase, begun = 0, 0.0
+        while begun + self.phases[phase].duration <= position:
+            begun += self.phases[phase].duration
+            phase += 1
+        start = -(position - begun)
+        found: list[PhaseInstance] = []
+        while start <= horizon:
+            end = start + self.phases[phase].duration
+            found.append(PhaseInstance(len(found), phase, start, end, self.phases[phase].state))
+            start, phase = end, (phase + 1) % len(self.phases)
+        return found
+
+    def instance_at(self, t: float, instances: Sequence[PhaseInstance]) -> PhaseInstance:
+        """The instance of ``instances`` (from ``instances``) showing at time ``t``."""
+        for instance in instances:
+            if instance.start <= t < instance.end:
+                return instance
+        return instances[-1] if t >= instances[-1].end else instances[0]
+
+    def colour(self, link: int, t: float) -> str:
+        """The SUMO colour of ``link`` at time ``t``."""
+        position = (t - self.offset) % self.cycle
+        for phase in self.phases:
+            if position < phase.duration:
+                return phase.state[link]
+            position -= phase.duration
+        return self.phases[-1].state[link]
+
+    def timeline(self, link: int, horizon: float) -> list[tuple[float, float, str]]:
+        """(start, end, colour) of ``link`` over [0, horizon], runs of one colour merged,
+        clipped to the horizon."""
+        runs: list[tuple[float, float, str]] = []
+        for instance in self.instances(horizon):
+            colour = instance.state[link]
+            start, end = max(instance.start, 0.0), min(instance.end, horizon)
+            if end <= start:
+                continue
+            if runs and runs[-1][2] == colour:
+                runs[-1] = (runs[-1][0], end, colour)
+            else:
+                runs.append((start, end, colour))
+        return runs
+
+    def to_document(self) -> dict[str, Any]:
+        """The program as the test-case's ``signals`` field."""
+        return {
+            "tls": self.tls,
+            "program": self.program_id,
+            "offset": self.offset,
+            "phases": [{"duration": p.duration, "state": p.state} for p in self.phases],
+        }
+
+    def to_sumo_xml(self) -> str:
+        """An additional file that makes this program the active one of its traffic light
+        (SUMO activates the program loaded last)."""
+        from xml.sax.saxutils import quoteattr
+
+        lines = [
+            "<additional>",
+            f"    <tlLogic id={quoteattr(self.tls)} programID={quoteattr(self.program_id)} "
+            f'offset="{self.offset:g}" type="static">',
+        ]
+        lines += [
+            f'        <phase duration="{p.duration:g}" state="{p.state}"/>' for p in self.phases
+        ]
+        lines += ["    </tlLogic>", "</additional>", ""]
+        return "\n".join(lines)
+
+
+def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases") -> list[str]:
+    """What is wrong with a program's phases (durations, colours, lengths); empty if
+    nothing."""
+    listed = list(phases)
+    problems = []
+    if not listed:
+        return [f"{where}: a program needs at least one phase"]
+    if len(listed) > MAX_PHASES:
+        problems.append(f"{where}: {len(listed)} phases, at most {MAX_PHASES}")
+    length = len(listed[0][1])
+    for k, (duration, state) in enumerate(listed):
+        if not (math.isfinite(duration) and 0 < duration <= MAX_PHASE_DURATION):
+            problems.append(
+                f"{where}.{k}.duration is {duration:g} s; a phase lasts more than 0 and at "
+                f"most {MAX_PHASE_DURATION:g} s"
+            )
+        bad = sorted({c for c in state if c not in VALID_COLOURS})
+        if bad:
+            off = (
+                " (o and O switch the signal off: not a program to test)"
+                if set(bad) & set("oO")
+                else ""
+            )
+            problems.append(
+                f"{where}.{k}.state {state!r} has unknown colours {''.join(bad)!r}{off}; "
+                f"valid colours: {', '.join(f'{c} {COLOUR_WORDS[c]}' for c in VALID_COLOURS)}"
+            )
+        if not state:
+            problems.append(f"{where}.{k}.state is empty")
+        elif len(state) != length:
+            problems.append(
+                f"{where}.{k}.state has {len(state)} colours, phase 0 has {length}: every "
+                "state has one colour per link of the traffic light"
+            )
+    return problems
+
+
+def make_program(
+    tls: str, program_id: str, offset: float, phases: Sequence[tuple[float, str]]
+) -> SignalProgram:
+    """A checked program; InvalidInput naming every problem."""
+    problems = program_problems(phases)
+    if not math.isfinite(offset) or abs(offset) > 1e6:
+        problems.append(f"offset {offset:g} s is not a finite number of at most 1e6 s")
+    if problems:
+        raise InvalidInput(f"traffic-light program of {tls!r}: " + "; ".join(problems))
+    return SignalProgram(
+        tls, program_id, float(offset), tuple(SignalPhase(float(d), s) for d, s in phases)
+    )
+
+
+def network_program(net: Any, tls_id: str) -> SignalProgram:
+    """The active program of traffic light ``tls_id`` in a sumolib network read with its
+    programs (the last one loaded, as SUMO does). InvalidInput when it is not fixed-time."""
+    programs = net.getTLS(tls_id).getPrograms()
+    if not programs:
+        raise InvalidInput(
+            f"traffic light {tls_id!r} has no program in the network; give a fixed-time one "
+            "with --signals FILE (a SUMO tlLogic of type static, or scengen's JSON)"
+        )
+    program_id, program = list(programs.items())[-1]
+    kind = program.getType()
+    if kind != "static":
+        raise InvalidInput(
+            f"traffic light {tls_id!r} runs program {program_id!r} of type {kind!r}; scengen "
+            "needs a fixed-time program (type static) so that the test-case is the same "
+            'everywhere: give one with --signals FILE (a SUMO <tlLogic type="static"> or '
+            "scengen's JSON), or rebuild the network with netconvert --tls.default-type static"
+        )
+    phases = [(float(p.duration), str(p.state)) for p in program.getPhases()]
+    return make_program(tls_id, str(program_id), float(program.getOffset()), phases)
+
+
+def read_signals_file(path: Path, tls: str | None = None) -> SignalProgram:
+    """A fixed-time program from a file: scengen's JSON (the test-case's ``signals``
+    field) or SUMO XML with a ``<tlLogic>`` (the one of ``tls`` where there are several).
+    InvalidInput naming the problem."""
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"cannot read the signals file {path}: {exc}") from None
+    if text.lstrip().startswith("{"):
+        try:
+            document = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise InvalidInput(f"signals file {path} is not JSON: {exc}") from None
+        return program_from_document(document, str(path))
+    return program_from_xml(text, str(path), tls)
+
+
+def program_from_document(document: Any, where: str = "signals") -> SignalProgram:
+    """A program from the JSON form (``{"tls", "program", "offset", "phases": [{"duration",
+    "state"}]}``)."""
+    if not isinstance(document, dict) or not isinstance(document.get("phases"), list):
+        raise InvalidInput(
+            f"{where}: a program is an object with tls, program, offset and phases "
+            '([{"duration": seconds, "state": "GGrr..."}])'
+        )
+    phases = []
+    for k, phase in enumerate(document["phases"]):
+        if (
+            not isinstance(phase, dict)
+            or not isinstance(phase.get("state"), str)
+            or not (
+                isinstance(phase.get("duration"), int | float)
+                and not isinstance(phase.get("duration"), bool)
+            )
+        ):
+            raise InvalidInput(
+                f"{where}: phases.{k} needs a duration (seconds) and a state (a string)"
+            )
+        phases.append((float(phase["duration"]), phase["state"]))
+    offset = document.get("offset", 0.0)
+    if not isinstance(offset, int | float) or isinstance(offset, bool):
+        raise InvalidInput(f"{where}: offset must be a number of seconds")
+    tls = document.get("tls", "")
+    program = document.get("program", "scengen")
+    if not isinstance(tls, str) or not isinstance(program, str):
+        raise InvalidInput(f"{where}: tls and program must be strings")
+    return make_program(tls, program or "scengen", float(offset), phases)
+
+
+def program_from_xml(text: str, where: str, tls: str | None = None) -> SignalProgram:
+    """A program from SUMO XML (an additional file or a network with ``<tlLogic>``)."""
+    try:
+        root = SafeElementTree.fromstring(text, forbid_dtd=True)
+    except (SafeElementTree.ParseError, DefusedXmlException) as exc:
+        raise InvalidInput(f"signals file {where} is neither JSON nor XML: {exc}") from None
+    logics = [root] if root.tag == "tlLogic" else list(root.iter("tlLogic"))
+    if not logics:
+        raise InvalidInput(f"signals file {where} has no <tlLogic> element")
+    if tls is not None and len(logics) > 1:
+        logics = [e for e in logics if e.get("id") == tls] or logics
+    if len(logics) > 1:
+        ids = ", ".join(sorted({str(e.get("id")) for e in logics}))
+        raise InvalidInput(f"signals file {where} has several <tlLogic> elements ({ids})")
+    logic = logics[0]
+    kind = logic.get("type", "static")
+    if kind != "static":
+        raise InvalidInput(
+            f"signals file {where}: tlLogic {logic.get('id')!r} is of type {kind!r}; scengen "
+            'needs a fixed-time program: type="static"'
+        )
+    phases = []
+    for k, phase in enumerate(logic.iter("phase")):
+        try:
+            duration = float(phase.get("duration", ""))
+        except ValueError:
+            raise InvalidInput(f"signals file {where}: phase {k} has no numeric duration") from None
+        phases.append((duration, phase.get("state", "")))
+    try:
+        offset = float(logic.get("offset", "0"))
+    except ValueError:
+        raise InvalidInput(f"signals file {where}: offset is not a number") from None
+    return make_program(
+        str(logic.get("id", "")), str(logic.get("programID", "scengen")), offset, phases
+    )
