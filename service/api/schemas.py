@@ -25,6 +25,7 @@ from service.core.testcase import (
     MAX_TIMESTEP,
     MIN_TIMESTEP,
     Params,
+    Signals,
     check_name,
 )
 from service.start_distances import DESCRIPTION as START_DISTANCES
@@ -138,6 +139,12 @@ class TestCaseCreate(_Body):
     timestep: float = Field(0.1, ge=MIN_TIMESTEP, le=MAX_TIMESTEP, description="sample spacing (s)")
     params: Params | None = Field(None, description="rule and speed parameters")
     name: str = Field("", max_length=MAX_NAME_LENGTH, description="printable characters")
+    signals: Signals | None = Field(
+        None,
+        description="a traffic_light junction: a fixed-time program replacing the network's "
+        "(the test-case's signals field: tls, program, offset, phases with duration and "
+        "state); default: the network's, when it is fixed-time",
+    )
 
     @field_validator("name")
     @classmethod

@@ -22,6 +22,7 @@ from service.core.testcase import (
     find_network_file,
     implausible_trajectories,
     read_testcase,
+    under_testcase_signals,
 )
 
 CONTROLS = [c.value for c in ControlType]
@@ -53,6 +54,17 @@ NETWORK = (
         "of way, the others stop (default: the network's; for a junction made priority_stop "
         "whose roads all have the same priority, the two closest to straight across)",
     ),
+)
+
+
+SIGNALS = arg(
+    "--signals",
+    type=Path,
+    metavar="FILE",
+    help="a traffic_light junction: its fixed-time program, replacing the network's: a SUMO "
+    'file with a <tlLogic type="static"> (an additional file or a .tll.xml) or scengen\'s JSON '
+    '({"tls", "program", "offset", "phases": [{"duration", "state"}]}, the test-case\'s '
+    "signals field)",
 )
 
 
@@ -128,9 +140,10 @@ def testcase_intersection(
 ) -> Intersection:
     """The test-case's intersection, its network found by ``locate_network``."""
     path = locate_network(testcase, args, read_from)
-    return load_intersection(  # the hash was checked above
+    intersection = load_intersection(  # the hash was checked above
         path, testcase.junction, testcase.control, major_road=testcase.major_road
     )
+    return under_testcase_signals(intersection, testcase)
 
 
 def distance_or_auto(text: str) -> float | None:

@@ -7,11 +7,12 @@ import json
 from pathlib import Path
 from typing import Any
 
-from service.cli.arguments import NETWORK
+from service.cli.arguments import NETWORK, SIGNALS
 from service.cli.output import EXIT_OK, output_file, print_table
 from service.cli.table import arg, command
-from service.core.network import bundled_networks, load_intersection
+from service.core.network import bundled_networks, load_intersection, with_signals
 from service.core.network.describe import describe_intersection
+from service.core.network.signals import COLOUR_WORDS, read_signals_file
 
 
 @command("networks", "list the bundled networks")
@@ -25,6 +26,15 @@ def networks(args: argparse.Namespace) -> int:
     "intersection",
     "describe a junction: forks, routes, conflicts, right-of relations",
     NETWORK,
+    SIGNALS,
+    arg(
+        "--duration",
+        type=float,
+        default=None,
+        metavar="S",
+        help="a signalized junction: show each route's signal over this many seconds "
+        "(default: one cycle)",
+    ),
     arg("--json", action="store_true", help="print one JSON object"),
     arg(
         "--plot",
@@ -36,7 +46,9 @@ def networks(args: argparse.Namespace) -> int:
 )
 def intersection(args: argparse.Namespace) -> int:
     junction = load_intersection(args.network, args.junction, args.control, major_road=args.major)
-    description = describe_intersection(junction)
+    if args.signals:
+        junction = with_signals(junction, read_signals_file(args.signals, junction.tls))
+    description = describe_intersection(junction, args.duration)
     if args.plot:
         from service.pictures.plot import plot_intersection
 
@@ -73,7 +85,30 @@ def _print_intersection(d: dict[str, Any], major_given: bool) -> None:
     for r in d["routes"]:
         rows.append([r["id"], r["turn"], " ".join(r["conflicts"]) or "-"])
     print_table(rows)
+    if d.get("signals"):
+        _print_signals(d["signals"], {r["id"]: r for r in d["routes"]})
     if d["side_lanes"]:
         print()
         print("side lanes, not offered (a route on one works when named):")
         print_table([[s["lane"], s["reason"]] for s in d["side_lanes"]])
+
+
+def _print_signals(signals: dict[str, Any], routes: dict[str, dict[str, Any]]) -> None:
+    print()
+    print(
+        f"traffic light {signals['tls']}  program {signals['program']}  offset "
+        f"{signals['offset']:g} s  cycle {signals['cycle']:g} s  {len(signals['phases'])} "
+        f"phases; colours over {signals['horizon']:g} s from t = 0"
+    )
+    rows = [["route", "link", "green", "colours (from s: colour)"]]
+    for route_id, route in routes.items():
+        signal = route.get("signal")
+        if signal is None:
+            rows.append([route_id, "-", "-", "no signal"])
+            continue
+        greens = {"G": "protected", "g": "permissive", "s": "on red after stop"}
+        kinds = sorted({greens[c] for _, _, c in signal["timeline"] if c in greens})
+        runs = "  ".join(f"{start:g}: {colour}" for start, _, colour in signal["timeline"])
+        rows.append([route_id, str(signal["link_index"]), ", ".join(kinds) or "never", runs])
+    print_table(rows)
+    print("colours: " + ", ".join(f"{c} {word}" for c, word in COLOUR_WORDS.items()))

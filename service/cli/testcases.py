@@ -13,6 +13,7 @@ from typing import Any
 from service.cli.arguments import (
     NETWORK,
     NETWORK_FILE,
+    SIGNALS,
     TESTCASE,
     distance_or_auto,
     locate_network,
@@ -27,6 +28,7 @@ from service.core.generator.extension import StartDistances, extend_testcase
 from service.core.motion.events import compute_events
 from service.core.motion.poses import generate_poses
 from service.core.network import bundled_networks, load_intersection
+from service.core.network.signals import read_signals_file
 from service.core.testcase import (
     DEFAULT_START_DISTANCE,
     DEFAULT_START_SPEED,
@@ -35,6 +37,7 @@ from service.core.testcase import (
     new_testcase,
     readable_name,
     renamed,
+    under_testcase_signals,
 )
 
 
@@ -42,6 +45,7 @@ from service.core.testcase import (
     "new",
     "write an ego-only test-case",
     NETWORK,
+    SIGNALS,
     arg("--ego", required=True, metavar="FORK_LANE:EXIT_LANE", help="ego route"),
     arg(
         "--start-distance",
@@ -79,6 +83,7 @@ def new(args: argparse.Namespace) -> int:
         args.timestep,
         name=args.name,
         major_road=args.major,
+        signals=read_signals_file(args.signals) if args.signals else None,
     )
     start = testcase.ego.start.distance
     if args.start_distance is None and start < DEFAULT_START_DISTANCE:
@@ -206,8 +211,8 @@ def extend(args: argparse.Namespace) -> int:
     if args.name is not None:
         renamed(old, args.name)  # a name that cannot be stored fails before the search
     network_file = locate_network(old, args)
-    intersection = load_intersection(
-        network_file, old.junction, old.control, major_road=old.major_road
+    intersection = under_testcase_signals(
+        load_intersection(network_file, old.junction, old.control, major_road=old.major_road), old
     )
     started = time.monotonic()
     extension = extend_testcase(

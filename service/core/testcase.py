@@ -647,6 +647,12 @@ def load_testcase_intersection(
     intersection = load_intersection(
         path, testcase.junction, testcase.control, cache_dir, major_road=testcase.major_road
     )
+    return under_testcase_signals(intersection, testcase)
+
+
+def under_testcase_signals(intersection: Intersection, testcase: TestCase) -> Intersection:
+    """``intersection`` under the test-case's signal program (the one it carries, not the
+    network's); InvalidTestCase when the program does not fit the junction."""
     if testcase.signals is None:
         return intersection
     try:

@@ -26,6 +26,7 @@ from service.core.network.load import SUPPORTED, junction_arms, read_network
 from service.core.testcase import (
     NetworkRef,
     Params,
+    Signals,
     TestCase,
     dump_testcase,
     load_testcase_intersection,
@@ -130,10 +131,12 @@ def create_testcase(
     """A new ego-only test-case on a stored network; its JSON document. Without a name in
     ``request`` it gets the readable default (the network's short name from its file's)."""
     params = request.pop("params", None)
+    signals = request.pop("signals", None)
     testcase = new_testcase(
         network_file,
         cache_dir=cache_dir,
         params=None if params is None else Params.model_validate(params),
+        signals=None if signals is None else Signals.model_validate(signals).to_program(),
         **request,
     )
     if not testcase.name:

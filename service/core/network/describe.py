@@ -7,15 +7,28 @@ from typing import Any
 from service.core.network.model import Intersection
 
 
-def describe_intersection(intersection: Intersection) -> dict[str, Any]:
+def describe_intersection(
+    intersection: Intersection, horizon: float | None = None
+) -> dict[str, Any]:
     """JSON-ready description: junction, control, the forks and routes it offers with their
     relations and conflicts, the side lanes it does not offer (each with the reason; a
-    route on one works when named), and the major road when scengen chose or was given it."""
+    route on one works when named), the major road when scengen chose or was given it, and
+    at a signalized junction the program with each route's signal (its link index and its
+    colours over ``horizon`` seconds, default one cycle)."""
     routes = intersection.offered_routes
     forks = intersection.offered_forks
 
     def offered(lanes: frozenset[str]) -> list[str]:
         return sorted(lane for lane in lanes if lane in forks)
+
+    program = intersection.signals
+    until = horizon if horizon is not None else (program.cycle if program else 0.0)
+
+    def signal(link: int) -> dict[str, Any] | None:
+        if program is None or link < 0:
+            return None
+        timeline = [[round(a, 3), round(b, 3), c] for a, b, c in program.timeline(link, until)]
+        return {"link_index": link, "timeline": timeline}
 
     return {
         "network": str(intersection.source_file),
@@ -49,9 +62,13 @@ def describe_intersection(intersection: Intersection) -> dict[str, Any]:
                 "connecting_lane": route.connecting_lane,
                 "length": round(intersection.connecting_lanes[route.connecting_lane].length, 2),
                 "conflicts": sorted(c for c in intersection.conflicts[route.id] if c in routes),
+                "signal": signal(route.link_index),
             }
             for route in routes.values()
         ],
+        "signals": None
+        if program is None
+        else {**program.to_document(), "cycle": program.cycle, "horizon": until},
         "side_lanes": [
             {"lane": lane, "reason": reason} for lane, reason in intersection.side_lanes.items()
         ],

@@ -90,7 +90,7 @@ class SignalProgram:
         while begun + self.phases[phase].duration <= position:
             begun += self.phases[phase].duration
             phase += 1
-        start = -(position - begun)
+        start = begun - position + 0.0  # never -0.0
         found: list[PhaseInstance] = []
         while start <= horizon:
             end = start + self.phases[phase].duration

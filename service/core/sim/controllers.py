@@ -123,6 +123,9 @@ class Observation:
     a_max: float
     v_max: float
     leader: Leader | None = None  # within LEADER_LOOKAHEAD metres; None: nobody ahead
+    signal: str | None = None  # the SUMO colour of the ego's link at a signalized junction
+    # (G protected green, g permissive green, y yellow, r red, u red-yellow, s right on red
+    # after a stop), as SUMO shows it at this step; None: the ego's route has no signal
 
 
 @runtime_checkable

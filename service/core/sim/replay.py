@@ -37,7 +37,7 @@ from service.core.motion.poses import (
     plan_drive,
     start_distance_of,
 )
-from service.core.network import Intersection
+from service.core.network import Intersection, SignalProgram, parsed_network
 from service.core.sim.controllers import (
     BUILT_IN,
     CertificateDriver,
@@ -53,6 +53,7 @@ from service.core.testcase import TestCase, load_testcase_intersection
 REPLAY_BUDGET = 60.0  # seconds for one evaluation
 TYPES_FILE = "testcase.types.xml"
 ROUTES_FILE = "testcase.all.rou.xml"
+SIGNALS_FILE = "testcase.signals.xml"  # the test-case's signal program, at a signalized junction
 
 
 SCRIPTED_MAX_SPEED = 100.0  # m/s: above every v_max a test-case may have
@@ -187,12 +188,42 @@ def controller_spec(driver: Driver) -> dict[str, Any]:
     return {"kind": "external"}
 
 
+def sumo_signals(intersection: Intersection) -> SignalProgram | None:
+    """The test-case's program as SUMO loads it on top of the network's (the program loaded
+    last is the active one): the same phases and offset, under the test-case's program id
+    unless the network already has a program of that id for the traffic light (SUMO refuses
+    two), then under the first free ``<id>-scengen``, ``<id>-scengen2``, ...; None at a
+    junction without traffic lights."""
+    program = intersection.signals
+    if program is None or intersection.tls is None:
+        return None
+    taken = set(parsed_network(intersection.network_file).getTLS(intersection.tls).getPrograms())
+    name, k = program.program_id, 1
+    while name in taken:
+        name = f"{program.program_id}-scengen{k if k > 1 else ''}"
+        k += 1
+    return replace(program, tls=intersection.tls, program_id=name)
+
+
+def signals_spec(testcase: TestCase, intersection: Intersection) -> dict[str, Any] | None:
+    """The plan's ``signals``: the program's file, the traffic light, the ego's link."""
+    if intersection.signals is None or intersection.tls is None:
+        return None
+    link = intersection.route(testcase.ego.route.id).link_index
+    return {"file": SIGNALS_FILE, "tls": intersection.tls, "ego_link": link}
+
+
 def run_plan(
-    testcase: TestCase, ego: Departure, others: Sequence[Departure], network: str
+    testcase: TestCase,
+    ego: Departure,
+    others: Sequence[Departure],
+    network: str,
+    signals: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The runner's plan: its files, the time step, every car's departure (``departures``)
-    and distance per step, the certificates, and the built-in controllers (JSON,
-    ``testcase.run.json``)."""
+    and distance per step, the certificates, the signals (``signals_spec``: the program's
+    file, the traffic light and the ego's link index, or None), and the built-in
+    controllers (JSON, ``testcase.run.json``)."""
     certificates = None
     if testcase.certificates is not None:
         certificates = {
@@ -204,6 +235,7 @@ def run_plan(
         "network": network,
         "routes": ROUTES_FILE,
         "types": TYPES_FILE,
+        "signals": signals,
         "timestep": testcase.timestep,
         "steps": round(testcase.duration / testcase.timestep),
         "ego": {
@@ -235,17 +267,26 @@ def run_plan(
 
 
 def write_run_files(
-    testcase: TestCase, ego: Departure, others: Sequence[Departure], folder: Path, network: str
+    testcase: TestCase,
+    ego: Departure,
+    others: Sequence[Departure],
+    folder: Path,
+    network: str,
+    intersection: Intersection,
 ) -> dict[str, str]:
-    """The runner's files in ``folder``: vehicle types, every car's route and departure, and
-    the plan (``network`` as the plan names it, relative to ``folder`` or absolute). The
-    texts written, by file name."""
-    plan = run_plan(testcase, ego, others, network)
+    """The runner's files in ``folder``: vehicle types, every car's route and departure,
+    at a signalized junction the test-case's signal program (``sumo_signals``), and the
+    plan (``network`` as the plan names it, relative to ``folder`` or absolute). The texts
+    written, by file name."""
+    plan = run_plan(testcase, ego, others, network, signals_spec(testcase, intersection))
     files = {
         TYPES_FILE: xml_file("additional", vtype_lines(ego, others, testcase)),
         ROUTES_FILE: xml_file("routes", vehicle_lines([ego, *others])),
         sumo_run.PLAN_FILE: json.dumps(plan, indent=1) + "\n",
     }
+    program = sumo_signals(intersection)
+    if program is not None:
+        files[SIGNALS_FILE] = '<?xml version="1.0" encoding="UTF-8"?>\n' + program.to_sumo_xml()
     folder.mkdir(parents=True, exist_ok=True)
     for name, text in files.items():
         write_atomically(folder / name, text)
@@ -273,7 +314,7 @@ def evaluate(
     with tempfile.TemporaryDirectory(prefix="scengen-replay-") as folder:
         ego, others = departures(testcase, junction)
         network = str(junction.network_file.resolve())
-        write_run_files(testcase, ego, others, Path(folder), network)
+        write_run_files(testcase, ego, others, Path(folder), network, junction)
         plan_file = str(Path(folder) / sumo_run.PLAN_FILE)
         arguments = (plan_file, controller_spec(driver), driver.name, reference)
         try:

@@ -73,6 +73,7 @@ def _user_step(user: Controller, name: str, plan: dict[str, Any]) -> sumo_run.On
             a_max=bounds["a_max"],
             v_max=bounds["v_max"],
             leader=find_leader(traci, lanes, {car: sizes[car][0] for car in nonegos}),
+            signal=sumo_run.ego_signal(traci, plan),
         )
         try:
             command = float(user.step(observation))

@@ -67,11 +67,16 @@ def load_plan(path: Path) -> dict[str, Any]:
 
 
 def sumo_arguments(plan: dict[str, Any], folder: Path, types_file: Path) -> list[str]:
-    """SUMO's options for the plan (files relative to ``folder``), without the program."""
+    """SUMO's options for the plan (files relative to ``folder``), without the program. At
+    a signalized junction the test-case's signal program is loaded after the network's,
+    so it is the active one (SUMO runs the program it loads last)."""
     step = repr(float(plan["timestep"]))
+    additional = [str(types_file)]
+    if plan.get("signals"):
+        additional.append(str(folder / plan["signals"]["file"]))
     return [
         "-n", str(folder / plan["network"]), "-r", str(folder / plan["routes"]),
-        "--additional-files", str(types_file), "--step-length", step,
+        "--additional-files", ",".join(additional), "--step-length", step,
         "--default.action-step-length", step, "--step-method.ballistic", "false",
         "--time-to-teleport", "-1", "--collision.action", "none",
         "--collision.check-junctions", "true", "--ignore-route-errors", "false",
@@ -89,6 +94,15 @@ def write_types(
             vtype.set("jmStopSignWait", repr(float(controller["stop_sign_wait"])))
     tree.write(target, encoding="UTF-8", xml_declaration=True)
     return target
+
+
+def ego_signal(traci: Any, plan: dict[str, Any]) -> str | None:
+    """The SUMO colour of the ego's link now (``G g y r u s``, see SUMO's
+    ``trafficlight.getRedYellowGreenState``); None when the ego's route has no signal."""
+    signals = plan.get("signals")
+    if not signals or int(signals["ego_link"]) < 0:
+        return None
+    return str(traci.trafficlight.getRedYellowGreenState(signals["tls"])[int(signals["ego_link"])])
 
 
 def drive(
@@ -162,10 +176,14 @@ def _roll(
     traci: Any, plan: dict[str, Any], controller: dict[str, Any], row: Row, rolling: bool
 ) -> bool:
     """Keep the ego at the rolling speed or faster from arriving at the fork to passing
-    the stop line; then hand it back to SUMO's driver."""
+    the stop line; then hand it back to SUMO's driver. It rolls through a stop, not
+    through a light that tells it to stop: while its signal is red, red-yellow or yellow
+    SUMO's driver has it (and stops at the line)."""
     speed = float(controller["rolling_speed"])
     to_line = float(plan["ego"]["start_distance"]) - row["odometer"]
     inside_zone = -1.0 < to_line <= float(plan["ego"]["arrival_distance"])
+    if inside_zone and to_line > 0.0 and ego_signal(traci, plan) in ("r", "u", "y"):
+        inside_zone = False
     if inside_zone and traci.vehicle.getSpeed(EGO) <= speed:
         if not rolling:
             traci.vehicle.setSpeedMode(EGO, 0)

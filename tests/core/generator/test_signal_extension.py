@@ -1,0 +1,68 @@
+"""The generator on signalized junctions: every level verified, every new car obeys its
+signal, and the complexity certificate breaks a signal rule of a new car (real SUMO,
+clingo and z3)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from service.core.checker.check import check_testcase
+from service.core.generator.extension import extend_testcase
+from service.core.motion.poses import PoseSample
+from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
+
+JUNCTIONS = Path(__file__).parents[2] / "data" / "junctions"
+TOWN05 = Path(__file__).parents[2] / "data" / "carla" / "Town05.net.xml"
+SIGNAL_RULES = {"turnOnGreenYieldsToOncoming", "yieldToInsideOnGreen", "yieldToInsideOnArrow",
+                "yieldOnRightOnRed"}  # fmt: skip
+
+
+def _samples(rows: object) -> list[PoseSample]:
+    return [PoseSample(**s.model_dump()) for s in rows]  # type: ignore[attr-defined]
+
+
+def _lawful_entries(testcase: TestCase) -> None:
+    junction = load_testcase_intersection(testcase)
+    for car in testcase.nonegos:
+        route = junction.route(car.route.id)
+        entries = [e for e in car.events if e.kind.value == "entered"]
+        for entry in entries:
+            colour = junction.signal_colour(route, entry.t)
+            stopped = any(e.kind.value == "stopped" for e in car.events)
+            assert colour in ("G", "g", "y") or (colour == "s" and stopped), (car.id, colour)
+
+
+@pytest.mark.parametrize(
+    ("network", "junction", "ego", "routes"),
+    [
+        ("4way-signal", None, "S2C_1:C2W_1", ["N2C_1:C2S_1", "N2C_0:C2S_0"]),
+        ("t-signal", None, "S2C_0:C2E_0", ["W2C_0:C2E_0"]),
+        (str(JUNCTIONS / "skewed-signal.net.xml"), None, "SSW2C_0:C2N_0", ["N2C_0:C2ENE_0"]),
+        (str(JUNCTIONS / "y-signal.net.xml"), None, "SW2C_0:C2N_0", ["ESE2C_0:C2SW_0"]),
+        (str(TOWN05), "1126", "7_1:46_1", ["-6_0:-7_0", "-6_1:-7_1"]),
+    ],
+)
+def test_each_level_is_verified_and_breaks_a_signal_rule(
+    network: str, junction: str | None, ego: str, routes: list[str]
+) -> None:
+    testcase = new_testcase(network, ego, junction=junction, duration=45)
+    for level, route in enumerate(routes, start=1):
+        testcase = extend_testcase(testcase, [route], seed=0, budget=120).testcase
+        assert testcase.signals is not None and testcase.provenance is not None
+        assert testcase.provenance["level"] == level
+        violated = {v["rule"] for v in testcase.provenance["complexity_certificate_violates"]}
+        assert violated and violated <= SIGNAL_RULES
+        assert testcase.certificates is not None
+        solvable = check_testcase(testcase, _samples(testcase.certificates.solvability))
+        complex_ = check_testcase(testcase, _samples(testcase.certificates.complexity))
+        assert solvable.passed and not complex_.passed
+        assert {v.rule for v in complex_.violations} & SIGNAL_RULES
+        _lawful_entries(testcase)
+
+
+def test_extending_never_changes_the_program() -> None:
+    old = new_testcase("t-signal", "S2C_0:C2E_0", duration=45)
+    new = extend_testcase(old, ["W2C_0:C2E_0"], seed=0, budget=120).testcase
+    assert new.signals == old.signals
