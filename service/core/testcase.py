@@ -48,6 +48,7 @@ from service.core.network.convert import source_format
 from service.core.network.signals import (
     MAX_PHASE_DURATION,
     MAX_PHASES,
+    VALID_COLOURS,
     make_program,
     program_problems,
 )
@@ -226,6 +227,8 @@ class SignalPhaseDoc(_Model):
         description="one SUMO colour per link of the traffic light, by link index: G "
         "protected green, g permissive green, y yellow, r red, u red-yellow, s right on red "
         "after a stop",
+        # in the schema only: the model's check names the unknown colours and the valid ones
+        json_schema_extra={"pattern": f"^[{VALID_COLOURS}]+$"},
     )
 
 
@@ -235,7 +238,12 @@ class Signals(_Model):
     tls: str = Field(min_length=1, description="the traffic light's id in the network")
     program: str = Field("0", min_length=1, description="the program's id (programID)")
     offset: float = Field(0.0, ge=-1e6, le=1e6, description="s: phase 0 starts at offset")
-    phases: list[SignalPhaseDoc] = Field(min_length=1, max_length=MAX_PHASES)
+    phases: list[SignalPhaseDoc] = Field(
+        min_length=1,
+        max_length=MAX_PHASES,
+        description="the cycle in order; every state has one colour per link of the traffic "
+        "light, so all states are equally long",
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> Signals:

@@ -98,7 +98,7 @@ def test_a_batch_naming_unknown_things_is_refused(api: httpx.Client) -> None:
     detail = problem["detail"]
     assert "no stored test-case 'nope'" in detail and "no stored test-case 'gone'" in detail
     assert "'autopilot' is not a controller installed here" in detail and "sumo-cautious" in detail
-    assert "no network 'nowhere' (known networks: 4way-stop" in detail
+    assert "no network 'nowhere' (known networks: 4way-signal, 4way-stop" in detail
     assert api.get("/jobs").json()["total"] == before
 
 

@@ -84,13 +84,15 @@ def test_networks_show_their_junctions_drawn_and_say_what_they_wait_for(
     page.route("**/networks/t-stop/junctions", lambda route: held.append(route))  # held
     page.goto(f"{server.url}/ui/")
     page.wait_for_selector("text=Reading the junctions of t-stop…")
-    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 2")
+    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 4")
     assert len(held) == 1  # t-stop's junctions are still on their way
     held[0].continue_()
     page.unroute("**/networks/t-stop/junctions")
-    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 3")
+    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 5")
     assert page.locator("text=Reading the junctions").count() == 0
-    for network, routes in (("4way-stop", 16), ("t-stop", 6), ("y-uncontrolled", 6)):
+    drawn = (("4way-stop", 16), ("t-stop", 6), ("y-uncontrolled", 6), ("4way-signal", 16),
+             ("t-signal", 6))  # fmt: skip
+    for network, routes in drawn:
         drawing = page.locator(f".card:has(a[href='#/networks/{network}']) svg.junction-drawing")
         assert drawing.get_attribute("data-junction") == "C"
         assert drawing.locator("polyline.route").count() == routes  # one per connecting lane

@@ -83,6 +83,7 @@ BEYOND_JSON_SCHEMA = [
     ("*", "speeds must satisfy v_stop < v_run < v_max", "an order of three params"),
     ("*", "one entry per route", "start_distance as a list is as long as routes"),
     ("POST /jobs", "give exactly one of", "an item's base: an id, a document or an item"),
+    ("*", "every state has one colour per link", "a signal program's states are equally long"),
     ("POST /jobs", "refers to item", "an item refers to an earlier item that makes test-cases"),
     # JSON Schema's integer is any number without a fraction, 8.0 too; the server's
     # numbers are strict (README), so 8.0 for a count or a seed is refused: a difference in
