@@ -95,7 +95,7 @@ def hostile_requests() -> list[Hostile]:
                 "POST",
                 "/testcases",
                 {**CREATE, "params": {key: value}},
-                curl=f"-d '{{... \"params\": {{\"{key}\": {value!r}}}}}' /testcases",
+                curl=f'-d \'{{... "params": {{"{key}": {value!r}}}}}\' /testcases',
             )
             for key, value in (("v_max", 1e308), ("m", 1e308), ("a_min", -5e-324))
         ),
