@@ -211,8 +211,9 @@ def test_a_one_second_budget_is_honoured() -> None:
         extend_testcase(start, ["W2C_0:C2E_0", "N2C_0:C2S_0", "E2C_1:C2S_1"], budget=0.3)
     assert error.value.context["budget_exhausted"] is True
     # The budget is checked between the steps and between answer sets; Step 1 (a SUMO
-    # process) takes about half a second alone, more on a loaded machine.
-    assert time.monotonic() - started < 0.3 + 4.0
+    # process) takes about half a second alone, several on a loaded machine (CI ran over
+    # 4 s with two test workers and two busy loops): a bound against a hang, not a timing.
+    assert time.monotonic() - started < 0.3 + 20.0
 
 
 def test_an_automatic_start_is_fitted_to_the_road_before_the_fork(cache_dir: Path) -> None:
