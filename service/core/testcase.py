@@ -37,6 +37,7 @@ from service.core.motion.poses import (
 from service.core.network import (
     ControlType,
     Intersection,
+    Route,
     SignalProgram,
     bundled_networks,
     file_sha256,
@@ -603,6 +604,7 @@ def new_testcase(
     intersection = load_intersection(network, junction, control, cache_dir, major_road=major_road)
     intersection = _signalled(intersection, signals)
     route = intersection.route(ego_route)
+    _check_ego_can_go(intersection, route, duration)
     chosen = params or Params()
     if start_speed is not None and start_speed > chosen.v_max:
         raise InvalidTestCase(
@@ -667,6 +669,24 @@ def under_testcase_signals(intersection: Intersection, testcase: TestCase) -> In
         return with_signals(intersection, testcase.signals.to_program())
     except InvalidInput as exc:
         raise InvalidTestCase(f"signals: {exc}") from None
+
+
+def _check_ego_can_go(intersection: Intersection, route: Route, duration: float) -> None:
+    """InvalidInput when the ego's signal shows red for the whole test-case: no ego could
+    pass it lawfully, so the test-case would have no solution to make harder."""
+    program = intersection.signals
+    if program is None or route.link_index < 0:
+        return
+    go = program.first_go(route.link_index)
+    if go is not None and go < duration:
+        return
+    when = "never shows a colour to go" if go is None else f"first lets it go at {go:g} s"
+    raise InvalidInput(
+        f"the ego's signal (link {route.link_index} of traffic light {program.tls!r}) is red "
+        f"for the whole test-case ({duration:g} s) and {when}: no ego could pass it; give "
+        "a longer duration, another ego route, or a program with another offset (--signals; "
+        "the API's signals field)"
+    )
 
 
 def _signalled(intersection: Intersection, signals: SignalProgram | None) -> Intersection:

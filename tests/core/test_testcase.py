@@ -114,6 +114,15 @@ def test_new_testcase_rejects_start_faster_than_its_lane_allows() -> None:
         new_testcase("4way-stop", "S2C_1:C2W_1", start_speed=14.5)
 
 
+def test_new_testcase_refuses_an_ego_whose_light_stays_red() -> None:
+    """Town05 1126's program (42 s green, 3 s yellow each way): the ego from -46 waits for
+    red until 45 s, so in a 45 s test-case no ego can pass; at 50 s it can."""
+    with pytest.raises(InvalidInput, match=r"link 13 of traffic light '1126'\) is red for the "
+                       r"whole test-case \(45 s\) and first lets it go at 45 s"):  # fmt: skip
+        new_testcase(TOWN05, "-46_0:-47_0", junction="1126", duration=45)
+    assert new_testcase(TOWN05, "-46_0:-47_0", junction="1126", duration=50).signals
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [

@@ -45,6 +45,7 @@ COLOUR_WORDS = {
     "s": "right on red after a stop",
 }
 VALID_COLOURS = "".join(RULE_COLOURS)
+GO_COLOURS = "Ggys"  # a car may enter (s: after a full stop); the rules' goColour and redTurn
 MAX_PHASES = 1000
 MAX_PHASE_DURATION = 3600.0  # s
 
@@ -128,6 +129,15 @@ class SignalProgram:
             else:
                 runs.append((start, end, colour))
         return runs
+
+    def first_go(self, link: int, after: float = 0.0) -> float | None:
+        """The first moment at or after ``after`` at which ``link`` lets a car enter (a
+        colour of GO_COLOURS); None when it never does (red in every phase)."""
+        horizon = after + self.cycle
+        for start, end, colour in self.timeline(link, horizon + self.cycle):
+            if colour in GO_COLOURS and end > after:
+                return max(start, after)
+        return None
 
     def to_document(self) -> dict[str, Any]:
         """The program as the test-case's ``signals`` field."""
