@@ -157,6 +157,14 @@ class Judge:
         )
 
 
+    def rules_broken_by(self, car_id: str) -> list[Violation]:
+        """The traffic rules (not right-of-way) that non-ego ``car_id`` breaks, among the
+        non-egos: at a signalized junction a generated car obeys its signal."""
+        found = _violations(self.junction, self.nonegos, self.testcase.params.m,
+                            self.testcase.duration, of=car_id)  # fmt: skip
+        return [v for v in found if v.other is None]
+
+
 def _car(
     car_id: str, fork: str, lane: str, length: float, width: float,
     samples: Sequence[PoseSample], testcase: TestCase, junction: Intersection,
@@ -219,8 +227,9 @@ VERDICT_ATOMS = (("law", 2), ("violatesRightOfForRuleAt", 4), ("violatesRuleAt",
 
 
 def _violations(
-    junction: Intersection, cars: Sequence[Car], m: float, duration: float
+    junction: Intersection, cars: Sequence[Car], m: float, duration: float, of: str = EGO
 ) -> list[Violation]:
+    """The rules car ``of`` breaks among ``cars`` (the ego's, by default)."""
     timed = _timed(cars)
     facts = geometry_facts(junction) + perceptible_order(timed, m)
     facts += signal_facts(junction, duration) + phase_facts(junction, timed, duration)
@@ -233,10 +242,10 @@ def _violations(
     found: dict[tuple[str, str | None], Violation] = {}
     for atom in atoms:
         name, arguments = atom.name, atom.arguments
-        if name == "violatesRightOfForRuleAt" and arguments[0].string == EGO:
+        if name == "violatesRightOfForRuleAt" and arguments[0].string == of:
             other: str | None = arguments[1].string
             rule, times = arguments[2], arguments[3]
-        elif name == "violatesRuleAt" and arguments[0].string == EGO:
+        elif name == "violatesRuleAt" and arguments[0].string == of:
             other, rule, times = None, arguments[1], arguments[2]
         else:
             continue

@@ -947,6 +947,12 @@ def _verify(
         return problem, verdict
     if any(v.other not in ids for v in verdict.violations):
         return "complexity certificate breaks a rule besides a new car's right-of-way", verdict
+    if junction.signals is not None:  # every new car obeys its signal
+        for car_id in ids:
+            broken = new_judge.rules_broken_by(car_id)
+            if broken:
+                laws = ", ".join(f"{v.rule} ({v.law})" for v in broken)
+                return f"{car_id} breaks {laws}", verdict
     motions = {
         n.id: Motion([PoseSample(**s.model_dump()) for s in n.trajectory], n.length, n.width)
         for n in new.nonegos

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import pytest
 from shapely.geometry import Point
 
-from service.core.checker.check import check_testcase
+from service.core.checker.check import Judge, check_testcase
 from service.core.errors import InvalidTrajectory
 from service.core.motion.poses import PoseSample, PoseTrack, generate_poses
 from service.core.network import Intersection, load_intersection
@@ -199,3 +199,24 @@ def test_trajectory_that_starts_elsewhere_is_refused(
     ego = Driving([(LINE, 0.5)]).samples(tracks[("4way-stop", "S2C_1:C2W_1")])[30:]
     with pytest.raises(InvalidTrajectory, match=r"m from the test-case's start"):
         check_testcase(testcase, ego, "x", intersection)
+
+
+def test_the_signal_rules_a_nonego_breaks_are_found() -> None:
+    """4way-signal: north-south green 0-20 s, east-west red until 25 s. A car cruising from
+    the north enters on green and breaks nothing; one cruising from the west runs the red
+    (21453 (a)); the verification of every extension at a light asks this of each new car."""
+    intersection = load_intersection("4way-signal")
+    routes = ("N2C_0:C2S_0", "W2C_0:C2E_0")
+    requests = [(intersection.route(r), START) for r in routes]
+    drives = generate_poses(intersection, requests, 8.0, DURATION, 0.1)
+    samples = [Driving([]).samples(track) for track in drives]
+    base = new_testcase("4way-signal", "S2C_0:C2N_0", start_distance=START)
+    testcase = with_nonegos(
+        base, [("car1", routes[0], samples[0]), ("car2", routes[1], samples[1])]
+    )
+    judge = Judge(testcase, intersection)
+    assert judge.rules_broken_by("car1") == []
+    broken = judge.rules_broken_by("car2")
+    assert [(v.rule, v.law, v.events[0].kind) for v in broken] == [
+        ("stopAtRed", "21453(a)", "entered")
+    ]
