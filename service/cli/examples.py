@@ -65,6 +65,25 @@ EXAMPLES = {
             "left turn at the uncontrolled Y; a conflicting car and a car whose route does "
             "not meet the ego's added together",
         ),
+        Example(
+            "signal",
+            "4way-signal",
+            "N2C_1:C2E_1",
+            (("S2C_0:C2N_0",), ("S2C_1:C2N_1",), ("S2C_0:C2N_0",)),
+            30.0,
+            "left turn on a permissive green at the signalized four-way (21451 (a) with 21801 "
+            "(a)); three successive extensions: oncoming cars going straight on either lane, "
+            "then a second one queued on the first lane",
+        ),
+        Example(
+            "right-on-red",
+            "t-signal",
+            "S2C_0:C2E_0",
+            (("W2C_0:C2E_0",),),
+            30.0,
+            "right turn on red after a full stop out of the signalized T (21453 (b)); a car "
+            "on the through road, on green, into the ego's exit lane",
+        ),
     )
 }
 
