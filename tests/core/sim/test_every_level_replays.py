@@ -2,9 +2,11 @@
 
 45 s test-cases (the duration of the benchmarks and campaigns) outlast the bundled roads: a
 car that reaches the end of its road leaves the test-case there. Chains on the bundled
-junctions, on junctions no constant was tuned on, with a queue on the ego's fork, and on
-two real maps; every level is checked on the road geometry (independently of the
-generator, tests.helpers.off_road_samples) and replayed in SUMO with every controller.
+junctions, on junctions no constant was tuned on, with a queue on the ego's fork, on two
+real maps, and at two signalized junctions (the bundled four-way and Town05 1126, where
+SUMO's drivers obey the test-case's lights); every level is checked on the road geometry
+(independently of the generator, tests.helpers.off_road_samples) and replayed in SUMO with
+every controller.
 """
 
 from __future__ import annotations
@@ -49,6 +51,14 @@ CHAINS = {
         lambda: new_testcase(
             TOWN05, "-44_1:-9_1", junction="396", control="allway_stop", duration=DURATION
         ),
+        2,
+    ),
+    "4way-signal": (
+        lambda: new_testcase("4way-signal", "N2C_1:C2E_1", duration=DURATION),
+        2,
+    ),
+    "town05-1126-signal": (
+        lambda: new_testcase(TOWN05, "-6_1:-47_1", junction="1126", duration=DURATION),
         2,
     ),
     "town07-358": (
