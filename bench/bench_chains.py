@@ -4,10 +4,12 @@ Each level adds one car on a route that conflicts with the ego's, from a fork no
 yet (service.core.generator.chain.grow), with a budget of 30 s per level, until no route is left or
 none gives an extension. On every bundled junction, on CARLA's Town05 junction 396 made an
 all-way stop (the paper's junction), on a Town05 T-junction made `priority_stop`, on
-Town07 358 as `right_before_left`, and on the two junctions of the test data that no
-constant was tuned on (a skewed all-way stop and an uneven Y). The ego takes the route
-that meets the most other forks (the deepest chain the rules allow), its start 30 m
-before the line at 8 m/s, duration 45 s.
+Town07 358 as `right_before_left`, on the two junctions of the test data that no
+constant was tuned on (a skewed all-way stop and an uneven Y), and at signalized junctions
+under their own programs (the bundled four-way and T, a skewed four-way and a Y of the
+test data, Town05 1126, Town07 68). The ego takes the route that meets the most other
+forks (the deepest chain the rules allow; at a light, of the routes whose light lets them
+go first, a permissive one), its start 30 m before the line at 8 m/s, duration 45 s.
 
 Run with `make bench` (or `python -m bench.bench_chains`). Prints a markdown table: the
 depth each seed reached and why it stopped, the median seconds of each level over the
@@ -17,6 +19,7 @@ seeds, and whether every free fork was used.
 from __future__ import annotations
 
 import argparse
+import math
 import platform
 import statistics
 import time
@@ -43,6 +46,12 @@ JUNCTIONS = [  # (label, network, junction, control)
      "priority_stop"),
     ("Town07 358 as right_before_left", str(DATA / "carla" / "Town07.net.xml"), "358",
      "right_before_left"),
+    ("4way-signal", "4way-signal", None, None),
+    ("t-signal", "t-signal", None, None),
+    ("skewed signal (test data)", str(DATA / "junctions" / "skewed-signal.net.xml"), "C", None),
+    ("Y signal (test data)", str(DATA / "junctions" / "y-signal.net.xml"), "C", None),
+    ("Town05 1126 (signal)", str(DATA / "carla" / "Town05.net.xml"), "1126", None),
+    ("Town07 68 (signal)", str(DATA / "carla" / "Town07.net.xml"), "68", None),
 ]  # fmt: skip
 DURATION = 45.0
 BUDGET = 30.0  # seconds per level
@@ -50,14 +59,26 @@ MAX_LEVELS = 8
 
 
 def deepest_ego(intersection: Intersection) -> str:
-    """The route that meets the most other forks (then the most routes; then by id)."""
+    """The route that meets the most other forks (then the most routes; then by id). At a
+    signalized junction, of the routes whose light lets them go first (the ego does not
+    wait out a red it cannot see the end of), a permissive one first: a turn on a circular
+    green owes the most right-of-way (the unprotected left against oncoming traffic)."""
+    program = intersection.signals
 
-    def reach(route: str) -> tuple[int, int, str]:
+    def light(route: str) -> tuple[float, bool]:
+        link = intersection.routes[route].link_index
+        if program is None or link < 0:
+            return (0.0, False)
+        go = program.first_go(link)
+        permissive = any(c == "g" for _, _, c in program.timeline(link, DURATION))
+        return (math.inf if go is None else go, not permissive)
+
+    def reach(route: str) -> tuple[float, bool, int, int, str]:
         forks = {intersection.routes[r].fork for r in intersection.conflicts[route]}
         forks.discard(intersection.routes[route].fork)
-        return (-len(forks), -len(intersection.conflicts[route]), route)
+        return (*light(route), -len(forks), -len(intersection.conflicts[route]), route)
 
-    return min(intersection.routes, key=reach)
+    return min(intersection.offered_routes, key=reach)
 
 
 @dataclass

@@ -11,6 +11,10 @@
 4. Variety: distinct extensions over 5 seeds per single-car case.
 6. Queues: two and three new cars in line on one fork in one extension (issue 16's target:
    three at one stop sign in under 5 s), seeds 0 and 1.
+7. Signals: one new car at signalized junctions (the bundled four-way and T, two test
+   junctions no constant was tuned on, three real junctions of Town05 and Town07 under
+   their own programs; duration 45 s, seeds 0 and 1): success rate, p50 and p95 (issue
+   32's targets: 100 %, 0.5 s, 2 s).
 5. Step 3 against the paper's single nonlinear formulation (bench/paper_timing.py) on the
    Step 3 problems that the generator solved: the ratio of medians.
 
@@ -27,6 +31,7 @@ import platform
 import statistics
 import time
 from datetime import date
+from pathlib import Path
 
 from bench.cpu import cpu_seconds
 from bench.paper_timing import solve_paper
@@ -57,6 +62,30 @@ CASES = [  # (network, ego, new routes)
     ("4way-stop", "E2C_1:C2S_1", ("S2C_1:C2N_1", "W2C_1:C2E_1", "N2C_0:C2S_0")),
 ]
 SEEDS = (0, 1)
+DATA = Path(__file__).resolve().parents[1] / "tests" / "data"
+SKEWED, Y_SIGNAL = (
+    DATA / "junctions" / "skewed-signal.net.xml",
+    DATA / "junctions" / "y-signal.net.xml",
+)
+TOWN05, TOWN07 = DATA / "carla" / "Town05.net.xml", DATA / "carla" / "Town07.net.xml"
+SIGNAL_CASES = [  # (label, network, junction, ego, new route)
+    ("4way-signal", "4way-signal", None, "N2C_1:C2E_1", "S2C_0:C2N_0"),
+    ("4way-signal", "4way-signal", None, "N2C_1:C2E_1", "S2C_1:C2N_1"),
+    ("4way-signal", "4way-signal", None, "N2C_1:C2E_1", "N2C_1:C2S_1"),
+    ("4way-signal", "4way-signal", None, "E2C_0:C2W_0", "W2C_1:C2N_1"),
+    ("t-signal", "t-signal", None, "E2C_0:C2S_0", "W2C_0:C2E_0"),
+    ("t-signal", "t-signal", None, "E2C_0:C2S_0", "S2C_0:C2W_0"),
+    ("t-signal", "t-signal", None, "S2C_0:C2E_0", "W2C_0:C2E_0"),
+    ("skewed-signal", SKEWED, "C", "ENE2C_0:C2SSW_0", "N2C_0:C2SSW_0"),
+    ("skewed-signal", SKEWED, "C", "ENE2C_0:C2SSW_0", "WSW2C_0:C2ENE_0"),
+    ("y-signal", Y_SIGNAL, "C", "SW2C_0:C2N_0", "ESE2C_0:C2SW_0"),
+    ("y-signal", Y_SIGNAL, "C", "SW2C_0:C2N_0", "SW2C_0:C2ESE_0"),
+    ("Town05 1126", TOWN05, "1126", "-6_1:-47_1", "7_0:6_0"),
+    ("Town05 1126", TOWN05, "1126", "-6_1:-47_1", "-6_1:-7_1"),
+    ("Town05 1882", TOWN05, "1882", "46_1:-4_2", "-45_0:-46_0"),
+    ("Town07 68", TOWN07, "68", "0_0:44_0", "55_0:-0_0"),
+    ("Town07 335", TOWN07, "335", "24_0:62_0", "-23_0:62_0"),
+]  # fmt: skip
 QUEUES = [  # (network, ego, the fork's route, cars, duration)
     ("4way-stop", "E2C_1:C2S_1", "S2C_1:C2N_1", 2, 20.0),
     ("4way-stop", "E2C_0:C2N_0", "S2C_0:C2N_0", 3, 30.0),
@@ -108,6 +137,36 @@ def cases(problems: list[TimingProblem]) -> None:
         else:
             print(f"- {count} new car(s): success 0 % ({found})")
     print()
+
+
+def signals() -> None:
+    print("## Signals: one new car at a signalized junction (duration 45 s)\n")
+    print("| junction | ego + new car | seed | result | total s | answer sets | rule broken |")
+    print("|---|---|---|---|---|---|---|")
+    results: list[tuple[bool, float]] = []
+    for label, network, junction, ego, route in SIGNAL_CASES:
+        for seed in SEEDS:
+            start = new_testcase(network, ego, junction=junction, duration=45.0)
+            clock = time.perf_counter()
+            try:
+                extension = extend_testcase(start, [route], seed=seed, budget=BUDGET)
+            except ScengenError as error:
+                total = time.perf_counter() - clock
+                results.append((False, total))
+                print(f"| {label} | {ego} + {route} | {seed} | {type(error).__name__} | "
+                      f"{total:.2f} | | |", flush=True)  # fmt: skip
+                continue
+            total = time.perf_counter() - clock
+            results.append((True, total))
+            provenance = extension.testcase.provenance or {}
+            broken = ", ".join(v["rule"] for v in provenance["complexity_certificate_violates"])
+            print(f"| {label} | {ego} + {route} | {seed} | ok | {total:.2f} | "
+                  f"{len(extension.attempts)} | {broken or 'rear-end'} |", flush=True)  # fmt: skip
+    times = [t for ok, t in results if ok]
+    print()
+    print(f"- one new car at a light: success {len(times) / len(results):.0%} "
+          f"({len(times)}/{len(results)}), p50 {percentile(times, 0.5):.2f} s, "
+          f"p95 {percentile(times, 0.95):.2f} s\n")  # fmt: skip
 
 
 def example_chain() -> None:
@@ -228,6 +287,7 @@ def main() -> None:
           f"{platform.python_version()}, {platform.machine()}\n")  # fmt: skip
     problems: list[TimingProblem] = []
     cases(problems)
+    signals()
     queues()
     example_chain()
     against_random(args.random_cpu)
