@@ -87,6 +87,15 @@ def satisfiable(facts: str, m_ms: int = 1000, margin_ms: int = 200) -> bool:
          "horizon(20000). &diff{ 0 - q } <= -9000. &diff{ p - q } <= -2000. "
          "&diff{ p - o } <= 2000.",
          False, "nor can it have come to p at full speed: p at least 3 s after o"),
+        ("symbolicTime(e). phaseAt(e,1). phaseSpan(1,20000,23000). minGap(0,e,22900). "
+         "horizon(45000).",
+         False, "an entry in the phase from 20 to 23 s keeps the margin (0.2 s) from its end"),
+        ("symbolicTime(e). phaseAt(e,1). phaseSpan(1,20000,23000). minGap(0,e,22700). "
+         "horizon(45000).",
+         True, "22.7 s is inside, with the margin"),
+        ("symbolicTime(e). phaseAt(e,1). phaseSpan(1,20000,23000). horizon(45000). "
+         "&diff{ e - 0 } <= 20100.",
+         False, "nor may it be within the margin after the switch (20.1 s)"),
     ],
 )  # fmt: skip
 def test_difference_constraints_decide_the_times(facts: str, expected: bool, why: str) -> None:

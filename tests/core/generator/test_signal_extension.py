@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from service.core.checker.check import check_testcase
+from service.core.errors import NoMoreComplexTestCase
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import PoseSample
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
@@ -74,3 +75,13 @@ def test_extending_never_changes_the_program() -> None:
     old = new_testcase("t-signal", "S2C_0:C2E_0", duration=45)
     new = extend_testcase(old, ["W2C_0:C2E_0"], seed=0, budget=120).testcase
     assert new.signals == old.signals
+
+
+def test_a_new_car_never_runs_its_red() -> None:
+    """Town05 1126 (42 s green, 3 s yellow each way), ego turning left on its green: a new
+    car from 47 faces red until 45 s, so in a 45 s test-case it could only take part by
+    entering on red; no such order exists (asp/extension.lp's lawful-entry constraint),
+    which is a proof, not a search that gave up."""
+    old = new_testcase(TOWN05, "-6_1:-47_1", junction="1126", duration=45)
+    with pytest.raises(NoMoreComplexTestCase, match="even one at a time"):
+        extend_testcase(old, ["47_1:46_1"], seed=0, budget=120)
