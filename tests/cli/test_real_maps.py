@@ -126,7 +126,7 @@ def test_every_junction_works_or_is_refused_with_a_reason(
             out, err = capsys.readouterr()
             outcome = _outcome(code, err)
             outcomes[f"intersection {outcome}"] += 1
-            routes = [_a_route(net, node)]
+            routes, longer = [_a_route(net, node)], []
             if outcome == "worked":
                 described = json.loads(out)
                 routes = [r["id"] for r in described["routes"]]
@@ -134,8 +134,10 @@ def test_every_junction_works_or_is_refused_with_a_reason(
                 forks = [lane for lane in side if _ends_at(net, lane, node)]
                 routes += [f"{f}:{e}" for f in forks for e in _exits_of(net, f)][:2]
                 routes = routes if control == "allway_stop" else routes[:1]
+                if described["signals"]:  # a light may stay red for 20 s: a whole cycle
+                    longer = ["--duration", f"{described['signals']['cycle'] + 1:g}"]
             for route in routes:
-                code = cli.main(["new", *flags, f"--ego={route}"])
+                code = cli.main(["new", *flags, f"--ego={route}", *longer])
                 _, err = capsys.readouterr()
                 assert _outcome(code, err) == outcome, (node, control, route, err)
                 outcomes[f"new {outcome}"] += 1
