@@ -432,8 +432,11 @@ def _rule_set_text(testcase: TestCase) -> str:
     """The rule set's own summary (its header comment) and its rules with their sections
     (the rule set's law/2 atoms)."""
     control = ControlType(testcase.rules)
+    lines = rule_set_file(control).read_text().splitlines()
+    # the title (one line, or several: traffic_light.lp's) ends at the first empty comment
+    title = next((k for k, line in enumerate(lines) if not line[1:].strip()), 1)
     header = []
-    for line in rule_set_file(control).read_text().splitlines()[1:]:
+    for line in lines[title:]:
         if not line.startswith("%") or line.startswith("% Input predicates"):
             break
         header.append("    " + line[1:].strip() if line[1:].strip() else "")

@@ -177,6 +177,8 @@ def test_colour_words_follow_the_flavour(exports: list[Export]) -> None:
             assert f"- `u` red-yellow (red; green follows): `{red_yellow}`" in rules
         assert "- `s` red on which a right turn may go after a full stop: `red`" in rules
         assert "California Vehicle Code 21451 to 21453 (`asp/laws/cvc2145*.lp`)" in rules
+        # the rule set's summary without the rest of its three-line title
+        assert "`asp/rules/traffic_light.lp`:\n\n    21451 (a)  circular green" in rules
         tls = export.intersection.tls
         for route in export.intersection.routes.values():
             assert f"- `{head_id(str(tls), route.link_index)}`: `{route.id}`" in rules
