@@ -37,8 +37,9 @@ from service.core.sim.replay import evaluate as evaluate_controller
     "for the plain sumo binary (the non-egos' trajectories as FCD for SUMO's fcd-replay "
     "device). --format openscenario: testcase.xodr (ASAM OpenDRIVE), testcase.xosc (ASAM "
     "OpenSCENARIO XML: the non-egos on their trajectories, the ego left to the system "
-    "under test), one .xosc per certificate and verdict-rules.md; --flavour carla for "
-    "CARLA's ScenarioRunner.",
+    "under test; at a signalized junction the signal program as a "
+    "TrafficSignalController over the network's signal heads), one .xosc per certificate "
+    "and verdict-rules.md; --flavour carla for CARLA's ScenarioRunner.",
 )
 def export(args: argparse.Namespace) -> int:
     testcase = read_input(args.testcase)

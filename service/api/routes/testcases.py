@@ -225,7 +225,9 @@ async def get_openscenario(
     ] = "asam",
 ) -> Response:
     """The ASAM OpenSCENARIO XML export on an ASAM OpenDRIVE network, as a zip: the non-egos
-    on their trajectories, the ego (`type = ego_vehicle`) left to the system under test."""
+    on their trajectories, the ego (`type = ego_vehicle`) left to the system under test; at a
+    signalized junction, a signal head per link in the network and the test-case's program
+    as a TrafficSignalController (README, the OpenSCENARIO export)."""
     return await _export(state, testcase, flavour)
 
 

@@ -7,17 +7,24 @@ The folder holds:
   coordinates (the network offset already applied), so a SUMO x, y is an OpenDRIVE x, y;
   the header's ``<offset>`` (OpenDRIVE 1.5, the negated netOffset) leads back to the
   projected coordinates of the map, so the file is declared OpenDRIVE 1.5. A stop sign
-  (signal 206, CARLA's catalogue) stands at the end of every road into a stop line.
+  (signal 206, CARLA's catalogue) stands at the end of every road into a stop line. At a
+  signalized junction every link of its traffic light has a signal head at the stop line
+  of its lane, id ``<tls>_<link index>``, as netconvert writes them; scengen checks them
+  and makes the junction name their controller (``openscenario_signals``).
 - ``testcase.xosc``: every non-ego follows its trajectory (``FollowTrajectoryAction`` over
   a time-stamped ``Polyline`` of ``WorldPosition`` vertices, one per time step, absolute
   time, ``followingMode="position"``), placed at its first pose by a ``TeleportAction``;
   the ego (``type = ego_vehicle``, the convention of CARLA's ScenarioRunner) is teleported
   to its start with its start speed and gets its route, and no trajectory: the system
-  under test drives it. The scenario stops at the duration.
+  under test drives it. The scenario stops at the duration. A signalized test-case's
+  program is the RoadNetwork's TrafficSignalController (one TrafficSignalState per head and
+  phase), its cycle starting where SUMO's stands at t = 0, so that it shows SUMO's colour
+  at every moment (``openscenario_signals``: the offset, the heads, the colour words).
 - ``testcase.solvability.xosc`` and ``testcase.complexity.xosc`` (when the test-case has
   certificates): the same scenario with the ego following that certificate.
 - ``verdict-rules.md``: the pass-fail criteria that scengen applies (OpenSCENARIO cannot
-  state right-of-way criteria).
+  state right-of-way criteria); at a signalized junction also the program, which head is
+  which route, the colour words and the signal rules.
 
 Conventions: a vehicle's reference point is the centre of its footprint (its bounding box
 is centred on it), where scengen's samples are; heading h = radians(90 - SUMO angle), SUMO's
@@ -27,6 +34,7 @@ from the x axis.
 The CARLA flavour (``flavour="carla"``) writes OpenSCENARIO 1.0 (what ScenarioRunner reads),
 one vertex every 0.05 s (CARLA's 20 Hz), and names the CARLA town as the road network when
 the test-case's network is one (ScenarioRunner loads the town by name, not the file).
+Its signal states name no red-yellow (CARLA's lights have none: ``u`` is ``red``).
 """
 
 from __future__ import annotations
@@ -44,10 +52,16 @@ from shapely.geometry import LineString
 
 from service.core.checker.rules import rule_set_file, solve_rules
 from service.core.errors import InvalidInput, NetworkBuildFailed
-from service.core.export import FLAVOURS
+from service.core.export import FLAVOURS, Flavour
+from service.core.export.openscenario_signals import (
+    complete_signal_heads,
+    signal_controller,
+    signal_heads,
+    signal_rules_text,
+)
 from service.core.files import replacing, write_atomically
 from service.core.motion.poses import interpolate_heading, start_front
-from service.core.network import ControlType, Intersection, parsed_network
+from service.core.network import ControlType, Fork, Intersection, parsed_network
 from service.core.network.override import run_netconvert
 from service.core.sumo.run import front_to_centre
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
@@ -87,7 +101,7 @@ def opendrive_text(intersection: Intersection) -> str:
     # offset): the file is valid 1.5 either way
     text = re.sub(r'<header revMajor="1" revMinor="4"', '<header revMajor="1" revMinor="5"', text)
     text = re.sub(r' date="[^"]*"', f' date="{CREATED.isoformat()}"', text, count=1)
-    return _with_stop_signs(text, intersection)
+    return _with_additions(text, intersection)
 
 
 def _road_of(roads: Sequence[ET.Element], start: tuple[float, float], heading: float) -> ET.Element:
@@ -108,13 +122,25 @@ def _road_of(roads: Sequence[ET.Element], start: tuple[float, float], heading: f
     return best
 
 
-def _with_stop_signs(text: str, intersection: Intersection) -> str:
-    """The text with a stop sign (OpenDRIVE signal, German catalogue 206 as CARLA reads it)
-    at the end of every road whose lanes meet a stop line of the junction."""
+def _with_additions(text: str, intersection: Intersection) -> str:
+    """netconvert's text with what scengen adds: the stop signs, and the junction's
+    reference to its traffic light's controller (``openscenario_signals``); the text as
+    netconvert wrote it (the same bytes) where there is nothing to add."""
     forks = [f for f in intersection.forks.values() if f.stop_sign]
-    if not forks:
+    if not forks and not signal_heads(intersection):
         return text
     root = ET.fromstring(text)
+    _add_stop_signs(root, intersection, forks)
+    complete_signal_heads(root, intersection)
+    ET.indent(root, space="    ")
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _add_stop_signs(root: ET.Element, intersection: Intersection, forks: Sequence[Fork]) -> None:
+    """A stop sign (OpenDRIVE signal, German catalogue 206 as CARLA reads it) at the end of
+    every road whose lanes meet a stop line of the junction (``forks``)."""
+    if not forks:
+        return
     roads = [r for r in root.iter("road") if r.get("junction") == "-1"]
     path = intersection.network_file
     net = parsed_network(path)
@@ -140,8 +166,6 @@ def _with_stop_signs(text: str, intersection: Intersection) -> str:
             "dynamic": "no", "orientation": "+", "zOffset": "1.5", "country": "DEU",
             "type": "206", "subtype": "-1", "height": "0.8", "width": "0.8",
         })  # fmt: skip
-    ET.indent(root, space="    ")
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
 def _world(x: float, y: float, angle: float) -> xosc.WorldPosition:
@@ -266,9 +290,22 @@ def _network_file(testcase: TestCase, flavour: str) -> str:
     return f"{NAME}.xodr"
 
 
-def _check_flavour(flavour: str) -> None:
-    if flavour not in FLAVOURS:
-        raise InvalidInput(f"unknown OpenSCENARIO flavour {flavour!r}; choose one of {FLAVOURS}")
+def _check_flavour(flavour: str) -> Flavour:
+    for known in FLAVOURS:
+        if flavour == known:
+            return known
+    raise InvalidInput(f"unknown OpenSCENARIO flavour {flavour!r}; choose one of {FLAVOURS}")
+
+
+def _road_network(
+    testcase: TestCase, intersection: Intersection, flavour: Flavour
+) -> xosc.RoadNetwork:
+    """The network file, and the traffic light's program where the test-case has one."""
+    network = xosc.RoadNetwork(_network_file(testcase, flavour))
+    if testcase.signals is not None:
+        program = testcase.signals.to_program()
+        network.add_traffic_signal_controller(signal_controller(program, intersection, flavour))
+    return network
 
 
 def scenario(
@@ -280,7 +317,7 @@ def scenario(
     """The test-case as an OpenSCENARIO scenario; with ``certificate`` ("solvability" or
     "complexity"), the ego follows that certificate instead of being left to the system
     under test."""
-    _check_flavour(flavour)
+    known = _check_flavour(flavour)
     minor = 0 if flavour == "carla" else 2
     step = CARLA_STEP if flavour == "carla" else None
     entities = xosc.Entities()
@@ -344,16 +381,24 @@ def scenario(
         xosc.ParameterDeclarations(),
         entities,
         storyboard,
-        xosc.RoadNetwork(_network_file(testcase, flavour)),
+        _road_network(testcase, intersection, known),
         xosc.Catalog(),
         osc_minor_version=minor,
         creation_date=CREATED,
     )
 
 
-def rules_text(testcase: TestCase) -> str:
-    """The side file: what scengen judges and OpenSCENARIO cannot say."""
+def rules_text(
+    testcase: TestCase, intersection: Intersection | None = None, flavour: str = "asam"
+) -> str:
+    """The side file: what scengen judges and OpenSCENARIO cannot say; at a signalized
+    junction, its signals too (``intersection``: the test-case's, loaded when None)."""
     p = testcase.params
+    signals = ""  # a section of its own, before the coordinates
+    if testcase.signals is not None:
+        junction = intersection or load_testcase_intersection(testcase)
+        program = testcase.signals.to_program()
+        signals = signal_rules_text(program, junction, _check_flavour(flavour)) + "\n"
     return f"""# Pass-fail criteria of this test-case (scengen)
 
 OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the run at
@@ -376,7 +421,7 @@ OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the r
   {p.v_stop:g} m/s, running a sign at or above {p.v_run:g} m/s, arrival within
   {p.arrival_distance:g} m of the line, speed limit {p.v_max:g} m/s.
 
-Coordinates: SUMO's network coordinates (the OpenDRIVE file's), a vehicle's reference
+{signals}Coordinates: SUMO's network coordinates (the OpenDRIVE file's), a vehicle's reference
 point at the centre of its footprint, headings in radians counter-clockwise from the x
 axis. Run the trajectory of your player back through `scengen check` as SUMO FCD, CSV or
 JSON (README, `scengen check`).
@@ -387,8 +432,11 @@ def _rule_set_text(testcase: TestCase) -> str:
     """The rule set's own summary (its header comment) and its rules with their sections
     (the rule set's law/2 atoms)."""
     control = ControlType(testcase.rules)
+    lines = rule_set_file(control).read_text().splitlines()
+    # the title (one line, or several: traffic_light.lp's) ends at the first empty comment
+    title = next((k for k, line in enumerate(lines) if not line[1:].strip()), 1)
     header = []
-    for line in rule_set_file(control).read_text().splitlines()[1:]:
+    for line in lines[title:]:
         if not line.startswith("%") or line.startswith("% Input predicates"):
             break
         header.append("    " + line[1:].strip() if line[1:].strip() else "")
@@ -420,6 +468,6 @@ def export_openscenario(
         with replacing(folder / name) as partial:
             scenario(testcase, junction, flavour, certificate).write_xml(str(partial))
         written.append(folder / name)
-    write_atomically(folder / RULES_FILE, rules_text(testcase))
+    write_atomically(folder / RULES_FILE, rules_text(testcase, junction, flavour))
     written.append(folder / RULES_FILE)
     return written
