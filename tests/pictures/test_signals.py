@@ -1,9 +1,11 @@
 """Traffic lights in the pictures, read back from what was drawn: each head's fill in the
 SVG at t = 0, each car's signal in the strip under the time-distance panel, the GIF's
-pixel at each head in two frames of other phases."""
+pixel at each head in two frames of other phases; and the results browser's colours
+equal to the pictures' (ui.js, read as text)."""
 
 from __future__ import annotations
 
+import json
 import re
 import xml.etree.ElementTree as ElementTree
 from collections.abc import Iterator
@@ -16,6 +18,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.colors import to_hex, to_rgb
 from PIL import Image
 
+import service.pictures
 from service.core.generator.extension import extend_testcase
 from service.core.network import Intersection
 from service.core.network.signals import make_program
@@ -170,3 +173,12 @@ def test_the_gif_draws_each_head_in_its_colour_in_each_frame(
                 assert rgb.getpixel(centres[name]) == wanted, (t, name, colour)
                 seen.add(colour)
     assert seen == {"r", "G", "g", "s"}
+
+
+def test_the_browser_draws_the_pictures_colours() -> None:
+    """ui.js's SIGNAL_COLOURS is the pictures' table (the browser test reads its pixels)."""
+    script = (Path(service.pictures.__file__).parent / "ui" / "ui.js").read_text()
+    table = re.search(r"const SIGNAL_COLOURS = (\{[^}]*\});", script)
+    assert table
+    colours = json.loads(re.sub(r"(\w+):", r'"\1":', table.group(1)))
+    assert colours == SIGNAL_COLOURS
