@@ -341,10 +341,10 @@ SIGNAL_PROGRAM = {
 
 
 @pytest.fixture(scope="module")
-def signalized(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, str]]:
+def signalized(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, str, str]]:
     """A server of its own (the campaign's pages count their test-cases) with a level-1
-    test-case on t-signal under SIGNAL_PROGRAM: the ego turns right (on red after a stop),
-    a car comes straight from the west."""
+    test-case on t-signal under SIGNAL_PROGRAM (the ego turns right, on red after a stop;
+    a car comes straight from the west) and SUMO's driver evaluated on it."""
     server = Server(tmp_path_factory.mktemp("ui-signals"), workers="1")
     try:
         root = server.client.post("/testcases", json={
@@ -356,7 +356,10 @@ def signalized(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Serve
             "/extend", json={"testcase_id": root.json()["id"], "routes": ["W2C_0:C2E_0"]}
         )
         assert extended.status_code == 201, extended.text
-        yield server, extended.json()["id"]
+        ident = extended.json()["id"]
+        evaluated = server.client.post("/evaluations", json={"testcase_id": ident})
+        assert evaluated.status_code == 201, evaluated.text
+        yield server, ident, evaluated.json()["id"]
     finally:
         server.stop()
 
@@ -371,13 +374,13 @@ SIGNALS_SHOWN = """() => {
 
 
 def test_the_animation_draws_each_signal_head_in_its_colour_at_that_moment(
-    signalized: tuple[Server, str], browser_page: tuple[Page, list[str]]
+    signalized: tuple[Server, str, str], browser_page: tuple[Page, list[str]]
 ) -> None:
     """At four moments, each in another phase (25 s just where its phase begins), every
     head of the junction is drawn in the colour SignalProgram.colour gives its link then:
     the colour the page says (the canvas's data-signals) and the pixel at the head (white
-    at an ``s`` head: its dot)."""
-    server, ident = signalized
+    at an ``s`` head: its dot). The replay of SUMO's drive draws them too."""
+    server, ident, evaluation = signalized
     program = Signals.model_validate(SIGNAL_PROGRAM).to_program()
     geometry = server.client.get("/networks/t-signal/junctions/C/geometry").json()
     heads = {f"{h['fork']}-{h['link_index']}": h["link_index"] for h in geometry["signal_heads"]}
@@ -403,4 +406,10 @@ def test_the_animation_draws_each_signal_head_in_its_colour_at_that_moment(
     legend = page.locator("#signal-legend").inner_text()
     assert "s right on red after a stop" in legend and "y yellow" in legend
     page.screenshot(path=str(SCREENSHOTS / "ui-testcase-signals.png"), full_page=True)
+    page.goto(f"{server.url}/ui/#/replay/{evaluation}")
+    page.wait_for_selector("#animation[data-signals]")
+    page.locator("#scrub").fill("13")
+    shown = {s["head"]: s["colour"] for s in page.evaluate(SIGNALS_SHOWN)}
+    assert shown == {head: program.colour(link, 13.0) for head, link in heads.items()}
+    assert page.locator("#signal-legend").count() == 1
     assert external(server, requested[before:]) == []
