@@ -113,7 +113,7 @@ def plot_intersection(
     draw_stop_lines(axes, intersection)
     heads = SignalHeads(axes, intersection)
     heads.show(0.0)
-    if heads.heads:
+    if heads.heads and heads.program is not None:
         handles, labels = colour_handles(heads.colours_used())
         axes.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.04), ncol=3,
                     fontsize=7, title="signals at t = 0 s", title_fontsize=7)  # fmt: skip
@@ -141,10 +141,18 @@ def plot_intersection(
     axes.set_aspect("equal")
     axes.set_title(
         f"junction {intersection.junction} ({intersection.control.value}): "
-        "left red, right green, straight blue"
-        + ("\nsignal heads past the stop lines at t = 0 s" if heads.heads else "")
+        "left red, right green, straight blue" + _heads_title(heads)
     )
     save(figure, path)
+
+
+def _heads_title(heads: SignalHeads) -> str:
+    """What a junction's picture says of its signal heads (nothing without any)."""
+    if not heads.heads:
+        return ""
+    if heads.program is None:
+        return "\nsignal heads past the stop lines, grey: the network's program is not fixed-time"
+    return "\nsignal heads past the stop lines at t = 0 s"
 
 
 def save(figure: Figure, path: Path) -> None:
