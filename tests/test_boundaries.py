@@ -120,6 +120,7 @@ def test_network_public_surface_is_complete() -> None:
         "describe",
         "convert",
         "signals",
+        "geometry",
     }
     assert set(network.__all__) == public - submodules
 

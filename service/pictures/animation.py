@@ -1,5 +1,5 @@
 """A test-case's cars moving, as a GIF: the map of the static picture with each car's
-rectangle and id, a frame every half second."""
+rectangle and id, and each signal head in its colour, a frame every half second."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
+from matplotlib.colors import to_rgb
 from matplotlib.figure import Figure
 from matplotlib.text import Annotation
 from PIL import Image
@@ -22,6 +23,7 @@ from service.core.checker.check import EGO
 from service.core.motion.events import rectangles
 from service.core.motion.poses import PoseSample
 from service.core.network import Intersection
+from service.core.network.signals import COLOUR_WORDS
 from service.core.testcase import TestCase
 from service.pictures.labels import LabelPlacer
 from service.pictures.plot import (
@@ -35,6 +37,14 @@ from service.pictures.plot import (
     normal,
     picture_title,
     queue_leaders,
+)
+from service.pictures.signals import (
+    MARK,
+    SIGNAL_COLOURS,
+    UNKNOWN,
+    SignalHeads,
+    colour_handles,
+    signalized,
 )
 
 DPI = 100
@@ -69,8 +79,10 @@ def draw_animation(
     """The animation's figure (the map, its axes first, framed with every start in view and
     stop lines drawn as in the static picture; the legend below it names the car each
     starts behind on a shared fork) and the function that draws a frame: each car's
-    rectangle and its id beside it, inside the map and over no other id or car; a car out
-    of view has no id. The artists that change are animated: a frame draws only them."""
+    rectangle and its id beside it, inside the map and over no other id, car or signal
+    head; a car out of view has no id; at a signalized junction each head in its colour at
+    the frame's time (over the cars) and the ego's signal beside the clock. The artists
+    that change are animated: a frame draws only them."""
     cars = _animated_cars(testcase, ego, ego_label)
     queues = queue_leaders(testcase, intersection)
     figure, axes = plt.subplots(figsize=(7.5, 8.2), dpi=DPI)
@@ -89,14 +101,27 @@ def draw_animation(
                               fontsize=8, color=colour, zorder=6, ha="center", va="center",
                               annotation_clip=False, visible=False, animated=True)  # fmt: skip
         patches.append((outline, label))
-    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=7)
+    heads = SignalHeads(axes, intersection, animated=True)
+    if heads.heads:  # the signals' colours after the cars
+        handles, labels = axes.get_legend_handles_labels()
+        more, words = colour_handles(heads.colours_used())
+        axes.legend(handles + more, labels + words, loc="upper center",
+                    bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=7)  # fmt: skip
+    else:
+        axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=7)
     axes.set_title(picture_title(testcase), pad=20)
+    ego_route = intersection.route(testcase.ego.route.id)
+    lit = heads.points()
     clock = axes.text(0.5, 1.01, "", transform=axes.transAxes, ha="center", va="bottom",
                       animated=True)  # fmt: skip
     figure.tight_layout()
 
     def draw(frame: int) -> list[Any]:
-        clock.set_text(f"t = {frame * testcase.timestep:4.1f} s")
+        t = round(frame * testcase.timestep, 9)  # 20.0 s, not 19.999999999999996 s
+        colour = intersection.signal_colour(ego_route, t)
+        ego_signal = f" · ego's signal: {COLOUR_WORDS[colour]}" if colour else ""
+        clock.set_text(f"t = {t:4.1f} s{ego_signal}")
+        lights = heads.show(t)
         shown = []
         for (outline, label), (_, _, _, samples, length, width) in zip(patches, cars, strict=True):
             label.set_visible(False)
@@ -108,8 +133,8 @@ def draw_animation(
                               length, width)[0]  # fmt: skip
             outline.set_xy(np.array(rect.exterior.coords))
             shown.append((label, s, length, width, _covering(s, length, width)))
-        _place_car_labels(axes, shown)
-        return [clock, *(p for pair in patches for p in pair)]
+        _place_car_labels(axes, shown, lit)
+        return [clock, *(p for pair in patches for p in pair), *lights]  # lights over cars
 
     return figure, draw
 
@@ -129,11 +154,14 @@ def _covering(sample: PoseSample, length: float, width: float) -> np.ndarray:
 Shown = tuple[Annotation, PoseSample, float, float, np.ndarray]  # label, pose, size, cover
 
 
-def _place_car_labels(axes: Axes, shown: Sequence[Shown]) -> None:
-    """Each car's id beside its rectangle where the car is in view and there is room."""
+def _place_car_labels(axes: Axes, shown: Sequence[Shown], lights: np.ndarray) -> None:
+    """Each car's id beside its rectangle where the car is in view and there is room,
+    over no other car and no signal head (``lights``: points that cover the heads)."""
     low_x, high_x = axes.get_xlim()
     low_y, high_y = axes.get_ylim()
     covered = np.vstack([points for *_, points in shown]) if shown else None
+    if len(lights):  # a signal head is not to be hidden either
+        covered = lights if covered is None else np.vstack([covered, lights])
     placer = LabelPlacer(axes, covered)
     for label, s, length, width, _ in shown:
         if not (low_x <= s.x <= high_x and low_y <= s.y <= high_y):
@@ -169,7 +197,9 @@ def animate_testcase(
                 figure.draw_artist(artist)
         return Image.fromarray(np.asarray(canvas.buffer_rgba())[:, :, :3])  # type: ignore[attr-defined]
 
-    palette = _palette([picture(frames[k * (len(frames) - 1) // 4]) for k in range(5)])
+    shown = {*SIGNAL_COLOURS.values(), UNKNOWN, MARK}  # kept exact: no frame mixes them up
+    exact = sorted(shown) if signalized(intersection) else []
+    palette = _palette([picture(frames[k * (len(frames) - 1) // 4]) for k in range(5)], exact)
     images = []
     for k, frame in enumerate(frames):
         images.append(picture(frame).quantize(palette=palette, dither=Image.Dither.NONE))
@@ -180,11 +210,27 @@ def animate_testcase(
                    duration=round(every * 1000))  # fmt: skip
 
 
-def _palette(samples: Sequence[Image.Image]) -> Image.Image:
+def _palette(samples: Sequence[Image.Image], exact: Sequence[str] = ()) -> Image.Image:
     """One palette for every frame (a GIF holds 256 colours a frame; one palette lets it
     store only what changed), taken from a few frames side by side, no
-    dither, so flat colours stay flat (median cut: it keeps near greys apart)."""
+    dither, so flat colours stay flat (median cut: it keeps near greys apart). The
+    ``exact`` colours are in it as they are, alone in their neighbourhood (PIL maps a
+    pixel to the entry nearest its 4x4x4 cell of colours, EXACT_ROOM wide): a signal keeps
+    its colour in every frame, shown in a sampled one or not."""
     strip = Image.new("RGB", (sum(s.width for s in samples), samples[0].height))
     for k, sample in enumerate(samples):
         strip.paste(sample, (k * sample.width, 0))
-    return strip.quantize(256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+    palette = strip.quantize(
+        256 - len(exact), method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE
+    )
+    if exact:
+        wanted = np.array([[round(v * 255) for v in to_rgb(c)] for c in exact], dtype=float)
+        found = np.array(palette.getpalette(), dtype=float).reshape(-1, 3)
+        near = np.linalg.norm(found[:, None, :] - wanted[None, :, :], axis=2).min(axis=1)
+        kept = np.vstack([found[near >= EXACT_ROOM], wanted]).astype(int)
+        palette.putpalette(kept.ravel().tolist())
+    return palette
+
+
+EXACT_ROOM = 12.0  # RGB distance from an exact colour to any other entry: twice a cell's
+# diagonal (3 * sqrt(3)) and more, so that no other entry is nearer any pixel of its cell

@@ -26,6 +26,13 @@ from service.core.motion.queues import QueueCar, follows
 from service.core.network import Intersection
 from service.core.testcase import TestCase, readable_name, testcase_level
 from service.pictures.labels import LabelPlacer, Spot
+from service.pictures.signals import (
+    STRIP_ROW,
+    SignalHeads,
+    colour_handles,
+    draw_signal_strip,
+    signal_rows,
+)
 
 TURN_COLOURS = {"left": "tab:red", "right": "tab:green", "straight": "tab:blue"}
 
@@ -85,7 +92,8 @@ def plot_intersection(
     car: tuple[float, float] = (5.0, 1.8),
 ) -> None:
     """Draw the junction, every connecting lane (coloured by turn), forks with their names,
-    the highlighted routes, and optionally a car's rectangles every second."""
+    the highlighted routes, the signal heads at t = 0 s of the junction's program, and
+    optionally a car's rectangles every second."""
     figure, axes = plt.subplots(figsize=(8, 8))
     draw_roads(axes, intersection)
     for route in intersection.routes.values():
@@ -103,6 +111,12 @@ def plot_intersection(
                       arrowprops={"arrowstyle": "-|>", "color": TURN_COLOURS[route.turn.value],
                                   "lw": 0.8, "alpha": 1.0 if chosen else 0.6})  # fmt: skip
     draw_stop_lines(axes, intersection)
+    heads = SignalHeads(axes, intersection)
+    heads.show(0.0)
+    if heads.heads and heads.program is not None:
+        handles, labels = colour_handles(heads.colours_used())
+        axes.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.04), ncol=3,
+                    fontsize=7, title="signals at t = 0 s", title_fontsize=7)  # fmt: skip
     for fork in intersection.forks.values():
         sign = " (stop)" if fork.stop_sign else ""
         _label_outward(axes, f"{fork.lane}{sign}", _back_along(fork.approach, 1.5), fork.approach)
@@ -127,9 +141,18 @@ def plot_intersection(
     axes.set_aspect("equal")
     axes.set_title(
         f"junction {intersection.junction} ({intersection.control.value}): "
-        "left red, right green, straight blue"
+        "left red, right green, straight blue" + _heads_title(heads)
     )
     save(figure, path)
+
+
+def _heads_title(heads: SignalHeads) -> str:
+    """What a junction's picture says of its signal heads (nothing without any)."""
+    if not heads.heads:
+        return ""
+    if heads.program is None:
+        return "\nsignal heads past the stop lines, grey: the network's program is not fixed-time"
+    return "\nsignal heads past the stop lines at t = 0 s"
 
 
 def save(figure: Figure, path: Path) -> None:
@@ -364,16 +387,21 @@ def draw_testcase(
     progress: Callable[[str], None] | None = None,
 ) -> Figure:
     """The figure plot_testcase saves: the map (its axes first) and the time-distance panel,
-    titled by the test-case's name. ``progress`` hears of each stage."""
+    titled by the test-case's name; at a signalized junction the signal strip under the
+    panel (the third axes). ``progress`` hears of each stage."""
     say = progress or (lambda message: None)
-    figure, (axes, panel) = plt.subplots(
-        1, 2, figsize=(15, 7.5), dpi=110, gridspec_kw={"width_ratios": [1, 1.1]}
-    )  # the dpi it is saved at: labels are kept apart on that canvas
+    paths = _testcase_paths(testcase, ego, ego_label)
+    rows = signal_rows(
+        testcase, intersection, [(drawn[2], drawn[3]) for drawn in paths if drawn[0] == EGO],
+        [CAR_COLOURS[k % len(CAR_COLOURS)] for k in range(len(testcase.nonegos))],
+    )  # fmt: skip
+    figure, axes, panel, strip = _figure(len(rows))
     draw_roads(axes, intersection)
     draw_stop_lines(axes, intersection)
     if any(fork.stop_sign for fork in intersection.forks.values()):
         axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
-    paths = _testcase_paths(testcase, ego, ego_label)
+    heads = SignalHeads(axes, intersection)
+    heads.show(0.0)  # the moment of the starts' markers; the strip has the rest
     step = max(1, round(2.0 / testcase.timestep))
     say(f"drawing {len(paths)} paths")
     obstacles = [_draw_path(axes, panel, drawn, step) for drawn in paths]
@@ -381,11 +409,16 @@ def draw_testcase(
     _draw_starts(axes, paths, queues)
     _draw_events(panel, testcase, verdict, ego)
     frame_map(axes, intersection, [drawn[3][0] for drawn in paths if drawn[3]])
-    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)
+    _map_legend(axes, heads)
     figure.suptitle(picture_title(testcase), fontsize=13)
+    signals = "; signals at t = 0 s" if heads.heads else ""
     axes.set_title(f"junction {testcase.junction} ({intersection.control.value}), "
-                   f"ego {testcase.ego.route.id}", fontsize=10)  # fmt: skip
-    panel.set_xlabel("time (s)")
+                   f"ego {testcase.ego.route.id}{signals}", fontsize=10)  # fmt: skip
+    if strip is not None and intersection.signals is not None:
+        draw_signal_strip(strip, intersection.signals, rows, testcase.duration)
+        panel.tick_params(labelbottom=False)  # the strip under it has the times
+    else:
+        panel.set_xlabel("time (s)")
     panel.set_ylabel("distance travelled (m)")
     panel.grid(alpha=0.3)
     panel.legend(loc="upper left", fontsize=7)
@@ -396,8 +429,38 @@ def draw_testcase(
         panel.set_title("distance over time; markers: events")
     labels = _map_labels(paths, step, queues)
     say(f"placing {len(labels)} labels")
+    if heads.heads:
+        obstacles.append(heads.points())
     place_map_labels(axes, labels, np.vstack(obstacles) if obstacles else np.empty((0, 2)))
     return figure
+
+
+def _figure(strip_rows: int) -> tuple[Figure, Axes, Axes, Axes | None]:
+    """The figure of draw_testcase: the map, the time-distance panel beside it and, with
+    ``strip_rows``, the signal strip under the panel (on the panel's time axis)."""
+    if not strip_rows:
+        figure, (axes, panel) = plt.subplots(
+            1, 2, figsize=(15, 7.5), dpi=110, gridspec_kw={"width_ratios": [1, 1.1]}
+        )  # the dpi it is saved at: labels are kept apart on that canvas
+        return figure, axes, panel, None
+    strip_height = 0.75 + STRIP_ROW * strip_rows  # inches: its rows, title and times
+    figure = plt.figure(figsize=(15, 7.5 + strip_height), dpi=110)
+    grid = figure.add_gridspec(
+        2, 2, width_ratios=[1, 1.1], height_ratios=[6.6, strip_height]
+    )  # fmt: skip
+    axes = figure.add_subplot(grid[:, 0])
+    panel = figure.add_subplot(grid[0, 1])
+    strip = figure.add_subplot(grid[1, 1], sharex=panel)
+    return figure, axes, panel, strip
+
+
+def _map_legend(axes: Axes, heads: SignalHeads) -> None:
+    """The map's legend below it: the paths, starts and stop lines, then the signals'
+    colours (those the heads show at some time: the strip's colours too)."""
+    handles, labels = axes.get_legend_handles_labels()
+    more, words = colour_handles(heads.colours_used())
+    axes.legend(handles + more, labels + words, loc="upper center",
+                bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)  # fmt: skip
 
 
 def _draw_events(
@@ -460,7 +523,9 @@ def plot_testcase(
     their times, the car's id at its start, and the car ahead of it where it shares a fork),
     the certificates (green solvability, red complexity) or an evaluated ego's path and its
     verdict, stop lines; and a time-distance panel with each car's curve and its events
-    (arrived, entered, exited); titled by the test-case's name. PNG or SVG by the file's
+    (arrived, entered, exited); titled by the test-case's name. At a signalized junction,
+    each signal head in its colour at t = 0 s, and each car's signal over time under the
+    panel (service.pictures.signals). PNG or SVG by the file's
     suffix. ``progress`` hears of each stage."""
     figure = draw_testcase(testcase, intersection, ego, ego_label, verdict, progress)
     if progress is not None:

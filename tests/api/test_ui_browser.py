@@ -6,6 +6,8 @@ played, scrubbed or with the certificates off) and its time-distance panel (axis
 curve names whole and apart, measured on the drawn SVG), the campaign with its
 failure-rate plot, and the verdict matrix whose cells open the replay of that very
 evaluation. The report `scengen report JOB --server` writes works from a file, offline.
+On a server of its own, a signalized test-case's animation draws each signal head in the
+colour its program shows at the moment on the slider.
 Screenshots go to build/screenshots/ui-*.png (look at them)."""
 
 from __future__ import annotations
@@ -18,8 +20,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from matplotlib.colors import to_rgb
 from playwright.sync_api import Page
 
+from service.core.testcase import Signals
+from service.pictures.signals import SIGNAL_COLOURS
 from tests.api.test_docs_browser import SCREENSHOTS, external, opened_page
 from tests.servers import Server
 
@@ -90,12 +95,13 @@ def test_networks_show_their_junctions_drawn_and_say_what_they_wait_for(
     page.unroute("**/networks/t-stop/junctions")
     page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 5")
     assert page.locator("text=Reading the junctions").count() == 0
-    drawn = (("4way-stop", 16), ("t-stop", 6), ("y-uncontrolled", 6), ("4way-signal", 16),
-             ("t-signal", 6))  # fmt: skip
-    for network, routes in drawn:
+    drawn = (("4way-stop", 16, 0), ("t-stop", 6, 0), ("y-uncontrolled", 6, 0),
+             ("4way-signal", 16, 16), ("t-signal", 6, 6))  # fmt: skip
+    for network, routes, heads in drawn:
         drawing = page.locator(f".card:has(a[href='#/networks/{network}']) svg.junction-drawing")
         assert drawing.get_attribute("data-junction") == "C"
         assert drawing.locator("polyline.route").count() == routes  # one per connecting lane
+        assert drawing.locator("polygon.signal-head").count() == heads  # one per signal link
         assert drawing.locator("polyline.stop-line").count() >= 3
         box = drawing.bounding_box()
         assert box is not None and box["width"] > 200 and abs(box["width"] - box["height"]) < 2
@@ -319,3 +325,91 @@ def test_the_served_report_runs_under_its_content_security_policy(
     page.goto(f"{server.url}/jobs/{job}/campaign/report")
     page.wait_for_selector("#verdict-matrix")
     assert page.locator("#verdict-matrix a").count() > 0
+
+
+# t-signal's own program with an offset: at t = 0 the light is 31 s into its 38 s cycle
+SIGNAL_PROGRAM = {
+    "tls": "C",
+    "program": "offset",
+    "offset": 7.0,
+    "phases": [
+        {"duration": 18, "state": "GgsrGG"}, {"duration": 3, "state": "yysrGy"},
+        {"duration": 1, "state": "rrsrGr"}, {"duration": 12, "state": "rrGGGr"},
+        {"duration": 3, "state": "rryyGr"}, {"duration": 1, "state": "rrsrGr"},
+    ],
+}  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def signalized(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, str, str]]:
+    """A server of its own (the campaign's pages count their test-cases) with a level-1
+    test-case on t-signal under SIGNAL_PROGRAM (the ego turns right, on red after a stop;
+    a car comes straight from the west) and SUMO's driver evaluated on it."""
+    server = Server(tmp_path_factory.mktemp("ui-signals"), workers="1")
+    try:
+        root = server.client.post("/testcases", json={
+            "network": "t-signal", "ego_route": "S2C_0:C2E_0", "duration": 30,
+            "signals": SIGNAL_PROGRAM,
+        })  # fmt: skip
+        assert root.status_code == 201, root.text
+        extended = server.client.post(
+            "/extend", json={"testcase_id": root.json()["id"], "routes": ["W2C_0:C2E_0"]}
+        )
+        assert extended.status_code == 201, extended.text
+        ident = extended.json()["id"]
+        evaluated = server.client.post("/evaluations", json={"testcase_id": ident})
+        assert evaluated.status_code == 201, evaluated.text
+        yield server, ident, evaluated.json()["id"]
+    finally:
+        server.stop()
+
+
+SIGNALS_SHOWN = """() => {
+  const canvas = document.querySelector('#animation');
+  const heads = JSON.parse(canvas.dataset.signals || '[]');
+  const context = canvas.getContext('2d');
+  return heads.map((head) => ({...head,
+    pixel: [...context.getImageData(Math.floor(head.x), Math.floor(head.y), 1, 1).data]}));
+}"""
+
+
+def test_the_animation_draws_each_signal_head_in_its_colour_at_that_moment(
+    signalized: tuple[Server, str, str], browser_page: tuple[Page, list[str]]
+) -> None:
+    """At four moments, each in another phase (25 s just where its phase begins), every
+    head of the junction is drawn in the colour SignalProgram.colour gives its link then:
+    the colour the page says (the canvas's data-signals) and the pixel at the head (white
+    at an ``s`` head: its dot). The replay of SUMO's drive draws them too."""
+    server, ident, evaluation = signalized
+    program = Signals.model_validate(SIGNAL_PROGRAM).to_program()
+    geometry = server.client.get("/networks/t-signal/junctions/C/geometry").json()
+    heads = {f"{h['fork']}-{h['link_index']}": h["link_index"] for h in geometry["signal_heads"]}
+    assert len(heads) == 6  # one per link of the traffic light
+    page, requested = browser_page
+    before = len(requested)
+    page.goto(f"{server.url}/ui/#/testcases/{ident}")
+    page.wait_for_selector("#animation[data-signals]")
+    seen = set()
+    for moment in ("0", "13", "25", "28.5"):
+        page.locator("#scrub").fill(moment)
+        assert page.locator("#animation").get_attribute("data-time") == f"{float(moment):.2f}"
+        shown = page.evaluate(SIGNALS_SHOWN)
+        assert {s["head"] for s in shown} == set(heads)
+        for head in shown:
+            colour = program.colour(heads[head["head"]], float(moment))
+            assert head["colour"] == colour, (moment, head)
+            painted = "#ffffff" if colour == "s" else SIGNAL_COLOURS[colour]
+            assert head["pixel"] == [*(round(255 * v) for v in to_rgb(painted)), 255], head
+            seen.add(colour)
+    assert seen == {"G", "g", "y", "r", "s"}
+    page.locator("#scrub").fill("7")  # the ego waits on s (red, turn after a stop), car1 on G
+    legend = page.locator("#signal-legend").inner_text()
+    assert "s right on red after a stop" in legend and "y yellow" in legend
+    page.screenshot(path=str(SCREENSHOTS / "ui-testcase-signals.png"), full_page=True)
+    page.goto(f"{server.url}/ui/#/replay/{evaluation}")
+    page.wait_for_selector("#animation[data-signals]")
+    page.locator("#scrub").fill("13")
+    shown = {s["head"]: s["colour"] for s in page.evaluate(SIGNALS_SHOWN)}
+    assert shown == {head: program.colour(link, 13.0) for head, link in heads.items()}
+    assert page.locator("#signal-legend").count() == 1
+    assert external(server, requested[before:]) == []

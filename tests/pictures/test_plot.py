@@ -81,6 +81,7 @@ def test_a_testcase_picture_marks_starts_times_and_stop_lines(tmp_path: Path) ->
     for words in ("start (t = 0)", "stop line (sign)", ">2s<", ">10s<", "car1 (level 1)",
                   "arrived (in the car's colour)"):  # fmt: skip
         assert words in text, words
+    assert "signal-head" not in text and "signals at t = 0 s" not in text  # no traffic light
 
 
 def test_the_car_behind_another_on_its_fork_is_marked() -> None:

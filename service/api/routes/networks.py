@@ -282,7 +282,7 @@ async def get_junction_geometry(
         ControlType | None, Query(description="a control type override (default: the stored)")
     ] = None,
 ) -> JSONResponse:
-    """The junction's shapes for drawing: roads, area, paths through it, stop lines (m)."""
+    """The junction's shapes for drawing: roads, area, paths, stop lines, signal heads (m)."""
     record = await asyncio.to_thread(state.network_or_404, network)
     chosen = control.value if control else record.controls.get(junction)
     return JSONResponse(await junction_geometry(state, record, junction, chosen))

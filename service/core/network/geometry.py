@@ -2,19 +2,95 @@
 
 Coordinates are SUMO's network coordinates in metres, rounded to centimetres. Roads are
 the whole lanes of the junction's incoming and outgoing edges (cars start far up them),
-the junction's area, the paths through it, and each fork's stop line.
+the junction's area, the paths through it, each fork's stop line, and at a signalized
+junction each signal head (``signal_heads``: where the pictures draw a link's colour).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any
 
 from shapely.geometry import LineString, Polygon
 from shapely.geometry.base import BaseGeometry
 
 from service.core.network.load import read_network
-from service.core.network.model import Intersection
+from service.core.network.model import Intersection, Point
+
+HEAD_DEPTH = 1.2  # m along the lane: how long a signal head's bar is
+HEAD_SETBACK = 0.3  # m past the stop line: a car waiting at the line does not cover it
+HEAD_GAP = 0.2  # m between the bars of one lane
+
+
+@dataclass(frozen=True)
+class SignalHead:
+    """Where one signalized link of a fork shows its colour: a bar just past the fork's
+    stop line, across the link's share of the lane; a lane's links side by side as its
+    driver sees them (the left turn on the left, the right turn on the right)."""
+
+    fork: str
+    link_index: int  # the traffic light's index of the link: its character in a state
+    routes: tuple[str, ...]  # the routes through this link (one, unless SUMO shares it)
+    turn: str  # the links' turn direction (left, straight, right)
+    corners: tuple[Point, Point, Point, Point]  # the bar, corner after corner
+
+
+def signal_heads(intersection: Intersection) -> list[SignalHead]:
+    """A head for every link of ``intersection``'s traffic light that a route drives
+    through, ordered by fork and across each fork from left to right; none at a junction
+    without signals."""
+    links: dict[tuple[str, int], list[str]] = {}
+    for route in sorted(intersection.routes.values(), key=lambda r: r.id):
+        if route.link_index >= 0:
+            links.setdefault((route.fork, route.link_index), []).append(route.id)
+    heads = []
+    for lane in sorted({fork for fork, _ in links}):
+        fork = intersection.forks[lane]
+        ordered = sorted(
+            (_bend(intersection, routes[0]), link, routes)
+            for (on, link), routes in links.items()
+            if on == lane
+        )
+        share = fork.width / len(ordered)
+        for k, (_, link, routes) in enumerate(ordered):
+            across = -fork.width / 2 + share * (k + 0.5)  # from the driver's left
+            half = max(share - HEAD_GAP, share / 2) / 2
+            corners = _bar(fork.stop_line, fork.heading, across, half)
+            turn = intersection.routes[routes[0]].turn.value
+            heads.append(SignalHead(lane, link, tuple(routes), turn, corners))
+    return heads
+
+
+def _bend(intersection: Intersection, route_ref: str) -> float:
+    """How far a route turns (degrees, right positive, a U-turn -180): the lane's order."""
+    route = intersection.routes[route_ref]
+    turned = intersection.exits[route.exit].heading - intersection.forks[route.fork].heading
+    return (turned + 180.0) % 360.0 - 180.0
+
+
+def _bar(
+    stop_line: Point, heading: float, across: float, half: float
+) -> tuple[Point, Point, Point, Point]:
+    """The corners of a bar ``across`` metres right of a stop line's centre (left when
+    negative), ``half`` metres to each side, from HEAD_SETBACK to HEAD_SETBACK + HEAD_DEPTH
+    past the line (heading: degrees clockwise from north)."""
+    rad = math.radians(heading)
+    forward, right = (math.sin(rad), math.cos(rad)), (math.cos(rad), -math.sin(rad))
+
+    def at(side: float, ahead: float) -> Point:
+        return (
+            stop_line[0] + right[0] * side + forward[0] * ahead,
+            stop_line[1] + right[1] * side + forward[1] * ahead,
+        )
+
+    near, far = HEAD_SETBACK, HEAD_SETBACK + HEAD_DEPTH
+    return (
+        at(across - half, near),
+        at(across + half, near),
+        at(across + half, far),
+        at(across - half, far),
+    )
 
 
 def _points(line: Any) -> list[list[float]]:
@@ -27,7 +103,9 @@ def _rings(shape: BaseGeometry) -> list[list[list[float]]]:
 
 
 def junction_geometry(intersection: Intersection) -> dict[str, Any]:
-    """Roads, junction area, connecting paths and stop lines of ``intersection``."""
+    """Roads, junction area, connecting paths, stop lines and signal heads of
+    ``intersection`` (each head: its fork, link index, routes, turn and its bar's corners;
+    the colour is the test-case's program's at the moment drawn)."""
     net = read_network(intersection.network_file)
     edges = {f.edge for f in intersection.forks.values()} | {
         e.edge for e in intersection.exits.values()
@@ -59,6 +137,11 @@ def junction_geometry(intersection: Intersection) -> dict[str, Any]:
          "line": _points(intersection.connecting_lane_of(route).centreline)}
         for route in sorted(intersection.routes.values(), key=lambda r: r.id)
     ]  # fmt: skip
+    heads = [
+        {"fork": head.fork, "link_index": head.link_index, "routes": list(head.routes),
+         "turn": head.turn, "polygon": _points(LineString(head.corners))}
+        for head in signal_heads(intersection)
+    ]  # fmt: skip
     every = [p for road in roads for ring in road["polygon"] for p in ring]
     every += [p for ring in _rings(intersection.polygon) for p in ring]
     xs, ys = [p[0] for p in every], [p[1] for p in every]
@@ -69,5 +152,6 @@ def junction_geometry(intersection: Intersection) -> dict[str, Any]:
         "roads": roads,
         "stop_lines": stop_lines,
         "paths": paths,
+        "signal_heads": heads,
         "bounds": [min(xs), min(ys), max(xs), max(ys)],
     }

@@ -161,7 +161,7 @@ async function home() {
   render(h("h1", {}, "Networks and junctions"),
     h("p", { class: "muted" }, "Bundled and uploaded road networks; each junction with a supported control type can grow test-cases. Connecting lanes: ",
       h("span", { style: `color:${TURN_COLOURS.left}` }, "left"), ", ", h("span", { style: `color:${TURN_COLOURS.right}` }, "right"), ", ",
-      h("span", { style: `color:${TURN_COLOURS.straight}` }, "straight"), "; stop lines red where there is a stop sign."));
+      h("span", { style: `color:${TURN_COLOURS.straight}` }, "straight"), "; stop lines red where there is a stop sign; dark bars past a stop line: signal heads (a test-case's page shows their colours)."));
   const list = h("div", {});
   main.append(list);
   for (const network of networks) {
@@ -208,6 +208,30 @@ async function drawJunction(network, junction, box) {
   }
 }
 
+// ---------- traffic lights ----------
+// A test-case's fixed-time program (its `signals` field) shows the colour of a link at time
+// t as SignalProgram.colour does (service/core/network/signals.py): the phase at program
+// position (t - offset) mod cycle, phases in order, the modulo Python's (never negative).
+// The colours are those of the pictures (service/pictures/signals.py, held equal by a test).
+
+const SIGNAL_COLOURS = { G: "#0a7d2c", g: "#7ddc72", y: "#f2a600", r: "#d42020", u: "#d42020", s: "#d42020" };
+const SIGNAL_WORDS = { G: "protected green", g: "permissive green", y: "yellow", r: "red", u: "red-yellow", s: "right on red after a stop" };
+const SIGNAL_ORDER = "Ggyrus";
+const SIGNAL_UNKNOWN = "#8c8c8c";
+
+function signalColour(program, link, time) {
+  const cycle = program.phases.reduce((sum, phase) => sum + phase.duration, 0);
+  let position = (time - program.offset) % cycle;
+  if (position < 0) position += cycle; // Python's float modulo: the sign of the divisor
+  for (const phase of program.phases) {
+    if (position < phase.duration) return phase.state[link];
+    position -= phase.duration;
+  }
+  return program.phases[program.phases.length - 1].state[link];
+}
+
+function headId(head) { return `${head.fork}-${head.link_index}`; }
+
 function junctionDrawing(geometry, id) { // the junction and its approaches, north up: roads, area, connecting lanes by turn, stop lines
   const [ax0, ay0, ax1, ay1] = boundsOf(geometry.area.flat());
   const side = Math.max(ax1 - ax0, ay1 - ay0) * 1.8 + 10; // the approaches in view
@@ -222,6 +246,10 @@ function junctionDrawing(geometry, id) { // the junction and its approaches, nor
   }
   for (const stop of geometry.stop_lines) {
     drawing.append(svg("polyline", { points: at(stop.line), stroke: stop.stop_sign ? "#b91c1c" : "#6b7280", "stroke-width": stop.stop_sign ? 3 : 1.5, "vector-effect": "non-scaling-stroke", class: "stop-line" }));
+  }
+  for (const head of geometry.signal_heads || []) { // where each signal stands; its colours are a test-case's
+    drawing.append(svg("polygon", { points: at(head.polygon), fill: "#4b5563", class: "signal-head", "data-head": headId(head) },
+      svg("title", {}, `signal of ${head.routes.join(", ")} (link ${head.link_index})`)));
   }
   return drawing;
 }
@@ -302,8 +330,13 @@ async function testcasesPage(query) {
 
 class Player {
   // tracks: [{id, label, colour, length, width, samples: [[t, x, y, heading]], highlight, hidden}]
+  // options.signals: the test-case's program (its colours drawn at each moment);
+  // options.ego: the ego's route id (its signal named beside the clock)
   constructor(geometry, tracks, duration, options = {}) {
     this.geometry = geometry; this.tracks = tracks; this.duration = duration;
+    this.signals = options.signals || null; this.heads = geometry.signal_heads || [];
+    const egoHead = this.heads.find((head) => head.routes.includes(options.ego));
+    this.egoLink = egoHead ? egoHead.link_index : -1;
     this.time = 0; this.speed = 1; this.playing = false; this.frame = null;
     this.canvas = h("canvas", { width: options.width || 720, height: options.height || 560, id: "animation" });
     this.view();
@@ -386,8 +419,36 @@ class Player {
       c.fillStyle = "#111827"; c.font = "12px system-ui, sans-serif";
       c.fillText(track.label, sx + 8, sy - 8 + (track.ghost ? 14 * (track.label.includes("complexity") ? 1 : 0) : 0));
     }
+    this.drawHeads(c);
     c.fillStyle = "#111827"; c.font = "13px system-ui, sans-serif";
-    c.fillText(`t = ${this.time.toFixed(1)} s`, 10, 18);
+    const egoSignal = this.signals && this.egoLink >= 0 ? ` · ego's signal: ${SIGNAL_WORDS[signalColour(this.signals, this.egoLink, this.time)]}` : "";
+    c.fillText(`t = ${this.time.toFixed(1)} s${egoSignal}`, 10, 18);
+  }
+
+  // each head in its colour at this moment, over the cars (s: red with a white dot); the
+  // canvas's data-signals lists them: [{head, colour, x, y}], x and y its centre on the canvas
+  drawHeads(c) {
+    const shown = [];
+    for (const head of this.heads) {
+      const colour = this.signals ? signalColour(this.signals, head.link_index, this.time) : null;
+      const corners = head.polygon.map(([x, y]) => this.toScreen(x, y));
+      c.beginPath();
+      corners.forEach(([sx, sy], i) => (i ? c.lineTo(sx, sy) : c.moveTo(sx, sy)));
+      c.closePath(); c.fillStyle = SIGNAL_COLOURS[colour] || SIGNAL_UNKNOWN; c.fill();
+      c.strokeStyle = "#3c3c3c"; c.lineWidth = 0.6; c.stroke();
+      const x = corners.reduce((sum, p) => sum + p[0], 0) / corners.length;
+      const y = corners.reduce((sum, p) => sum + p[1], 0) / corners.length;
+      if (colour === "s") { c.beginPath(); c.arc(x, y, 2.5, 0, 2 * Math.PI); c.fillStyle = "#ffffff"; c.fill(); }
+      shown.push({ head: headId(head), colour, x: Number(x.toFixed(1)), y: Number(y.toFixed(1)) });
+    }
+    if (shown.length) this.canvas.dataset.signals = JSON.stringify(shown);
+  }
+
+  legend() { // the colours this test-case's heads show at some time
+    if (!this.signals || !this.heads.length) return null;
+    const used = new Set(this.heads.flatMap((head) => this.signals.phases.map((phase) => phase.state[head.link_index])));
+    return h("div", { class: "legend", id: "signal-legend" }, "signals: ", [...SIGNAL_ORDER].filter((c) => used.has(c)).map((c) =>
+      h("span", {}, h("span", { class: `swatch${c === "s" ? " dotted" : ""}`, style: `background:${SIGNAL_COLOURS[c]}` }), `${c} ${SIGNAL_WORDS[c]}`)));
   }
 }
 
@@ -515,7 +576,7 @@ async function testcasePage(id) {
     certificates.push(egoTrack(testcase, rows(testcase.certificates.solvability), "ego (solvability)", "#111827", true));
     certificates.push(egoTrack(testcase, rows(testcase.certificates.complexity), "ego (complexity)", "#dc2626", true));
   }
-  const player = new Player(geometry, [...tracks, ...certificates], testcase.duration);
+  const player = new Player(geometry, [...tracks, ...certificates], testcase.duration, playerOptions(testcase));
   stopPage = () => player.pause();
   const toggle = h("label", {}, h("input", { type: "checkbox", id: "certificates", checked: certificates.length ? true : null, disabled: certificates.length ? null : true,
     onchange: (event) => { certificates.forEach((t) => { t.hidden = !event.target.checked; }); player.draw(); distance.replaceChildren(timeDistance(player.tracks, testcase.duration)); } }),
@@ -534,6 +595,7 @@ async function testcasePage(id) {
       record.parent ? [" · parent ", link(short(record.parent), `#/testcases/${record.parent}`)] : null),
     h("div", { class: "row" }, h("div", { class: "card" }, player.element,
       h("div", { class: "legend" }, player.tracks.map((t) => h("span", {}, h("span", { class: "swatch", style: `background:${t.colour}` }), t.label))),
+      player.legend(),
     ), h("div", {},
       h("div", { class: "card" }, h("h2", {}, "Time and distance"), distance),
       h("div", { class: "card" }, h("h2", {}, "Downloads"), h("p", {}, downloads)))),
@@ -545,6 +607,10 @@ async function testcasePage(id) {
     REPORT ? null : h("p", {}, link("lineage: every test-case of this tree", `#/testcases?network=${encodeURIComponent(testcase.network.ref)}&junction=${encodeURIComponent(testcase.junction)}`)),
   );
   player.seek(0);
+}
+
+function playerOptions(testcase) {
+  return { signals: testcase.signals || null, ego: `${testcase.ego.route.fork}:${testcase.ego.route.exit}` };
 }
 
 function titleOf(testcase, id) {
@@ -576,7 +642,7 @@ async function replayPage(id) {
   const [geometry, drive] = await Promise.all([geometryOf(testcase), get(`/evaluations/${id}/drive`)]);
   const samples = drive.trajectory.map((r) => [r[0], r[1], r[2], r[3], r[4], r[5]]);
   const tracks = [...tracksOf(testcase), egoTrack(testcase, samples, `ego (${evaluation.controller})`, "#111827", false)];
-  const player = new Player(geometry, tracks, testcase.duration);
+  const player = new Player(geometry, tracks, testcase.duration, playerOptions(testcase));
   stopPage = () => player.pause();
   const verdict = evaluation.verdict;
   render(
@@ -584,7 +650,7 @@ async function replayPage(id) {
     h("p", { id: "verdict" }, verdictCell(verdict), " · test-case ", link(testcase.name || short(evaluation.testcase), `#/testcases/${evaluation.testcase}`)),
     verdict.reasons.length ? h("ul", {}, verdict.reasons.map((r) => h("li", {}, r))) : h("p", { class: "muted" }, "The ego reached its exit without collision, obeying every rule."),
     samples.length ? null : h("p", { class: "muted" }, "This evaluation was stored before drives were kept: the ego is not shown."),
-    h("div", { class: "row" }, h("div", { class: "card" }, player.element), h("div", { class: "card" }, h("h2", {}, "Time and distance"), timeDistance(tracks, testcase.duration))),
+    h("div", { class: "row" }, h("div", { class: "card" }, player.element, player.legend()), h("div", { class: "card" }, h("h2", {}, "Time and distance"), timeDistance(tracks, testcase.duration))),
   );
   player.seek(0);
 }
