@@ -108,7 +108,8 @@ def test_every_export_passes_the_asam_quality_checkers(
     for _, asam, carla in (exported[3], exported[-1]):
         scenarios = [*sorted(asam.glob("testcase.*.xosc")), carla / "testcase.xosc"]
         issues += [issue for scenario in scenarios for issue in _issues("xosc", scenario)]
-    assert len(networks) == 5  # the three bundled junctions, Town05 396, Town07 358
+    # the five bundled junctions (the signal examples' two among them), Town05 396, Town07 358
+    assert len(networks) == 7
     assert issues == []
     rules = (exported[3][1] / "verdict-rules.md").read_text()  # four-way-3, an all-way stop
     assert "`stopAtSign`: CVC 22450(a)" in rules and "`yieldToRightAtAllWayStop`" in rules
@@ -282,4 +283,4 @@ def test_stop_signs_stand_on_the_roads_into_the_junction(
             assert signal is not None
             before_end = float(road.get("length", 0)) - float(signal.get("s", 0))
             assert before_end == pytest.approx(1.0, abs=1e-3)
-    assert len(seen) == 5
+    assert len(seen) == 7  # at the two signalized ones: none
