@@ -106,6 +106,8 @@ class JobCampaign:
         def create() -> str:
             request = {"ego_route": ego, "junction": self.junction, "control": self.control,
                        "duration": self.spec.duration}  # fmt: skip
+            if self.spec.signals is not None:
+                request["signals"] = self.spec.signals.model_dump()
             document = self.work.call(
                 tasks.create_testcase,
                 (self.network_file, self.ref, self.work.settings.cache_dir, request),
