@@ -69,6 +69,7 @@ def run_folder_campaign(
 ) -> dict[str, Any]:
     """Run (or resume) the campaign ``spec`` (a campaign item with ``network`` a bundled name
     or a file) in ``folder`` and write its results there; its outcome."""
+    parse_batch({"items": [{"kind": "campaign", **spec}]})  # bad input makes no folder
     make_folder(folder)
     lock = (folder / LOCK_FILE).open("w")
     try:
