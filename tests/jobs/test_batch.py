@@ -138,3 +138,12 @@ def test_a_yaml_batch_reads_floats_as_json_writes_them(tmp_path: Path) -> None:
     path.write_text("items:\n" + item % "1e-06" + item % "1e+01")
     budgets = [item.budget for item in read_batch(path).items]  # type: ignore[union-attr]
     assert budgets == [1e-06, 10.0]
+
+
+@pytest.mark.parametrize("name", ["regression.yaml", "campaign.yaml", "signals.yaml"])
+def test_the_example_batches_are_valid(name: str) -> None:
+    batch = read_batch(Path(__file__).parents[2] / "examples" / name)
+    assert batch.items
+    for item in batch.items:
+        if isinstance(item, CampaignItem) and item.signals is not None:
+            assert item.signals.to_program().cycle > 0
