@@ -118,8 +118,10 @@ def _run(store: Store, settings: Settings, job: str, say: Callable[[str], None])
     worker = threading.Thread(
         target=run_item, args=(store, settings, job, 0, OWNER, shutdown), daemon=True
     )
+    jobs = JobStore(store)
+    before = jobs.item(job, 0)
+    told = before.progress if before is not None else ""  # a stopped run's, not this one's
     worker.start()
-    jobs, told = JobStore(store), ""
     try:
         while worker.is_alive():
             worker.join(0.5)
