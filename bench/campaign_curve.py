@@ -1,21 +1,31 @@
 """The paper's curve: how often drivers fail as test-cases grow more complex.
 
-Runs `scengen campaign` (the command a user runs) on the bundled junctions and on CARLA's
-Town05 junction 396 made an all-way stop, with SUMO's four drivers and the user controller
-of docs/controllers.md (`careful:Careful`, written from the docs into the run folder),
-then draws the failure share by level per junction (docs/images/campaign-failure-rate.png)
-and writes the tables (docs/campaigns.md). Each junction gets three ego routes (a left
-turn, a straight and a right turn where it has them, else the first routes by id), three
-chains per ego route, depth 5, seed 0, test-cases of 45 s (room for deep chains, as in
-bench_chains).
+Runs `scengen campaign` (the command a user runs) with SUMO's four drivers and the user
+controller of docs/controllers.md (`careful:Careful`, written from the docs into the run
+folder) on two groups of junctions, then draws the failure share by level per junction
+and writes the tables into docs/campaigns.md, each group in its own block:
 
-Run with `make campaign-curve` (about half an hour on two cores). Campaign folders go to
-build/campaigns/; run it again and finished campaigns are read back, not grown again.
+- `stops`: the bundled stop-sign and uncontrolled junctions and CARLA's Town05 junction
+  396 made an all-way stop (docs/images/campaign-failure-rate.png); three ego routes each
+  (a left turn, a straight and a right turn where it has them, else the first routes by
+  id);
+- `signals`: the bundled signalized four-way and CARLA's Town05 junction 1126 under its
+  own fixed-time program (docs/images/campaign-failure-rate-signals.png); three ego routes
+  each, named below: a left turn on a permissive green against oncoming traffic, a straight
+  on green, and at the four-way a left that starts on red (green after 25 s), at 1126 a
+  right turn.
+
+Three chains per ego route, depth 5, seed 0, test-cases of 45 s (room for deep chains, as
+in bench_chains). Run with `make campaign-curve` (both groups, about an hour on two cores)
+or `python -m bench.campaign_curve signals` (one group; the other's block is kept).
+Campaign folders go to build/campaigns/; run it again and finished campaigns are read
+back, not grown again.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import platform
 import re
 import subprocess
@@ -28,13 +38,32 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "build" / "campaigns"
 DOCS = ROOT / "docs"
 CONTROLLERS = ["sumo", "sumo-cautious", "sumo-rolling-stop", "sumo-aggressive", "careful:Careful"]
-JUNCTIONS = [  # (label, network, junction, control)
-    ("4way-stop", "4way-stop", None, None),
-    ("t-stop", "t-stop", None, None),
-    ("y-uncontrolled", "y-uncontrolled", None, None),
-    ("Town05 396 as allway_stop", str(ROOT / "tests/data/carla/Town05.net.xml"), "396",
-     "allway_stop"),
-]  # fmt: skip
+TOWN05 = str(ROOT / "tests/data/carla/Town05.net.xml")
+Junction = tuple[str, str, str | None, str | None, list[str] | None]
+# (label, network, junction, control, ego routes: None for three_egos)
+GROUPS: dict[str, list[Junction]] = {
+    "stops": [
+        ("4way-stop", "4way-stop", None, None, None),
+        ("t-stop", "t-stop", None, None, None),
+        ("y-uncontrolled", "y-uncontrolled", None, None, None),
+        ("Town05 396 as allway_stop", TOWN05, "396", "allway_stop", None),
+    ],
+    "signals": [
+        # S2C_1:C2W_1 turns left on a permissive green (0-20 s), S2C_0:C2N_0 goes straight
+        # on green, E2C_1:C2S_1 turns left from the arm that is red until 25 s
+        ("4way-signal", "4way-signal", None, None, ["S2C_1:C2W_1", "S2C_0:C2N_0", "E2C_1:C2S_1"]),
+        # the -6 arm is green 0-42 s: a permissive left against the oncoming 7 arm, a
+        # straight that crosses seven routes, a right turn
+        (
+            "Town05 1126 (traffic_light)",
+            TOWN05,
+            "1126",
+            None,
+            ["-6_1:-47_1", "-6_1:-7_1", "-6_0:46_0"],
+        ),
+    ],
+}
+PICTURES = {"stops": "campaign-failure-rate.png", "signals": "campaign-failure-rate-signals.png"}
 DEPTH, CHAINS, SEED, DURATION = 5, 3, 0, 45.0
 
 
@@ -63,7 +92,9 @@ def three_egos(network: str, junction: str | None, control: str | None) -> list[
     return chosen
 
 
-def run(label: str, network: str, junction: str | None, control: str | None) -> dict[str, Any]:
+def run(
+    label: str, network: str, junction: str | None, control: str | None, egos: list[str] | None
+) -> dict[str, Any]:
     folder = OUT / re.sub(r"[^A-Za-z0-9]+", "-", label).strip("-")
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "careful.py").write_text(careful_source())
@@ -74,7 +105,7 @@ def run(label: str, network: str, junction: str | None, control: str | None) -> 
         command += ["--junction", junction]
     if control:
         command += ["--control", control]
-    for ego in three_egos(network, junction, control):
+    for ego in egos or three_egos(network, junction, control):
         command.append(f"--ego={ego}")
     for controller in CONTROLLERS:
         command += ["--controller", controller]
@@ -133,27 +164,25 @@ def plot(outcomes: list[tuple[str, dict[str, Any]]], path: Path) -> None:
         axis.grid(alpha=0.3)
     axes[0].set_ylabel("test-cases failed (%)")
     handles, labels = axes[0].get_legend_handles_labels()
-    figure.legend(handles, labels, loc="lower center", ncol=len(CONTROLLERS), fontsize=9)
-    figure.tight_layout(rect=(0, 0.08, 1, 1))
+    columns = len(CONTROLLERS) if len(outcomes) > 2 else 3  # two panels: two rows of names
+    figure.legend(handles, labels, loc="lower center", ncol=columns, fontsize=9)
+    figure.tight_layout(rect=(0, 0.08 if columns == len(CONTROLLERS) else 0.14, 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=110)
 
 
-def main() -> None:
-    outcomes = [(label, run(label, *rest)) for label, *rest in JUNCTIONS]
-    plot(outcomes, DOCS / "images" / "campaign-failure-rate.png")
+def block(group: str, outcomes: list[tuple[str, dict[str, Any]]]) -> list[str]:
+    """The group's block of docs/campaigns.md, between its markers."""
+    picture = PICTURES[group]
     lines = [
-        "# Campaigns: failure rate by level",
+        f"<!-- campaign-curve: {group} -->",
+        f"Measured {date.today()} on {platform.node()} ({platform.machine()}, "
+        f"{os.cpu_count()} cores, Python {platform.python_version()}) by `python -m "
+        f"bench.campaign_curve {group}` (`make campaign-curve`): depth {DEPTH}, {CHAINS} "
+        f"chains per ego route, seed {SEED}, test-cases of {DURATION:g} s; each cell is "
+        "failed / test-cases at that level, with the rules broken and collisions.",
         "",
-        f"Measured {date.today()} on {platform.node()} ({platform.machine()}, Python "
-        f"{platform.python_version()}) by `make campaign-curve` (bench/campaign_curve.py): "
-        f"depth {DEPTH}, {CHAINS} chains per ego route, seed {SEED}, test-cases of "
-        f"{DURATION:g} s; each cell is failed / "
-        "test-cases at that level, with the rules broken and collisions.",
-        "",
-        "![failure rate by level](images/campaign-failure-rate.png)",
-        "",
-        "What these figures show, and why, is in the README (`scengen campaign`).",
+        f"![failure rate by level]({'images/' + picture})",
         "",
         "Share of test-cases failed at each level (%), L0 the ego-only test-cases:",
         "",
@@ -165,15 +194,41 @@ def main() -> None:
         open_rules = [c["rule"] for c in outcome["coverage"] if c["coverable"] and not c["covered"]]
         ends = [f"{c['ego']} chain {c['chain'] + 1}: {c['end']}" for c in outcome["chains"]
                 if c["end"]]  # fmt: skip
-        lines += [f"## {label}", "", f"Ego routes: {', '.join(outcome['plan']['egos'])}.", ""]
+        lines += [f"### {label}", "", f"Ego routes: {', '.join(outcome['plan']['egos'])}.", ""]
         lines += table(outcome)
         lines += ["", f"Rules covered: {', '.join(covered) or 'none'}; not covered: "
                   f"{', '.join(open_rules) or 'none'}.", ""]  # fmt: skip
         if ends:
             lines += ["Chains that ended early:", "", *[f"- {e}" for e in ends], ""]
-    (DOCS / "campaigns.md").write_text("\n".join(lines))
-    print("\n".join(lines))
+    return [*lines, f"<!-- /campaign-curve: {group} -->"]
+
+
+def replace_block(text: str, group: str, lines: list[str]) -> str:
+    """``text`` with the group's block replaced (or added at the end)."""
+    pattern = re.compile(
+        rf"<!-- campaign-curve: {group} -->.*?<!-- /campaign-curve: {group} -->", re.S
+    )
+    new = "\n".join(lines)
+    if pattern.search(text):
+        return pattern.sub(lambda _: new, text)
+    return text.rstrip("\n") + "\n\n" + new + "\n"
+
+
+def main(argv: list[str]) -> None:
+    groups = argv or list(GROUPS)
+    unknown = [g for g in groups if g not in GROUPS]
+    if unknown:
+        sys.exit(f"unknown group {', '.join(unknown)}; groups: {', '.join(GROUPS)}")
+    path = DOCS / "campaigns.md"
+    text = path.read_text() if path.exists() else "# Campaigns: failure rate by level\n"
+    for group in groups:
+        outcomes = [(j[0], run(*j)) for j in GROUPS[group]]
+        plot(outcomes, DOCS / "images" / PICTURES[group])
+        lines = block(group, outcomes)
+        text = replace_block(text, group, lines)
+        path.write_text(text)
+        print("\n".join(lines))
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

@@ -300,7 +300,8 @@ HTTP_METHODS = frozenset({"get", "put", "post", "delete", "patch", "head", "opti
 
 def _describe_validation(item: Any) -> str:
     where = ".".join(str(part) for part in item.get("loc", ()) if part != "body")
-    return f"{where or 'body'}: {item.get('msg', 'invalid')}"
+    message = str(item.get("msg", "invalid")).removeprefix("Value error, ")  # our own checks
+    return f"{where or 'body'}: {message}"
 
 
 def _jsonable(context: dict[str, object]) -> dict[str, Any]:

@@ -16,7 +16,15 @@ from typing import Any
 
 from service.cli.table import Argument, Writes, arg
 from service.core.errors import UnknownNetwork
-from service.core.network import ControlType, Intersection, bundled_networks, load_intersection
+from service.core.network import (
+    ControlType,
+    Intersection,
+    SignalProgram,
+    bundled_networks,
+    load_intersection,
+    with_signals,
+)
+from service.core.network.signals import read_signals_file
 from service.core.testcase import (
     TestCase,
     find_network_file,
@@ -62,10 +70,26 @@ SIGNALS = arg(
     type=Path,
     metavar="FILE",
     help="a traffic_light junction: its fixed-time program, replacing the network's: a SUMO "
-    'file with a <tlLogic type="static"> (an additional file or a .tll.xml) or scengen\'s JSON '
+    'file with a <tlLogic type="static"> (an additional file, a .tll.xml or a .net.xml: the '
+    "junction's traffic light is taken where there are several) or scengen's JSON "
     '({"tls", "program", "offset", "phases": [{"duration", "state"}]}, the test-case\'s '
     "signals field)",
 )
+
+
+def signals_program(args: argparse.Namespace) -> SignalProgram | None:
+    """The program of ``--signals FILE`` for the junction the command names (NETWORK):
+    read for the junction's traffic light (a file with several, such as a network, gives
+    that light's) and checked against the junction before any work (InvalidInput naming
+    the problem). None without --signals."""
+    if args.signals is None:
+        return None
+    intersection = load_intersection(
+        args.network, args.junction, args.control, major_road=args.major
+    )
+    program = read_signals_file(args.signals, intersection.tls)
+    with_signals(intersection, program)  # a program for another light or link count fails
+    return program
 
 
 def edge_pair(text: str) -> list[str]:

@@ -69,6 +69,7 @@ def run_folder_campaign(
 ) -> dict[str, Any]:
     """Run (or resume) the campaign ``spec`` (a campaign item with ``network`` a bundled name
     or a file) in ``folder`` and write its results there; its outcome."""
+    parse_batch({"items": [{"kind": "campaign", **spec}]})  # bad input makes no folder
     make_folder(folder)
     lock = (folder / LOCK_FILE).open("w")
     try:
@@ -117,8 +118,10 @@ def _run(store: Store, settings: Settings, job: str, say: Callable[[str], None])
     worker = threading.Thread(
         target=run_item, args=(store, settings, job, 0, OWNER, shutdown), daemon=True
     )
+    jobs = JobStore(store)
+    before = jobs.item(job, 0)
+    told = before.progress if before is not None else ""  # a stopped run's, not this one's
     worker.start()
-    jobs, told = JobStore(store), ""
     try:
         while worker.is_alive():
             worker.join(0.5)

@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 from urllib.parse import quote
 
-from service.cli.arguments import NETWORK, TOKEN, output
+from service.cli.arguments import NETWORK, SIGNALS, TOKEN, output, signals_program
 from service.cli.output import EXIT_FAILED_CHECK, EXIT_OK, print_table, write_output
 from service.cli.table import OneOf, arg, command
 from service.core.sim.controllers import controller_names, resolve_driver
@@ -20,6 +20,7 @@ from service.core.sim.controllers import controller_names, resolve_driver
     "campaign",
     "grow chains of test-cases and judge every level with controllers: where they fail",
     NETWORK,
+    SIGNALS,
     OneOf(
         (
             arg(
@@ -87,6 +88,7 @@ def campaign(args: argparse.Namespace) -> int:
         )
     for name in args.controller:
         resolve_driver(name)  # a bad name fails before any work
+    program = signals_program(args)  # so does a program that does not fit the junction
     spec = {
         "network": args.network,
         "junction": args.junction,
@@ -101,6 +103,8 @@ def campaign(args: argparse.Namespace) -> int:
         "budget_per_level": args.budget_per_level,
         "budget": args.budget,
     }
+    if program is not None:
+        spec["signals"] = program.to_document()
     outcome = run_folder_campaign(spec, args.output, elapsed_printer(time.monotonic()))
     print("failed test-cases per level (failed/test-cases):")
     print_table(failure_table(outcome))

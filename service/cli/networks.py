@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
-from service.cli.arguments import NETWORK, SIGNALS
+from service.cli.arguments import NETWORK, SIGNALS, signals_program
 from service.cli.output import EXIT_OK, output_file, print_table
 from service.cli.table import arg, command
 from service.core.network import bundled_networks, load_intersection, with_signals
 from service.core.network.describe import describe_intersection
-from service.core.network.signals import COLOUR_WORDS, read_signals_file
+from service.core.network.signals import COLOUR_WORDS
 
 
 @command("networks", "list the bundled networks")
@@ -46,8 +47,11 @@ def networks(args: argparse.Namespace) -> int:
 )
 def intersection(args: argparse.Namespace) -> int:
     junction = load_intersection(args.network, args.junction, args.control, major_road=args.major)
-    if args.signals:
-        junction = with_signals(junction, read_signals_file(args.signals, junction.tls))
+    program = signals_program(args)
+    if program is not None:
+        junction = with_signals(junction, program)
+    elif junction.signals_refused:  # shown, but no test-case can be made on it as it is
+        print(f"scengen: note: {junction.signals_refused}", file=sys.stderr)
     description = describe_intersection(junction, args.duration)
     if args.plot:
         from service.pictures.plot import plot_intersection

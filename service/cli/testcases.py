@@ -19,6 +19,7 @@ from service.cli.arguments import (
     locate_network,
     output,
     read_input,
+    signals_program,
     testcase_intersection,
 )
 from service.cli.examples import EXAMPLES, run_example, write_testcase
@@ -28,7 +29,6 @@ from service.core.generator.extension import StartDistances, extend_testcase
 from service.core.motion.events import compute_events
 from service.core.motion.poses import generate_poses
 from service.core.network import bundled_networks, load_intersection
-from service.core.network.signals import read_signals_file
 from service.core.testcase import (
     DEFAULT_START_DISTANCE,
     DEFAULT_START_SPEED,
@@ -83,7 +83,7 @@ def new(args: argparse.Namespace) -> int:
         args.timestep,
         name=args.name,
         major_road=args.major,
-        signals=read_signals_file(args.signals) if args.signals else None,
+        signals=signals_program(args),
     )
     start = testcase.ego.start.distance
     if args.start_distance is None and start < DEFAULT_START_DISTANCE:

@@ -34,8 +34,9 @@ REAR_END_LAW = "21703"  # CVC: following too closely
 # within the search's counts, or the level's budget ran out (the message says which).
 CHAIN_ENDS = (NoMoreComplexTestCase, NoneFound, BudgetExceeded)
 # Rules of the ego alone (no other car's right-of-way): a complexity certificate passes the
-# old test-case, so it keeps them, and no new car can make a test-case test them
-EGO_ONLY_RULES = frozenset({"stopAtSign"})
+# old test-case, so it keeps them, and no new car can make a test-case test them. They are
+# the rules asp/laws/ states as violatesRuleAt(V, Rule, ...) (tests/core/test_campaign.py).
+EGO_ONLY_RULES = frozenset({"stopAtSign", "stopAtRed", "stopAtRedArrow", "stopBeforeRightOnRed"})
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from service.core.errors import InvalidInput
+from service.core.testcase import Control, Signals
 from service.start_distances import DESCRIPTION as START_DISTANCES
 from service.start_distances import StartDistancesField, check_start_count
 
@@ -104,7 +105,15 @@ class CampaignItem(_Item):
     kind: Literal["campaign"]
     network: str = Field(min_length=1, description="a bundled network name or a network id")
     junction: str | None = Field(None, description="default: the network's only junction")
-    control: Literal["allway_stop", "priority_stop", "right_before_left"] | None = None
+    control: Control | None = Field(
+        None, description="override the junction's control type (default: the network's)"
+    )
+    signals: Signals | None = Field(
+        None,
+        description="a traffic_light junction: a fixed-time program replacing the network's, "
+        "for every ego-only start (as POST /testcases takes it); default: the network's, "
+        "when it is fixed-time",
+    )
     egos: list[str] | None = Field(None, min_length=1, max_length=20, description="routes")
     all_egos: bool = Field(False, description="a chain set for every route of the junction")
     depth: int = Field(ge=1, le=10)
@@ -175,12 +184,15 @@ class Batch(BaseModel):
 
     def fingerprint(self) -> str:
         """What an Idempotency-Key is bound to: the batch, not its formatting. An extend
-        item's automatic start (``start_distance`` null) is left out, so that batches stored
-        before the field existed keep their fingerprint."""
+        item's automatic start (``start_distance`` null) and a campaign's network program
+        (``signals`` null) are left out, so that batches stored before those fields existed
+        keep their fingerprint (a campaign folder too: ``scengen campaign`` resumes)."""
         document = self.model_dump(mode="json")
         for item in document["items"]:
             if item.get("kind") == "extend" and item.get("start_distance") is None:
                 item.pop("start_distance", None)
+            if item.get("kind") == "campaign" and item.get("signals") is None:
+                item.pop("signals", None)
         canonical = json.dumps(document, sort_keys=True)
         return hashlib.sha256(canonical.encode()).hexdigest()
 
@@ -207,6 +219,8 @@ def parse_batch(document: Any) -> Batch:
         return Batch.model_validate(document)
     except ValidationError as error:
         problems = "; ".join(
-            f"{'.'.join(str(p) for p in e['loc']) or 'batch'}: {e['msg']}" for e in error.errors()
+            f"{'.'.join(str(p) for p in e['loc']) or 'batch'}: "
+            f"{e['msg'].removeprefix('Value error, ')}"
+            for e in error.errors()
         )
         raise InvalidInput(f"invalid batch: {problems}") from None

@@ -59,6 +59,7 @@ class JobCampaign:
         self.ref = NetworkRef(ref=network.id, sha256=network.sha256)
         self.budget_per_level = spec.budget_per_level or work.settings.extend_budget
         self.progress = "starting"
+        self.recalled = False  # the step in hand was answered from memory (a resumed item)
 
     def run(self) -> dict[str, Any]:
         junction, control = self.network.junction_and_control(self.spec.junction,
@@ -103,9 +104,13 @@ class JobCampaign:
     # CampaignSteps
 
     def root(self, ego: str) -> tuple[str, TestCase]:
+        self.recalled = False
+
         def create() -> str:
             request = {"ego_route": ego, "junction": self.junction, "control": self.control,
                        "duration": self.spec.duration}  # fmt: skip
+            if self.spec.signals is not None:
+                request["signals"] = self.spec.signals.model_dump()
             document = self.work.call(
                 tasks.create_testcase,
                 (self.network_file, self.ref, self.work.settings.cache_dir, request),
@@ -120,6 +125,8 @@ class JobCampaign:
     def grow(
         self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...], stem: str
     ) -> tuple[str, TestCase, str]:
+        self.recalled = False
+
         def compute() -> dict[str, str]:
             args = (dump_testcase(testcase), self.network_file, self.work.settings.cache_dir,
                     seed, self.budget_per_level, last, stem)  # fmt: skip
@@ -142,6 +149,7 @@ class JobCampaign:
     def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
         key = self.item.evaluation_id(ident, controller)
         stored = self.work.store.evaluation(key)
+        self.recalled = stored is not None
         if stored is None:
             budget = self.spec.budget or self.work.settings.evaluate_budget
             result = self.work.call(
@@ -176,6 +184,8 @@ class JobCampaign:
         if found is None:
             found = compute()
             self._remember(key, found)
+        else:
+            self.recalled = True
         return found
 
     def _remember(self, key: str, value: Any) -> None:
@@ -188,7 +198,9 @@ class JobCampaign:
         )  # fmt: skip
 
     def _progress(self, message: str, done: int, total: int) -> None:
-        self.progress = f"{done}/{total}: {message}"
+        # a step answered from memory was done before the restart: say so, not what it did
+        said = f"resuming, {done} steps read back" if self.recalled else message
+        self.progress = f"{done}/{total}: {said}"
         self._record()
 
     def _save(self, outcome: dict[str, Any]) -> None:

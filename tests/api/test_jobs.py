@@ -292,3 +292,39 @@ def test_a_chain_by_levels_joins_a_queue_once_the_forks_are_taken(
     by_level = {car["added_in"]: car["route"]["fork"] for car in last["nonegos"]}
     assert {by_level[1], by_level[2]} == {"W2C_0", "S2C_0"}  # the free forks first
     assert by_level[3] in {"W2C_0", "S2C_0", "E2C_0"}
+
+
+def test_a_batch_on_a_signalized_junction_carries_its_program(
+    server: Server, api: httpx.Client
+) -> None:
+    """Extend, chain, evaluate and campaign items on the bundled signalized four-way: the
+    job succeeds, every test-case the extensions make carries the root's program, and the
+    campaign's test-cases the program it was given."""
+    root = api.post("/testcases", json={"network": "4way-signal", "ego_route": "S2C_1:C2W_1",
+                                        "duration": 45})  # fmt: skip
+    assert root.status_code == 201, root.text
+    program = root.json()["testcase"]["signals"]
+    given = {**program, "program": "campaign", "offset": 10.0}
+    batch = {"name": "signals", "items": [
+        {"kind": "extend", "testcase_id": root.json()["id"], "routes": ["N2C_0:C2S_0"]},
+        {"kind": "chain", "after": 0, "levels": 1, "seed": 0},
+        {"kind": "evaluate", "items": [0, 1], "controllers": ["sumo", "certificate:complexity"]},
+        {"kind": "campaign", "network": "4way-signal", "control": "traffic_light",
+         "signals": given, "egos": ["S2C_1:C2W_1"], "depth": 1, "chains": 1,
+         "controllers": ["sumo"], "duration": 45},
+    ]}  # fmt: skip
+    reply = api.post("/jobs", json=batch)
+    assert reply.status_code == 202, reply.text
+    finished = server.wait_for_job(reply.json()["id"])
+    assert finished["state"] == "succeeded", [i["error"] for i in finished["items"]]
+    extend, chain, evaluate, campaign = finished["items"]
+    assert len(evaluate["evaluations"]) == 4 and len(campaign["testcases"]) == 2
+    for ident in extend["testcases"] + chain["testcases"]:
+        assert api.get(f"/testcases/{ident}").json()["testcase"]["signals"] == program
+    for ident in campaign["testcases"]:
+        assert api.get(f"/testcases/{ident}").json()["testcase"]["signals"] == given
+    verdicts = [api.get(f"/evaluations/{e}").json()["verdict"] for e in evaluate["evaluations"]]
+    judged = {(v["controller"], v["passed"]) for v in verdicts}
+    assert ("certificate:complexity", False) in judged and not any(v["errors"] for v in verdicts)
+    outcome = api.get(f"/jobs/{finished['id']}/campaign").json()
+    assert outcome["plan"]["control"] == "traffic_light" and outcome["finished"]

@@ -42,7 +42,7 @@ def run_block(block: str, server: Server, cwd: Path) -> None:
 
 
 def test_curl_examples_work_as_written(server: Server, tmp_path: Path) -> None:
-    extend, _upload = shell_blocks()
+    extend, _upload, _signals = shell_blocks()
     run_block(extend, server, tmp_path)
     root, level1, level2 = (json.loads((tmp_path / f"{n}.json").read_text())
                             for n in ("root", "level1", "level2"))  # fmt: skip
@@ -59,11 +59,26 @@ def test_curl_examples_work_as_written(server: Server, tmp_path: Path) -> None:
 
 
 def test_upload_example_gives_the_id_the_readme_names(server: Server, tmp_path: Path) -> None:
-    _, upload = shell_blocks()
+    _, upload, _ = shell_blocks()
     run_block(upload.replace("tests/data/", f"{ROOT}/tests/data/"), server, tmp_path)
     town05 = json.loads((tmp_path / "town05.json").read_text())
     assert town05["id"] in upload
     assert json.loads((tmp_path / "town05-root.json").read_text())["network"] == town05["id"]
+
+
+def test_signals_example_keeps_its_program_and_names_a_bad_one(
+    server: Server, tmp_path: Path
+) -> None:
+    *_, signals = shell_blocks()
+    script = signals.replace("jq -r .detail", "jq -r .detail > detail.txt")
+    run_block(script, server, tmp_path)
+    level1 = json.loads((tmp_path / "signal-level1.json").read_text())
+    root = json.loads((tmp_path / "signal-root.json").read_text())
+    assert level1["parent"] == root["id"] and level1["new_cars"] == ["car1"]
+    assert level1["testcase"]["signals"] == root["testcase"]["signals"]
+    assert root["testcase"]["signals"]["program"] == "short-cycle"
+    detail = (tmp_path / "detail.txt").read_text()
+    assert "states have 4 colours, but traffic light 'C' controls 16 links" in detail
 
 
 def test_the_batch_example_runs_as_the_readme_shows(server: Server, tmp_path: Path) -> None:

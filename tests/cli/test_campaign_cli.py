@@ -5,6 +5,7 @@ same folder is refused; bad input is a one-line error."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import re
@@ -110,3 +111,61 @@ def test_bad_campaign_input_is_a_one_line_error(tmp_path: Path) -> None:
     assert wrong_driver.returncode == 2 and "Traceback" not in wrong_driver.stderr
     not_a_folder = scengen("report", str(tmp_path), "-o", str(tmp_path / "r.html"))
     assert not_a_folder.returncode == 2 and "not a campaign folder" in not_a_folder.stderr
+
+
+# the bundled T's program with shorter greens and an offset: the campaign's starts carry it
+T_PROGRAM = {"tls": "C", "program": "campaign", "offset": 4.0, "phases": [
+    {"duration": 16.0, "state": "GgsrGG"}, {"duration": 3.0, "state": "yysrGy"},
+    {"duration": 1.0, "state": "rrsrGr"}, {"duration": 14.0, "state": "rrGGGr"},
+    {"duration": 3.0, "state": "rryyGr"}, {"duration": 1.0, "state": "rrsrGr"}]}  # fmt: skip
+
+
+def test_a_campaign_on_a_signalized_junction_carries_its_program(tmp_path: Path) -> None:
+    """Two chains of two levels on the signalized T under a program of the user's: every
+    level's test-case carries the program, keeps its parent's cars, and is verified here
+    by the checker (its solvability certificate passes it, its complexity certificate
+    passes the parent and fails it by a new car), each new car within the motion bounds."""
+    from service.core.checker.check import check_testcase
+    from service.core.motion.invariants import motion_fault
+    from service.core.motion.poses import PoseSample
+    from service.core.testcase import Signals, TestCase, read_testcase
+
+    (tmp_path / "t.json").write_text(json.dumps(T_PROGRAM))
+    folder = tmp_path / "campaign"
+    done = scengen("campaign", "t-signal", "--signals", str(tmp_path / "t.json"), "--ego",
+                   "E2C_0:C2S_0", "--depth", "2", "--chains", "2", "--duration", "45",
+                   "--controller", "sumo", "--controller", "sumo-rolling-stop",
+                   "-o", str(folder))  # fmt: skip
+    assert done.returncode in (0, 1), done.stderr
+    outcome = json.loads((folder / "campaign.json").read_text())
+    assert [c["reached"] for c in outcome["chains"]] == [2, 2], outcome["chains"]
+    assert outcome["plan"]["control"] == "traffic_light_right_on_red"
+    coverable = {c["rule"] for c in outcome["coverage"] if c["coverable"]}
+    assert "stopAtRed" not in coverable and "turnOnGreenYieldsToOncoming" in coverable
+
+    def samples(rows: Any) -> list[PoseSample]:
+        return [PoseSample(**row.model_dump()) for row in rows]
+
+    program = Signals.model_validate(T_PROGRAM)
+    for chain in (1, 2):
+        levels: list[TestCase] = [
+            read_testcase(folder / "testcases" / f"E2C_0-C2S_0.chain{chain}.level{level}.json")
+            for level in range(3)
+        ]
+        for parent, child in itertools.pairwise(levels):
+            assert child.signals == parent.signals == program
+            assert child.nonegos[: len(parent.nonegos)] == parent.nonegos  # kept as they were
+            assert child.certificates is not None
+            assert check_testcase(child, samples(child.certificates.solvability)).passed
+            complexity = samples(child.certificates.complexity)
+            assert check_testcase(parent, complexity).passed
+            failed = check_testcase(child, complexity)
+            new = {car.id for car in child.nonegos[len(parent.nonegos) :]}
+            assert not failed.passed
+            assert {v.other for v in failed.violations} & new or {
+                c.other for c in failed.collisions
+            } & new
+            for car in child.nonegos[len(parent.nonegos) :]:
+                assert motion_fault(car.trajectory, child.params, child.timestep) is None
+    verdicts = [lv["verdicts"]["sumo"] for c in outcome["chains"] for lv in c["levels"]]
+    assert len(verdicts) == 2 * 3 and all(not v["errors"] for v in verdicts)

@@ -4,10 +4,18 @@ what it reports. One test grows a real level to check that held-back routes come
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
 
-from service.core.campaign import CampaignPlan, campaign_junit, failure_table, run_campaign
+from service.core.campaign import (
+    EGO_ONLY_RULES,
+    CampaignPlan,
+    campaign_junit,
+    failure_table,
+    run_campaign,
+)
 from service.core.errors import NoMoreComplexTestCase
 from service.core.generator.chain import candidate_routes, grow
 from service.core.network import Intersection
@@ -105,6 +113,19 @@ def test_route_choice_holds_back_routes_whose_rules_are_covered() -> None:
     assert coverage["yieldToInside"]["covered"] and coverage["yieldToRight"]["covered"]
     assert not coverage["stopAtSign"]["coverable"]  # the ego's own rule
     assert not coverage["rearEnd"]["covered"] and coverage["rearEnd"]["coverable"]
+
+
+def test_ego_only_rules_are_the_laws_of_the_ego_alone() -> None:
+    # a rule the laws state as violatesRuleAt(V, Rule, ...) names no other car: no new car
+    # can make a test-case test it more, so a campaign never counts it as uncovered
+    laws = Path(__file__).resolve().parents[2] / "asp" / "laws"
+    heads = {
+        rule
+        for path in laws.glob("*.lp")
+        for rule in re.findall(r"^violatesRuleAt\(\w+, (\w+),", path.read_text(), re.M)
+    }
+    assert heads == EGO_ONLY_RULES
+    assert {"stopAtSign", "stopAtRed"} <= heads
 
 
 def test_a_chain_that_cannot_grow_ends_with_its_reason() -> None:

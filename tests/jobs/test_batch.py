@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
 from typing import Any
 
@@ -56,6 +58,22 @@ def test_a_campaign_item_reads_its_defaults() -> None:
     assert dependencies(item) == []
 
 
+def test_a_campaign_item_takes_a_signal_control_and_program() -> None:
+    program = {"tls": "C", "offset": 5, "phases": [{"duration": 20, "state": "G" * 16}]}
+    signalized = {**CAMPAIGN, "network": "4way-signal", "control": "traffic_light"}
+    given = parse_batch({"items": [{**signalized, "signals": program}]})
+    item = given.items[0]
+    assert isinstance(item, CampaignItem) and item.control == "traffic_light"
+    assert item.signals is not None and item.signals.to_program().cycle == 20.0
+    # without a program, the fingerprint is the one it had before the field existed (a
+    # campaign folder made then resumes); with one, it is another campaign
+    plain = parse_batch({"items": [signalized]})
+    document = plain.model_dump(mode="json")
+    del document["items"][0]["signals"]
+    before = hashlib.sha256(json.dumps(document, sort_keys=True).encode()).hexdigest()
+    assert plain.fingerprint() == before != given.fingerprint()
+
+
 @pytest.mark.parametrize(
     ("items", "message"),
     [
@@ -74,7 +92,7 @@ def test_a_campaign_item_reads_its_defaults() -> None:
         ([{"kind": "extend", **ROOT, "routes": ["a:b"], "colour": 1}], "colour"),
         (
             [{"kind": "extend", **ROOT, "routes": ["a:b"], "start_distance": [12, None]}],
-            "items.0.extend: Value error, start_distance: give one number for every new car "
+            "items.0.extend: start_distance: give one number for every new car "
             "or one entry per route: 1 route, 2 start distances",
         ),
         (
@@ -120,3 +138,12 @@ def test_a_yaml_batch_reads_floats_as_json_writes_them(tmp_path: Path) -> None:
     path.write_text("items:\n" + item % "1e-06" + item % "1e+01")
     budgets = [item.budget for item in read_batch(path).items]  # type: ignore[union-attr]
     assert budgets == [1e-06, 10.0]
+
+
+@pytest.mark.parametrize("name", ["regression.yaml", "campaign.yaml", "signals.yaml"])
+def test_the_example_batches_are_valid(name: str) -> None:
+    batch = read_batch(Path(__file__).parents[2] / "examples" / name)
+    assert batch.items
+    for item in batch.items:
+        if isinstance(item, CampaignItem) and item.signals is not None:
+            assert item.signals.to_program().cycle > 0

@@ -557,7 +557,9 @@ def with_signals(intersection: Intersection, program: SignalProgram) -> Intersec
     if not intersection.control.signalized or intersection.tls is None:
         raise InvalidInput(
             f"junction {intersection.junction!r} is of type {intersection.control.value}, "
-            "without traffic lights: a signal program applies to a traffic_light junction"
+            "without traffic lights: a signal program applies to a junction of type "
+            "traffic_light or traffic_light_right_on_red (leave the program out, or make the "
+            "junction one of those with the control type override)"
         )
     if program.tls and program.tls != intersection.tls:
         raise InvalidInput(

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -174,7 +175,6 @@ def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases")
         return [f"{where}: a program needs at least one phase"]
     if len(listed) > MAX_PHASES:
         problems.append(f"{where}: {len(listed)} phases, at most {MAX_PHASES}")
-    length = len(listed[0][1])
     for k, (duration, state) in enumerate(listed):
         if not (math.isfinite(duration) and 0 < duration <= MAX_PHASE_DURATION):
             problems.append(
@@ -194,12 +194,23 @@ def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases")
             )
         if not state:
             problems.append(f"{where}.{k}.state is empty")
-        elif len(state) != length:
-            problems.append(
-                f"{where}.{k}.state has {len(state)} colours, phase 0 has {length}: every "
-                "state has one colour per link of the traffic light"
-            )
-    return problems
+    return problems + _unequal_states(listed, where)
+
+
+def _unequal_states(phases: Sequence[tuple[float, str]], where: str) -> list[str]:
+    """One problem naming the states whose length differs from most phases' (phase 0's
+    where as many are of each): they are the ones to correct."""
+    lengths = Counter(len(state) for _, state in phases if state)
+    if len(lengths) < 2:
+        return []
+    first = len(phases[0][1])
+    usual = max(lengths, key=lambda n: (lengths[n], n == first))
+    odd = [f"{where}.{k}.state has {len(s)} colour{'s' * (len(s) != 1)}"
+           for k, (_, s) in enumerate(phases) if s and len(s) != usual]  # fmt: skip
+    return [
+        f"{', '.join(odd)} where the other phases have {usual}: every state has one colour "
+        "per link of the traffic light"
+    ]
 
 
 def make_program(
@@ -223,7 +234,8 @@ def network_program(net: Any, tls_id: str) -> SignalProgram:
     if not programs:
         raise InvalidInput(
             f"traffic light {tls_id!r} has no program in the network; give a fixed-time one "
-            "with --signals FILE (a SUMO tlLogic of type static, or scengen's JSON)"
+            "(--signals FILE on the command line, a SUMO tlLogic of type static or scengen's "
+            "JSON; the signals field of the API and of batch campaigns)"
         )
     program_id, program = list(programs.items())[-1]
     kind = program.getType()
@@ -231,8 +243,9 @@ def network_program(net: Any, tls_id: str) -> SignalProgram:
         raise InvalidInput(
             f"traffic light {tls_id!r} runs program {program_id!r} of type {kind!r}; scengen "
             "needs a fixed-time program (type static) so that the test-case is the same "
-            'everywhere: give one with --signals FILE (a SUMO <tlLogic type="static"> or '
-            "scengen's JSON), or rebuild the network with netconvert --tls.default-type static"
+            "everywhere: give one (--signals FILE on the command line, a SUMO "
+            '<tlLogic type="static"> or scengen\'s JSON; the signals field of the API and of '
+            "batch campaigns), or rebuild the network with netconvert --tls.default-type static"
         )
     phases = [(float(p.duration), str(p.state)) for p in program.getPhases()]
     return make_program(tls_id, str(program_id), float(program.getOffset()), phases)

@@ -163,6 +163,7 @@ def drive(
                 traci.vehicle.setSpeed(car, max(gap, 0.0) / timestep)
             elif car != EGO:  # its trajectory ended: it left the map there
                 traci.vehicle.remove(car)
+                present.discard(car)  # gone for the controller too: SUMO no longer knows it
         if sumo_driven and controller.get("rolling_speed") is not None:
             rolling = _roll(traci, plan, controller, row, rolling)
         if on_step is not None:

@@ -344,6 +344,43 @@ def test_a_merging_car_is_the_leader_once_on_the_ego_lane(
     assert before and after
 
 
+STAND = """
+import json
+
+
+class Stand:
+    \"\"\"Brakes and stands; writes down which other cars it is shown at each step.\"\"\"
+
+    def step(self, obs):
+        with open(OUT, "a") as out:
+            out.write(json.dumps({"t": obs.t, "others": [o.id for o in obs.others]}) + "\\n")
+        return obs.a_min
+"""
+
+
+def test_a_user_controller_is_no_longer_shown_a_car_that_left(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A car whose trajectory ends before the test-case does has left the map there: the
+    replay removes it from SUMO and from what the controller observes at that very step
+    (it was still shown, and SUMO refused the replay: Vehicle 'gone' is not known)."""
+    base = new_testcase("4way-stop", "E2C_0:C2N_0", duration=8.0)
+    junction = load_testcase_intersection(base)
+    (track,) = generate_poses(junction, [(junction.route("S2C_0:C2N_0"), 10.0)], 5.0, 8.0, 0.1)
+    samples = retime(track, lambda t: (5.0 * t, 5.0), 4.0, 0.1)  # its last sample at 4 s
+    case = with_nonegos(base, [("gone", "S2C_0:C2N_0", samples)])
+    out = tmp_path / "seen.jsonl"
+    _write(tmp_path, "stand", f"OUT = {str(out)!r}\n" + STAND)
+    monkeypatch.chdir(tmp_path)
+    evaluation = evaluate(case, "stand:Stand")
+    assert evaluation.error is None
+    assert not evaluation.verdict.goal_reached  # it stood, and was judged for it
+    seen = [json.loads(line) for line in out.read_text().splitlines()]
+    assert seen[-1]["t"] == pytest.approx(7.9)  # every step was observed, to the end
+    assert {tuple(r["others"]) for r in seen if r["t"] < 3.95} == {("gone",)}
+    assert {tuple(r["others"]) for r in seen if r["t"] > 3.95} == {()}
+
+
 def test_a_car_that_starts_faster_than_its_lane_allows_replays() -> None:
     """The outside test's chain: car3 starts at 14.09 m/s on N2C (limit 13.89 m/s). The
     non-egos follow their trajectories, not the lanes' limits, and SUMO accepts them."""
