@@ -46,7 +46,8 @@ def test_new_takes_a_sumo_program_or_a_json_one(tmp_path: Path) -> None:
     assert new("-o", str(tmp_path / "network.json")) == 0
     assert new("--signals", str(sumo_file(tmp_path, "alt.add.xml")),
                "-o", str(tmp_path / "xml.json")) == 0  # fmt: skip
-    assert new("--signals", str(json_file(tmp_path, "mine.json")),
+    # reversed, the program shows the ego red until 21 s: 30 s leave it a green
+    assert new("--signals", str(json_file(tmp_path, "mine.json")), "--duration", "30",
                "-o", str(tmp_path / "json.json")) == 0  # fmt: skip
     own = read_testcase(tmp_path / "network.json").signals
     xml = read_testcase(tmp_path / "xml.json").signals

@@ -3,8 +3,9 @@
 45 s test-cases (the duration of the benchmarks and campaigns) outlast the bundled roads: a
 car that reaches the end of its road leaves the test-case there. Chains on the bundled
 junctions, on junctions no constant was tuned on, with a queue on the ego's fork, on two
-real maps, and at two signalized junctions (the bundled four-way and Town05 1126, where
-SUMO's drivers obey the test-case's lights); every level is checked on the road geometry
+real maps, and at a real signalized junction (Town05 1126, where SUMO's drivers obey the
+test-case's lights; the bundled ones are the examples', which tests/core/export/test_bundle.py
+replays with every controller); every level is checked on the road geometry
 (independently of the generator, tests.helpers.off_road_samples) and replayed in SUMO with
 every controller.
 """
@@ -51,10 +52,6 @@ CHAINS = {
         lambda: new_testcase(
             TOWN05, "-44_1:-9_1", junction="396", control="allway_stop", duration=DURATION
         ),
-        2,
-    ),
-    "4way-signal": (
-        lambda: new_testcase("4way-signal", "N2C_1:C2E_1", duration=DURATION),
         2,
     ),
     "town05-1126-signal": (
