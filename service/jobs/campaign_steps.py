@@ -14,7 +14,7 @@ from typing import Any, Protocol
 
 from service.core.campaign import CHAIN_ENDS, CampaignPlan, run_campaign
 from service.core.errors import InvalidInput, ScengenError, UnknownNetwork, choices
-from service.core.testcase import NetworkRef, TestCase, dump_testcase, parse_testcase
+from service.core.testcase import NetworkRef, Signals, TestCase, dump_testcase, parse_testcase
 from service.jobs import tasks
 from service.jobs.batch import CampaignItem
 from service.jobs.store import ItemRecord, JobStore
@@ -38,6 +38,33 @@ class ItemWork(Protocol):
     def call(
         self, function: Callable[..., Any], args: tuple[Any, ...], budget: float, what: str
     ) -> Any: ...
+
+
+def routes_that_can_go(
+    description: dict[str, Any], signals: Signals | None, duration: float
+) -> list[str]:
+    """The routes of a described junction (service.jobs.tasks.describe_junction) that an
+    ego can take in a test-case of ``duration``: at a light (under ``signals``, or the
+    network's program) not those whose signal stays red all along (no ego could pass it:
+    ``new`` refuses them). InvalidInput when none is left."""
+    document = description.get("signals")
+    routes = description["routes"]
+    if signals is None and document is None:
+        return [r["id"] for r in routes]
+    fields = ("tls", "program", "offset", "phases")
+    program = (signals or Signals.model_validate({k: document[k] for k in fields})).to_program()
+
+    def goes(route: dict[str, Any]) -> bool:
+        go = None if route["signal"] is None else program.first_go(route["signal"]["link_index"])
+        return route["signal"] is None or (go is not None and go < duration)
+
+    egos = [r["id"] for r in routes if goes(r)]
+    if not egos:
+        raise InvalidInput(
+            f"no route of junction {description['junction']!r} gets a colour to go within "
+            f"{duration:g} s: give a longer duration"
+        )
+    return egos
 
 
 class JobCampaign:
@@ -73,7 +100,11 @@ class JobCampaign:
             ),
         )  # fmt: skip
         routes = [r["id"] for r in description["routes"]]
-        egos = routes if self.spec.all_egos else list(self.spec.egos or [])
+        egos = (
+            routes_that_can_go(description, self.spec.signals, self.spec.duration)
+            if self.spec.all_egos
+            else list(self.spec.egos or [])
+        )
         for ego in egos:
             if ego not in routes:
                 raise InvalidInput(

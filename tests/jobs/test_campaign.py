@@ -85,3 +85,24 @@ def test_campaign_resumes_after_kill_and_matches_the_local_executor(
     finally:
         worker.stop()
         server.stop()
+
+
+def test_all_egos_at_a_light_leaves_out_the_routes_that_stay_red(tmp_path: Path) -> None:
+    """Town05 1126 (42 s green, 3 s yellow each way): in 45 s the routes from -46 and 47
+    never get a colour to go, so --all-egos takes only the other eight; in 50 s all 16,
+    and under a program that is red for everyone none, which is refused with the reason."""
+    from service.core.errors import InvalidInput
+    from service.core.testcase import Signals
+    from service.jobs.campaign_steps import routes_that_can_go
+    from service.jobs.tasks import describe_junction
+    from tests.conftest import TOWN05
+
+    described = describe_junction(TOWN05, "1126", None, tmp_path)
+    every = [r["id"] for r in described["routes"]]
+    in_45 = routes_that_can_go(described, None, 45.0)
+    assert len(every) == 16 and len(in_45) == 8
+    assert {r.split("_")[0] for r in in_45} == {"-6", "7"}
+    assert routes_that_can_go(described, None, 50.0) == every
+    red = Signals.model_validate({"tls": "1126", "phases": [{"duration": 60, "state": "r" * 16}]})
+    with pytest.raises(InvalidInput, match="no route of junction '1126' gets a colour to go"):
+        routes_that_can_go(described, red, 45.0)
