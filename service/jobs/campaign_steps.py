@@ -49,10 +49,13 @@ def routes_that_can_go(
     ``new`` refuses them). InvalidInput when none is left."""
     document = description.get("signals")
     routes = description["routes"]
-    if signals is None and document is None:
-        return [r["id"] for r in routes]
-    fields = ("tls", "program", "offset", "phases")
-    program = (signals or Signals.model_validate({k: document[k] for k in fields})).to_program()
+    if signals is None:
+        if document is None:
+            return [r["id"] for r in routes]
+        signals = Signals.model_validate(
+            {k: document[k] for k in ("tls", "program", "offset", "phases")}
+        )
+    program = signals.to_program()
 
     def goes(route: dict[str, Any]) -> bool:
         go = None if route["signal"] is None else program.first_go(route["signal"]["link_index"])
