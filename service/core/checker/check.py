@@ -156,7 +156,6 @@ class Judge:
             duration=self.testcase.duration,
         )
 
-
     def rules_broken_by(self, car_id: str) -> list[Violation]:
         """The traffic rules (not right-of-way) that non-ego ``car_id`` breaks, among the
         non-egos: at a signalized junction a generated car obeys its signal."""
