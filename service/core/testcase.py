@@ -675,11 +675,9 @@ def _check_ego_can_go(intersection: Intersection, route: Route, duration: float)
     """InvalidInput when the ego's signal shows red for the whole test-case: no ego could
     pass it lawfully, so the test-case would have no solution to make harder."""
     program = intersection.signals
-    if program is None or route.link_index < 0:
+    if program is None or route.link_index < 0 or program.goes_within(route.link_index, duration):
         return
     go = program.first_go(route.link_index)
-    if go is not None and go < duration:
-        return
     when = "never shows a colour to go" if go is None else f"first lets it go at {go:g} s"
     raise InvalidInput(
         f"the ego's signal (link {route.link_index} of traffic light {program.tls!r}) is red "

@@ -14,6 +14,7 @@ from typing import Any, Protocol
 
 from service.core.campaign import CHAIN_ENDS, CampaignPlan, run_campaign
 from service.core.errors import InvalidInput, ScengenError, UnknownNetwork, choices
+from service.core.network.signals import program_from_document
 from service.core.testcase import NetworkRef, Signals, TestCase, dump_testcase, parse_testcase
 from service.jobs import tasks
 from service.jobs.batch import CampaignItem
@@ -49,19 +50,14 @@ def routes_that_can_go(
     ``new`` refuses them). InvalidInput when none is left."""
     document = description.get("signals")
     routes = description["routes"]
-    if signals is None:
-        if document is None:
-            return [r["id"] for r in routes]
-        signals = Signals.model_validate(
-            {k: document[k] for k in ("tls", "program", "offset", "phases")}
-        )
-    program = signals.to_program()
-
-    def goes(route: dict[str, Any]) -> bool:
-        go = None if route["signal"] is None else program.first_go(route["signal"]["link_index"])
-        return route["signal"] is None or (go is not None and go < duration)
-
-    egos = [r["id"] for r in routes if goes(r)]
+    if signals is None and document is None:
+        return [r["id"] for r in routes]
+    program = signals.to_program() if signals else program_from_document(document)
+    egos = [
+        r["id"]
+        for r in routes
+        if r["signal"] is None or program.goes_within(r["signal"]["link_index"], duration)
+    ]
     if not egos:
         raise InvalidInput(
             f"no route of junction {description['junction']!r} gets a colour to go within "

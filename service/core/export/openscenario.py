@@ -55,8 +55,8 @@ from service.core.errors import InvalidInput, NetworkBuildFailed
 from service.core.export import FLAVOURS, Flavour
 from service.core.export.openscenario_signals import (
     complete_signal_heads,
+    headed_links,
     signal_controller,
-    signal_heads,
     signal_rules_text,
 )
 from service.core.files import replacing, write_atomically
@@ -127,7 +127,7 @@ def _with_additions(text: str, intersection: Intersection) -> str:
     reference to its traffic light's controller (``openscenario_signals``); the text as
     netconvert wrote it (the same bytes) where there is nothing to add."""
     forks = [f for f in intersection.forks.values() if f.stop_sign]
-    if not forks and not signal_heads(intersection):
+    if not forks and not headed_links(intersection):
         return text
     root = ET.fromstring(text)
     _add_stop_signs(root, intersection, forks)

@@ -79,7 +79,7 @@ def head_id(tls: str, link: int) -> str:
     return f"{tls}_{link}"
 
 
-def signal_heads(intersection: Intersection) -> list[int]:
+def headed_links(intersection: Intersection) -> list[int]:
     """The link indices of the junction's traffic light that have a connection in the
     network (each has a head), in order; empty where the junction has no traffic light."""
     if intersection.tls is None or not intersection.control.signalized:
@@ -129,7 +129,7 @@ def signal_controller(
 def _light(program: SignalProgram, intersection: Intersection) -> tuple[str, list[int]]:
     """The junction's traffic light and its heads' link indices; InvalidInput where the
     program does not fit them (a test-case loaded with its junction never gets here)."""
-    links = signal_heads(intersection)
+    links = headed_links(intersection)
     if intersection.tls is None or not links or links[-1] >= program.links:
         raise InvalidInput(
             f"the signal program of traffic light {program.tls!r} ({program.links} links) "
@@ -145,7 +145,7 @@ def complete_signal_heads(root: ET.Element, intersection: Intersection) -> None:
     junction's traffic light, and make the junction name its controller; nothing where the
     junction has no traffic light. NetworkBuildFailed when a head or the controller is
     missing."""
-    links = signal_heads(intersection)
+    links = headed_links(intersection)
     if not links or intersection.tls is None:
         return
     tls = intersection.tls

@@ -133,12 +133,17 @@ class SignalProgram:
 
     def first_go(self, link: int, after: float = 0.0) -> float | None:
         """The first moment at or after ``after`` at which ``link`` lets a car enter (a
-        colour of GO_COLOURS); None when it never does (red in every phase)."""
-        horizon = after + self.cycle
-        for start, end, colour in self.timeline(link, horizon + self.cycle):
+        colour of GO_COLOURS); None when it never does (red in every phase: one cycle
+        after ``after`` shows every colour it ever will)."""
+        for start, end, colour in self.timeline(link, after + self.cycle):
             if colour in GO_COLOURS and end > after:
                 return max(start, after)
         return None
+
+    def goes_within(self, link: int, duration: float) -> bool:
+        """Whether ``link`` lets a car enter at some moment of a test-case of ``duration``."""
+        go = self.first_go(link)
+        return go is not None and go < duration
 
     def to_document(self) -> dict[str, Any]:
         """The program as the test-case's ``signals`` field."""
