@@ -19,6 +19,7 @@ from service.cli.table import Writes
 from service.core.checker.verdict import Verdict
 from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
 from service.core.files import replacing, write_atomically
+from service.core.motion.criticality import Criticality
 from service.core.testcase import TestCase, dump_testcase, with_network_path
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
@@ -124,6 +125,25 @@ def print_verdict(verdict: Verdict) -> None:
         print(f"  reached its exit at {verdict.goal_time:.2f} s")
     for reason in verdict.reasons:
         print(f"  {reason}")
+    if verdict.criticality is not None:
+        print(f"  {describe_criticality(verdict.criticality)}")
+
+
+def describe_criticality(criticality: Criticality) -> str:
+    """One line of the overall measures: the smallest TTC, PET and distance, the largest
+    DRAC, each with the car and the time (``-`` where no car gives one)."""
+    parts = []
+    for name, unit, extreme in (
+        ("TTC", "s", criticality.ttc),
+        ("PET", "s", criticality.pet),
+        ("DRAC", "m/s^2", criticality.drac),
+        ("distance", "m", criticality.distance),
+    ):
+        if extreme is None:
+            parts.append(f"{name} -")
+        else:
+            parts.append(f"{name} {extreme.value:.2f} {unit} ({extreme.car} at {extreme.t:.2f} s)")
+    return "criticality: " + ", ".join(parts)
 
 
 def progress(started: float) -> Callable[[str], None]:

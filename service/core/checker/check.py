@@ -38,6 +38,7 @@ from service.core.checker.verdict import (
 )
 from service.core.errors import InvalidTrajectory
 from service.core.motion.collisions import Motion, first_collision
+from service.core.motion.criticality import Criticality, Mover, measure_criticality
 from service.core.motion.events import EventKind, LaneEvent, compute_events
 from service.core.motion.poses import PoseSample, centre_to_front, start_front
 from service.core.motion.queues import QueueCar, follows, line_distance
@@ -78,9 +79,11 @@ def check_testcase(
     ego: Sequence[PoseSample],
     controller: str = "ego",
     intersection: Intersection | None = None,
+    criticality: bool = True,
 ) -> Verdict:
-    """The verdict on ``ego`` (samples of the ego's rectangle centre) in ``testcase``."""
-    return Judge(testcase, intersection).verdict(ego, controller)
+    """The verdict on ``ego`` (samples of the ego's rectangle centre) in ``testcase``, with
+    the criticality measures unless told not to (service.core.motion.criticality)."""
+    return Judge(testcase, intersection).verdict(ego, controller, criticality)
 
 
 class Judge:
@@ -137,12 +140,16 @@ class Judge:
         _check_start(self.testcase, self.junction, ego)
         return _ego_car(self.testcase, self.junction, ego)
 
-    def verdict(self, ego: Sequence[PoseSample] | Car, controller: str = "ego") -> Verdict:
-        """The verdict on an ego trajectory (or an ego car made by ``ego_car``)."""
+    def verdict(
+        self, ego: Sequence[PoseSample] | Car, controller: str = "ego", criticality: bool = False
+    ) -> Verdict:
+        """The verdict on an ego trajectory (or an ego car made by ``ego_car``); with the
+        criticality measures when asked (users see them; the generator's checks skip them)."""
         car = ego if isinstance(ego, Car) else self.ego_car(ego)
         cars = self._in_queues([car, *self.nonegos])
         car = cars[0]
         goal_time = _goal_time(self.testcase, self.junction, car)
+        measures = self.criticality(cars) if criticality else None
         return Verdict(
             testcase=testcase_label(self.testcase),
             controller=controller,
@@ -154,7 +161,18 @@ class Judge:
             ),
             ego_events=tuple(_refs(car)),
             duration=self.testcase.duration,
+            criticality=measures,
         )
+
+    def criticality(self, cars: Sequence[Car]) -> Criticality:
+        """The criticality of the ego (``cars[0]``) against each other car."""
+        routes = {EGO: self.testcase.ego.route.id}
+        routes.update((n.id, n.route.id) for n in self.testcase.nonegos)
+        movers = [
+            Mover(car.id, self.junction.route(routes[car.id]), car.length, car.width, car.samples)
+            for car in cars
+        ]
+        return measure_criticality(self.junction, movers[0], movers[1:])
 
     def rules_broken_by(self, car_id: str) -> list[Violation]:
         """The traffic rules (not right-of-way) that non-ego ``car_id`` breaks, among the

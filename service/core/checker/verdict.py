@@ -8,6 +8,8 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 from xml.etree import ElementTree as ET
 
+from service.core.motion.criticality import Criticality
+
 VERDICT_SCHEMA = "scengen/verdict/1"
 
 
@@ -66,6 +68,7 @@ class Verdict:
     ego_events: tuple[EventRef, ...] = field(default=(), repr=False)
     duration: float = 0.0
     errors: tuple[str, ...] = ()  # what stopped the ego's controller (an evaluation)
+    criticality: Criticality | None = None  # how close it came (None: not measured)
 
     @property
     def passed(self) -> bool:
@@ -87,6 +90,7 @@ class Verdict:
         data = {"schema": VERDICT_SCHEMA, "passed": self.passed, **data}
         data["goal"] = {"reached": data.pop("goal_reached"), "time": data.pop("goal_time")}
         data["reasons"] = self.reasons
+        data["criticality"] = None if self.criticality is None else self.criticality.to_dict()
         return data
 
     def to_json(self) -> str:
@@ -112,6 +116,9 @@ class Verdict:
             ego_events=events(data["ego_events"]),
             duration=data["duration"],
             errors=tuple(data["errors"]),
+            criticality=(
+                Criticality.from_dict(data["criticality"]) if data.get("criticality") else None
+            ),
         )
 
     def to_junit(self) -> str:
@@ -132,6 +139,23 @@ class JUnitCase:
     outcome: str = "passed"
     message: str = ""
     details: str = ""  # the element's text (default: the message)
+    properties: tuple[tuple[str, str], ...] = ()  # <properties> of the test case
+
+
+def criticality_properties(verdict: Verdict) -> tuple[tuple[str, str], ...]:
+    """The overall criticality as JUnit properties: ``criticality.ttc`` (its value) with
+    ``criticality.ttc.car`` and ``.t``, the same for pet (and ``.area``), drac, distance."""
+    if verdict.criticality is None:
+        return ()
+    found = []
+    for name, extreme in verdict.criticality.to_dict()["overall"].items():
+        if extreme is not None:
+            found.append((f"criticality.{name}", f"{extreme['value']:g}"))
+            found.append((f"criticality.{name}.car", extreme["car"]))
+            found.append((f"criticality.{name}.t", f"{extreme['t']:g}"))
+            if "area" in extreme:
+                found.append((f"criticality.{name}.area", extreme["area"]))
+    return tuple(found)
 
 
 def verdict_case(
@@ -140,10 +164,13 @@ def verdict_case(
     """The test case of a verdict: named ``name``, by default ``test-case / controller``;
     a failure lists the reasons."""
     label = name or f"{verdict.testcase} / {verdict.controller}"
+    properties = criticality_properties(verdict)
     if verdict.passed:
-        return JUnitCase(classname, label)
+        return JUnitCase(classname, label, properties=properties)
     reasons = verdict.reasons
-    return JUnitCase(classname, label, "failure", "; ".join(reasons), "\n".join(reasons))
+    return JUnitCase(
+        classname, label, "failure", "; ".join(reasons), "\n".join(reasons), properties
+    )
 
 
 def junit_report(
@@ -176,6 +203,10 @@ def junit_document(cases: Sequence[JUnitCase], suite_name: str) -> str:
     )
     for case in cases:
         element = ET.SubElement(suite, "testcase", classname=case.classname, name=case.name)
+        if case.properties:
+            listed = ET.SubElement(element, "properties")
+            for name, value in case.properties:
+                ET.SubElement(listed, "property", name=name, value=value)
         if case.outcome != "passed":
             detail = ET.SubElement(element, case.outcome, message=case.message)
             if case.outcome != "skipped":

@@ -997,7 +997,7 @@ def complexity_kind(new: TestCase, junction: Intersection) -> dict[str, Any]:
     assert new.certificates is not None
     verdict = check_testcase(
         new, [PoseSample(**s.model_dump()) for s in new.certificates.complexity],
-        "complexity", junction,
+        "complexity", junction, criticality=False,
     )  # fmt: skip
     return _kind_of(verdict)
 
