@@ -345,21 +345,50 @@ def _ahead(
     return x + np.sin(heading) * metres, y + np.cos(heading) * metres
 
 
+def measure_series(
+    junction: Intersection, ego: Mover, other: Mover
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(times, TTC, DRAC) of ``ego`` against ``other`` at the ego's samples while both
+    drive (inf TTC and 0 DRAC where none applies): what the extremes are taken from."""
+    ego_view, other_view = _View(junction, ego), _View(junction, other)
+    times = _shared_times(ego_view, other_view)
+    mine, theirs = ego_view.at(times), other_view.at(times)
+    return (times, *_ttc_drac(junction, ego_view, other_view, mine, theirs))
+
+
+def _shared_times(ego: _View, other: _View) -> np.ndarray:
+    return ego.t[(ego.t >= other.t[0]) & (ego.t <= other.t[-1])]  # type: ignore[no-any-return]
+
+
 def _pair(junction: Intersection, ego: _View, other: _View) -> PairCriticality:
     area = conflict_area(junction, ego.car, other.car)
     pets = () if area is None else tuple(filter(None, [_pet(junction, ego, other, area)]))
-    within = (ego.t >= other.t[0]) & (ego.t <= other.t[-1])
-    if not within.any():
+    times = _shared_times(ego, other)
+    if not times.size:
         return PairCriticality(other.car.id, None, pets, None, None)
-    times = ego.t[within]
     mine, theirs = ego.at(times), other.at(times)
-    apart = np.hypot(mine.x - theirs.x, mine.y - theirs.y)
-    ttc = np.full(times.shape, math.inf)
-    drac = np.zeros(times.shape)
+    ttc, drac = _ttc_drac(junction, ego, other, mine, theirs)
+    return PairCriticality(
+        other.car.id,
+        _at(times, ttc, np.isfinite(ttc), smallest=True),
+        pets,
+        _at(times, drac, drac > 0.0, smallest=False),
+        _closest(times, mine, theirs, ego.car, other.car),
+    )
+
+
+def _ttc_drac(
+    junction: Intersection, ego: _View, other: _View, mine: _Poses, theirs: _Poses
+) -> tuple[np.ndarray, np.ndarray]:
+    """TTC and DRAC at each time: at the conflict area, and behind the other either way."""
+    ttc = np.full(mine.x.shape, math.inf)
+    drac = np.zeros(mine.x.shape)
+    area = conflict_area(junction, ego.car, other.car)
     if area is not None:
         bounds = area_bounds(junction, ego.car, area), area_bounds(junction, other.car, area)
         if bounds[0] is not None and bounds[1] is not None:
             ttc, drac = _crossing(mine, theirs, bounds[0], bounds[1])
+    apart = np.hypot(mine.x - theirs.x, mine.y - theirs.y)
     for behind, ahead, view, car in (
         (mine, theirs, ego, other.car),
         (theirs, mine, other, ego.car),
@@ -368,14 +397,7 @@ def _pair(junction: Intersection, ego: _View, other: _View) -> PairCriticality:
         if near.any():
             following = _following(behind, ahead, view, car, near)
             ttc, drac = np.minimum(ttc, following[0]), np.maximum(drac, following[1])
-    ttc, drac = np.where(apart <= RANGE, ttc, math.inf), np.where(apart <= RANGE, drac, 0.0)
-    return PairCriticality(
-        other.car.id,
-        _at(times, ttc, np.isfinite(ttc), smallest=True),
-        pets,
-        _at(times, drac, drac > 0.0, smallest=False),
-        _closest(times, mine, theirs, apart, ego.car, other.car),
-    )
+    return np.where(apart <= RANGE, ttc, math.inf), np.where(apart <= RANGE, drac, 0.0)
 
 
 def _at(times: np.ndarray, values: np.ndarray, valid: np.ndarray, smallest: bool) -> Measure | None:
@@ -387,12 +409,11 @@ def _at(times: np.ndarray, values: np.ndarray, valid: np.ndarray, smallest: bool
     return Measure(round(float(values[k]), DIGITS), round(float(times[k]), DIGITS))
 
 
-def _closest(
-    times: np.ndarray, mine: _Poses, theirs: _Poses, apart: np.ndarray, ego: Mover, other: Mover
-) -> Measure:
+def _closest(times: np.ndarray, mine: _Poses, theirs: _Poses, ego: Mover, other: Mover) -> Measure:
     """The smallest gap between the rectangles. It is at most the centres' distance and at
     least that less half of both diagonals, so only the samples that can hold the
     smallest are measured."""
+    apart = np.hypot(mine.x - theirs.x, mine.y - theirs.y)
     reach = (math.hypot(ego.length, ego.width) + math.hypot(other.length, other.width)) / 2.0
     candidates = np.flatnonzero(apart - reach <= apart.min())
     gaps = shapely.distance(

@@ -1,0 +1,135 @@
+"""Criticality on hand-made drives at the four-way stop: cars at constant speeds placed
+along their routes' paths, so that each measure has a value known by hand."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from service.core.motion.criticality import (
+    Criticality,
+    Mover,
+    area_bounds,
+    conflict_area,
+    measure_criticality,
+    route_path,
+)
+from service.core.motion.poses import PoseSample
+from service.core.network import Intersection
+
+STEP = 0.1
+EAST = "W2C_0:C2E_0"  # straight on, west to east
+NORTH = "S2C_1:C2N_1"  # straight on, south to north: crosses EAST at right angles
+
+
+def drive(
+    junction: Intersection, car: str, route: str, front: float, speed: float, end: float = 1.0
+) -> Mover:
+    """A 5 x 1.8 m car whose front is at place ``front`` (m along its path) at t = 0 and
+    that holds ``speed`` until ``end``."""
+    path = route_path(junction, junction.route(route))
+    samples = []
+    for k in range(round(end / STEP) + 1):
+        t = k * STEP
+        place = front + speed * t
+        tip, tail = path.line.interpolate(place), path.line.interpolate(place - 5.0)
+        heading = math.degrees(math.atan2(tip.x - tail.x, tip.y - tail.y)) % 360.0
+        samples.append(PoseSample(t, (tip.x + tail.x) / 2, (tip.y + tail.y) / 2, heading,
+                                  speed, speed * t))  # fmt: skip
+    return Mover(car, junction.route(route), 5.0, 1.8, samples)
+
+
+def test_following_gives_gap_over_closing_speed(four_way: Intersection) -> None:
+    line = route_path(four_way, four_way.route(EAST)).stop_line
+    ego = drive(four_way, "ego", EAST, line - 40.0, 10.0)
+    ahead = drive(four_way, "car1", EAST, line - 20.0, 6.0)  # its back 15 m ahead of the ego
+    found = measure_criticality(four_way, ego, [ahead]).others[0]
+    gap = 15.0 - (10.0 - 6.0) * 1.0  # closest at the last sample, t = 1 s
+    assert found.ttc is not None and found.drac is not None and found.distance is not None
+    assert found.ttc.value == pytest.approx(gap / 4.0, abs=2e-3)
+    assert found.ttc.t == pytest.approx(1.0)
+    assert found.drac.value == pytest.approx(4.0**2 / (2 * gap), abs=2e-3)
+    assert found.distance.value == pytest.approx(gap, abs=2e-3)
+    assert found.pet == ()  # one lane: no conflict area
+
+
+def test_a_slower_follower_closes_in_on_nobody(four_way: Intersection) -> None:
+    line = route_path(four_way, four_way.route(EAST)).stop_line
+    ego = drive(four_way, "ego", EAST, line - 40.0, 5.0)
+    ahead = drive(four_way, "car1", EAST, line - 20.0, 6.0)
+    found = measure_criticality(four_way, ego, [ahead]).others[0]
+    assert found.ttc is None and found.drac is None
+
+
+def test_crossing_gives_the_second_cars_entry_time_and_pet(four_way: Intersection) -> None:
+    ego_route, other_route = four_way.route(EAST), four_way.route(NORTH)
+    probe = drive(four_way, "ego", EAST, 0.0, 1.0), drive(four_way, "car1", NORTH, 0.0, 1.0)
+    area = conflict_area(four_way, *probe)
+    assert area is not None
+    ego_in, ego_out = area_bounds(four_way, probe[0], area) or (0.0, 0.0)
+    other_in, _ = area_bounds(four_way, probe[1], area) or (0.0, 0.0)
+    assert ego_out - ego_in == pytest.approx(1.8 + 5.0, abs=0.1)  # perpendicular: as SUMO
+    # the ego enters at 2 s and leaves at 2 + 6.8 / 8 s; car1 enters 1.5 s after that
+    ego = drive(four_way, "ego", EAST, ego_in - 16.0, 8.0, end=6.0)
+    leaves = 2.0 + (ego_out - ego_in) / 8.0
+    other = drive(four_way, "car1", NORTH, other_in - 6.0 * (leaves + 1.5), 6.0, end=6.0)
+    found = measure_criticality(four_way, ego, [other]).others[0]
+    assert [p.area for p in found.pet] == [
+        f"{ego_route.connecting_lane}|{other_route.connecting_lane}"
+    ]
+    assert found.pet[0].value == pytest.approx(1.5, abs=0.01)
+    assert found.pet[0].t == pytest.approx(leaves + 1.5, abs=0.01)
+    assert found.ttc is None  # at constant speeds they never meet
+
+
+def test_a_predicted_crossing_crash_gives_ttc_and_drac(four_way: Intersection) -> None:
+    probe = drive(four_way, "ego", EAST, 0.0, 1.0), drive(four_way, "car1", NORTH, 0.0, 1.0)
+    area = conflict_area(four_way, *probe)
+    assert area is not None
+    ego_in, ego_out = area_bounds(four_way, probe[0], area) or (0.0, 0.0)
+    other_in, other_out = area_bounds(four_way, probe[1], area) or (0.0, 0.0)
+    # at 8 m/s the ego is in the area from 2 s to 2.85 s; car1 at 6 m/s enters at 2.5 s
+    ego = drive(four_way, "ego", EAST, ego_in - 16.0, 8.0)
+    other = drive(four_way, "car1", NORTH, other_in - 15.0, 6.0)
+    found = measure_criticality(four_way, ego, [other]).others[0]
+    assert found.ttc is not None and found.drac is not None
+    assert found.ttc.value == pytest.approx(1.5, abs=2e-3)  # car1's entry, seen at t = 1 s
+    assert found.ttc.t == pytest.approx(1.0)
+    # at t = 1 s: the ego could arrive as car1 leaves, or car1 as the ego leaves
+    ego_wait = (
+        2
+        * (8.0 - 8.0 / ((other_out - other_in + 9.0) / 6.0))
+        / ((other_out - other_in + 9.0) / 6.0)
+    )
+    leaves = (ego_out - ego_in + 8.0) / 8.0
+    other_wait = 2 * (6.0 - 9.0 / leaves) / leaves
+    assert found.drac.value == pytest.approx(min(ego_wait, other_wait), abs=2e-3)
+
+
+def test_distance_is_the_gap_between_the_outlines(four_way: Intersection) -> None:
+    line = route_path(four_way, four_way.route(EAST)).stop_line
+    ego = drive(four_way, "ego", EAST, line - 30.0, 5.0)
+    beside = drive(four_way, "car1", "W2C_1:C2E_1", line - 30.0, 5.0)  # the next lane
+    found = measure_criticality(four_way, ego, [beside])
+    assert found.others[0].distance is not None
+    lanes = four_way.forks["W2C_0"].width  # lanes of one road are as wide as each other
+    assert found.others[0].distance.value == pytest.approx(lanes - 1.8, abs=0.05)
+    assert found.others[0].ttc is None  # side by side: neither follows the other
+
+
+def test_overall_takes_each_extreme_with_its_car(four_way: Intersection) -> None:
+    line = route_path(four_way, four_way.route(EAST)).stop_line
+    ego = drive(four_way, "ego", EAST, line - 40.0, 10.0)
+    near = drive(four_way, "car1", EAST, line - 20.0, 6.0)
+    far = drive(four_way, "car2", EAST, line - 5.0, 6.0)
+    found = measure_criticality(four_way, ego, [far, near])
+    assert found.ttc is not None and found.ttc.car == "car1"
+    assert found.distance is not None and found.distance.car == "car1"
+    assert found.pet is None
+    document = found.to_dict()
+    assert list(document) == ["others", "overall"]
+    assert list(document["others"]["car1"]) == ["ttc", "pet", "drac", "distance"]
+    assert document["overall"]["ttc"] == {"value": found.ttc.value, "car": "car1",
+                                          "t": found.ttc.t}  # fmt: skip
+    assert Criticality.from_dict(document) == found
