@@ -2,7 +2,10 @@
 
 Run with `make bench`. Prints the median and spread of wall-clock times over repeated
 checks of one trajectory, next to Step 1 and event computation for scale (same run, so the
-ratios hold on a noisy machine).
+ratios hold on a noisy machine). Then the cost of the criticality measures: the check of
+the four-way example's level 3 (three non-egos) with its complexity certificate as the
+ego, with and without the measures, interleaved in one run; then SUMO's SSM device
+against our measures on the same replays (bench.ssm_compare).
 """
 
 from __future__ import annotations
@@ -13,11 +16,13 @@ import time
 from collections.abc import Callable
 from datetime import date
 
+from bench.ssm_compare import main as compare_with_sumo
+from service.cli.examples import EXAMPLES, run_example
 from service.core.checker.check import check_testcase
 from service.core.motion.events import compute_events
-from service.core.motion.poses import generate_poses
+from service.core.motion.poses import PoseSample, generate_poses
 from service.core.network import load_intersection
-from service.core.testcase import new_testcase
+from service.core.testcase import load_testcase_intersection, new_testcase
 from tests.helpers import drive_with_stops, retime, with_nonegos
 
 ROUTES = {
@@ -66,6 +71,28 @@ def main() -> None:
         ms = [v * 1000 for v in values]
         spread = f"min {min(ms):7.1f}, max {max(ms):7.1f} (n={len(ms)})"
         print(f"{name:40s} median {statistics.median(ms):7.1f} ms, {spread}")
+    criticality_cost()
+    compare_with_sumo()
+
+
+def criticality_cost(repeats: int = 30) -> None:
+    """The check with and without the criticality measures, alternating, on a level-3
+    test-case; the ratio of the medians is the measures' share."""
+    level3 = run_example(EXAMPLES["four-way"])[3]
+    assert level3.certificates is not None
+    junction = load_testcase_intersection(level3)
+    ego = [PoseSample(**s.model_dump()) for s in level3.certificates.complexity]
+    runs: dict[bool, list[float]] = {False: [], True: []}
+    for _ in range(repeats):
+        for measured in (False, True):
+            runs[measured] += timed(
+                lambda m=measured: check_testcase(level3, ego, "bench", junction, criticality=m),
+                1,
+            )
+    plain, measured = (statistics.median(runs[k]) * 1000 for k in (False, True))
+    print(f"check, four-way level 3, without criticality: median {plain:7.1f} ms (n={repeats})")
+    print(f"check, four-way level 3, with criticality:    median {measured:7.1f} ms "
+          f"(+{(measured - plain) / plain:.0%})")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -271,6 +271,12 @@ def test_campaign_matrix_opens_the_replay_of_that_evaluation(
     assert page.url.endswith(f"#/replay/{verdict['evaluation']}")
     assert "sumo-rolling-stop" in page.locator("h1").inner_text()
     assert ("pass" if verdict["passed"] else "FAIL") in page.locator("#verdict").inner_text()
+    measured = server.client.get(f"/evaluations/{verdict['evaluation']}").json()
+    others = measured["verdict"]["criticality"]["others"]
+    rows = page.locator("#criticality tbody tr").all_inner_texts()
+    assert [row.split("\t")[0] for row in rows] == ["overall", *others]
+    distance = measured["verdict"]["criticality"]["overall"]["distance"]
+    assert f"{distance['value']:.2f} m at {distance['t']:.2f} s, {distance['car']}" in rows[0]
     start = canvas_frame(page)
     page.locator("#scrub").fill("6")
     assert canvas_frame(page) != start

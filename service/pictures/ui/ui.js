@@ -651,8 +651,25 @@ async function replayPage(id) {
     verdict.reasons.length ? h("ul", {}, verdict.reasons.map((r) => h("li", {}, r))) : h("p", { class: "muted" }, "The ego reached its exit without collision, obeying every rule."),
     samples.length ? null : h("p", { class: "muted" }, "This evaluation was stored before drives were kept: the ego is not shown."),
     h("div", { class: "row" }, h("div", { class: "card" }, player.element, player.legend()), h("div", { class: "card" }, h("h2", {}, "Time and distance"), timeDistance(tracks, testcase.duration))),
+    criticalityTable(verdict.criticality),
   );
   player.seek(0);
+}
+
+// how close the ego came to a crash (README, Criticality): overall, then against each car
+function criticalityTable(criticality) {
+  if (!criticality) return h("p", { id: "criticality", class: "muted" }, "This verdict has no criticality measures (stored before they were measured).");
+  const at = (m, unit) => (m ? `${m.value.toFixed(2)} ${unit} at ${m.t.toFixed(2)} s` : "-");
+  const measures = [["ttc", "s"], ["pet", "s"], ["drac", "m/s²"], ["distance", "m"]];
+  const overall = ["overall", ...measures.map(([key, unit]) => {
+    const found = criticality.overall[key];
+    return found ? `${at(found, unit)}, ${found.car}${found.area ? ` (${found.area})` : ""}` : "-";
+  })];
+  const cars = Object.entries(criticality.others).map(([car, m]) => [car, at(m.ttc, "s"),
+    m.pet.length ? m.pet.map((p) => `${at(p, "s")} (${p.area})`).join("; ") : "-", at(m.drac, "m/s²"), at(m.distance, "m")]);
+  return h("div", { id: "criticality", class: "card" }, h("h2", {}, "Criticality"),
+    h("p", { class: "muted" }, "Smallest time-to-collision, post-encroachment time at each conflict area, largest deceleration to avoid a crash, smallest distance."),
+    table(["car", "TTC", "PET", "DRAC", "distance"], [overall, ...cars]));
 }
 
 // ---------- evaluations matrix ----------
