@@ -243,7 +243,10 @@ class EvaluationPublic(BaseModel):
     controller: str
     passed: bool
     reasons: list[str]
-    verdict: dict[str, Any] = Field(description="the checker's verdict (scengen/verdict/1)")
+    verdict: dict[str, Any] = Field(
+        description="the checker's verdict (scengen/verdict/1), with its criticality: TTC, "
+        "PET, DRAC and distance against each car and overall (README, Criticality)"
+    )
     seconds: float
     created_at: datetime
     links: Links
