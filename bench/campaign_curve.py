@@ -130,6 +130,32 @@ def table(outcome: dict[str, Any]) -> list[str]:
     return lines
 
 
+def criticality_table(outcome: dict[str, Any]) -> list[str]:
+    """Each controller's median of each criticality measure by level, and whether it grows
+    (nothing when no verdict was measured: a campaign stored before verdicts had it)."""
+    from service.core.criticality_by_level import LABELS, MEASURES, UNITS
+
+    levels = outcome["levels"]
+    if not any(lv["controllers"][c].get("criticality", {}).get("measured")
+               for lv in levels for c in CONTROLLERS):  # fmt: skip
+        return []
+    head = " | ".join(f"L{lv['level']}" for lv in levels)
+    lines = [f"| controller | median of | {head} | grows with the level |",
+             "|---|---|" + "---:|" * len(levels) + "---|"]  # fmt: skip
+    for name in CONTROLLERS:
+        trend = outcome["criticality_trend"][name]
+        for measure in MEASURES:
+            spreads = [lv["controllers"][name]["criticality"][measure] for lv in levels]
+            cells = ["—" if s is None else f"{s['median']:g}" for s in spreads]
+            said = trend["measures"][measure]
+            grows = {True: "yes", False: "no", None: "—"}[said["grows"]]
+            if said["breaks"]:
+                grows += " (not " + ", ".join(f"L{a}→L{b}" for a, b in said["breaks"]) + ")"
+            lines.append(f"| {name} | {LABELS[measure]} ({UNITS[measure]}) | "
+                         + " | ".join(cells) + f" | {grows} |")  # fmt: skip
+    return lines
+
+
 def overview(outcomes: list[tuple[str, dict[str, Any]]]) -> list[str]:
     """One row per junction and controller: the share failed at each level (%)."""
     depth = max(len(outcome["levels"]) for _, outcome in outcomes)
@@ -196,6 +222,10 @@ def block(group: str, outcomes: list[tuple[str, dict[str, Any]]]) -> list[str]:
                 if c["end"]]  # fmt: skip
         lines += [f"### {label}", "", f"Ego routes: {', '.join(outcome['plan']['egos'])}.", ""]
         lines += table(outcome)
+        measured = criticality_table(outcome)
+        if measured:
+            lines += ["", "Criticality by level (the median over the level's test-cases "
+                      "that have the measure; — none had it):", "", *measured]  # fmt: skip
         lines += ["", f"Rules covered: {', '.join(covered) or 'none'}; not covered: "
                   f"{', '.join(open_rules) or 'none'}.", ""]  # fmt: skip
         if ends:

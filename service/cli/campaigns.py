@@ -68,6 +68,15 @@ from service.core.sim.controllers import controller_names, resolve_driver
         metavar="SECONDS",
         help="budget of each replay (default: SCENGEN_EVALUATE_BUDGET, 60 s)",
     ),
+    arg(
+        "--table",
+        choices=("levels", "paper"),
+        default="levels",
+        help="the failure table printed at the end: a row per level (default), or the "
+        "paper's form, a row per controller, each cell the share failed and its most "
+        "common cause",
+    ),
+    arg("--markdown", action="store_true", help="print the paper's table as Markdown"),
     output("DIR", required=True),
     description="Grows CHAINS chains per ego route to DEPTH levels (one new car per level, "
     "on a route chosen as `extend`'s automatic choice does, steered towards rules no "
@@ -79,7 +88,7 @@ from service.core.sim.controllers import controller_names, resolve_driver
 )
 def campaign(args: argparse.Namespace) -> int:
     from service.cli.campaign_folder import elapsed_printer, run_folder_campaign
-    from service.core.campaign import failure_table
+    from service.core.campaign import campaign_paper_table, criticality_table, failure_table
 
     if args.major is not None:
         args.usage.error(
@@ -106,8 +115,14 @@ def campaign(args: argparse.Namespace) -> int:
     if program is not None:
         spec["signals"] = program.to_document()
     outcome = run_folder_campaign(spec, args.output, elapsed_printer(time.monotonic()))
-    print("failed test-cases per level (failed/test-cases):")
-    print_table(failure_table(outcome))
+    if args.markdown:
+        sys.stdout.write(campaign_paper_table(outcome).markdown())
+    elif args.table == "paper":
+        print("the paper's table (failed/test-cases and the most common cause):")
+        sys.stdout.write(campaign_paper_table(outcome).text())
+    else:
+        print("failed test-cases per level (failed/test-cases):")
+        print_table(failure_table(outcome))
     failed = False
     for controller in outcome["plan"]["controllers"]:
         shares = [level["controllers"][controller] for level in outcome["levels"]]
@@ -120,6 +135,15 @@ def campaign(args: argparse.Namespace) -> int:
         failed = True
         print(f"FAIL {controller}: failed {count} of {total} test-cases; first at level "
               f"{min(failing)}, in {len(failing)} of {len(firsts)} chains")  # fmt: skip
+    for controller in outcome["plan"]["controllers"]:
+        rows = criticality_table(outcome, controller)
+        if rows is None:
+            continue
+        print(f"criticality of {controller} by level (median (min–max) n=test-cases that "
+              "have it):")  # fmt: skip
+        print_table(rows)
+        print(f"criticality of {controller} "
+              f"{outcome['criticality_trend'][controller]['summary']}")  # fmt: skip
     covered = [c["rule"] for c in outcome["coverage"] if c["covered"]]
     missing = [c["rule"] for c in outcome["coverage"] if c["coverable"] and not c["covered"]]
     print(f"rules covered by complexity certificates: {', '.join(covered) or 'none'}; "

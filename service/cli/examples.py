@@ -1,18 +1,25 @@
 """The paper's experiments as runnable examples: chains of extensions.
 
 Each example starts from an ego-only test-case on a bundled intersection and extends it
-step by step; every step's result is verified by the checker before it is kept.
+step by step; every step's result is verified by the checker before it is kept. Then every
+level is evaluated with each controller (by default the paper's pair, SUMO's driver and the
+same driver guarded by RSS) into the paper's table.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from service.cli.output import write_output
+from service.core.budget import WarmWorker
 from service.core.errors import ScengenError
 from service.core.generator.extension import extend_testcase
+from service.core.paper_table import PaperTable, paper_table
+from service.core.sim.controllers import CertificateDriver, resolve_driver
+from service.core.sim.replay import REPLAY_BUDGET, evaluate
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -22,6 +29,8 @@ from service.core.testcase import (
     renamed,
     testcase_level,
 )
+
+WORKER_SLACK = 30.0  # seconds the worker may take beyond a replay's own budget (its start)
 
 
 @dataclass(frozen=True)
@@ -121,3 +130,44 @@ def write_testcase(testcase: TestCase, folder: Path) -> Path:
     path = folder / f"{name_stem(testcase.name)}-{testcase_level(testcase)}.json"
     write_output(path, dump_testcase(testcase))
     return path
+
+
+def evaluate_levels(
+    chain: Sequence[TestCase],
+    controllers: Sequence[str],
+    budget: float = REPLAY_BUDGET,
+    on_verdict: Callable[[str], None] | None = None,
+) -> PaperTable:
+    """Every level of ``chain`` replayed with each controller, as the paper's table. The
+    replays run one after another in one warm child process (its imports paid once), each
+    under ``budget``. A certificate controller on the ego-only level (which has no
+    certificates) leaves its cell empty; ``on_verdict`` hears ``NAME / CONTROLLER: pass``
+    (``FAIL``, ``(none)``) after each."""
+    drivers = [resolve_driver(name) for name in controllers]  # bad names fail first
+    levels: dict[int, dict[str, list[dict[str, Any]]]] = {}
+    worker = WarmWorker()
+    try:
+        for testcase in chain:
+            found = levels.setdefault(testcase_level(testcase), {})
+            for name, driver in zip(controllers, drivers, strict=True):
+                said = f"{testcase.name} / {name}"
+                if isinstance(driver, CertificateDriver) and testcase.certificates is None:
+                    if on_verdict is not None:
+                        on_verdict(f"{said}: (none)")
+                    continue
+                call = (testcase, name, budget)
+                try:
+                    verdict = worker.call(replay_verdict, call, budget + WORKER_SLACK, said)
+                except ScengenError as error:
+                    raise type(error)(f"{said}: {error.message}", **error.context) from error
+                found[name] = [verdict]
+                if on_verdict is not None:
+                    on_verdict(f"{said}: {'pass' if verdict['passed'] else 'FAIL'}")
+    finally:
+        worker.close()
+    return paper_table(levels, controllers)
+
+
+def replay_verdict(testcase: TestCase, controller: str, budget: float) -> dict[str, Any]:
+    """The controller's verdict on ``testcase`` (``Verdict.to_dict``), in the worker."""
+    return evaluate(testcase, controller, budget=budget).verdict.to_dict()

@@ -12,8 +12,11 @@ whose earlier certificates (for this ego route) broke only rules already covered
 after the others of its group. Chain ``c`` of every ego route has seed ``seed + c``.
 
 ``summarize`` turns the chains into the campaign's outcome: per level and controller the
-share of test-cases it fails, the rules it breaks, its collisions and goal misses; per
-chain the first level each controller fails; and the rule coverage of the rule set.
+share of test-cases it fails, the rules it breaks, its collisions and goal misses, and the
+distribution of each criticality measure (``service.core.criticality_by_level``); per
+controller whether criticality grows with the level; per chain the first level each
+controller fails; and the rule coverage of the rule set. ``campaign_paper_table`` is the
+outcome as the seed paper's table (``service.core.paper_table``).
 """
 
 from __future__ import annotations
@@ -22,9 +25,19 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
+from xml.etree import ElementTree as ET
 
 from service.core.checker.verdict import JUnitCase, junit_document
+from service.core.criticality_by_level import (
+    LABELS,
+    MEASURES,
+    UNITS,
+    criticality_trend,
+    level_criticality,
+    overall_value,
+)
 from service.core.errors import BudgetExceeded, NoMoreComplexTestCase, NoneFound
+from service.core.paper_table import PaperTable, failure_cause, paper_table
 from service.core.testcase import TestCase, name_stem, readable_name
 
 CAMPAIGN_SCHEMA = "scengen/campaign/1"
@@ -191,7 +204,8 @@ def _broken(testcase: TestCase) -> list[str]:
 
 
 def _compact(verdict: dict[str, Any]) -> dict[str, Any]:
-    """What a campaign keeps of a verdict."""
+    """What a campaign keeps of a verdict: the cause the paper's table shows, and the
+    criticality measures and the guard's record as the verdict has them (null if not)."""
     return {
         "evaluation": verdict.get("evaluation"),
         "passed": bool(verdict["passed"]),
@@ -200,6 +214,9 @@ def _compact(verdict: dict[str, Any]) -> dict[str, Any]:
         "goal_reached": bool(verdict["goal"]["reached"]),
         "errors": list(verdict["errors"]),
         "reasons": list(verdict["reasons"]),
+        "cause": failure_cause(verdict),
+        "criticality": verdict.get("criticality"),
+        "guard": verdict.get("guard"),
     }
 
 
@@ -231,7 +248,7 @@ def summarize(
     for chain in chains:
         for level in chain["levels"]:
             by_level.setdefault(level["level"], {})[level["testcase"]] = level
-    levels = []
+    levels: list[dict[str, Any]] = []
     for number in sorted(by_level):
         found = list(by_level[number].values())
         levels.append(
@@ -241,10 +258,15 @@ def summarize(
                 "controllers": {c: _share(c, found) for c in plan.controllers},
             }
         )
+    trend = {
+        c: criticality_trend([(lv["level"], lv["controllers"][c]["criticality"]) for lv in levels])
+        for c in plan.controllers
+    }
     return {
         "schema": CAMPAIGN_SCHEMA,
         "plan": plan.to_dict(),
         "levels": levels,
+        "criticality_trend": trend,
         "chains": [_chain_outcome(plan, chain) for chain in chains],
         "coverage": _coverage(chains, rules),
         "finished": len(chains) == len(plan.egos) * plan.chains
@@ -262,6 +284,7 @@ def _share(controller: str, found: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "rules": dict(sorted(Counter(r for v in failed for r in v["rules"]).items())),
         "collisions": sum(1 for v in failed if v["collisions"]),
         "goal_misses": sum(1 for v in failed if not v["goal_reached"]),
+        "criticality": level_criticality(verdicts),
     }
 
 
@@ -309,8 +332,25 @@ def _coverage(
 
 
 def campaign_junit(outcome: dict[str, Any], suite_name: str = "scengen.campaign") -> str:
-    """JUnit XML: one test case per chain, level and controller (failure: the reasons)."""
-    return junit_document(campaign_cases(outcome, suite_name), suite_name)
+    """JUnit XML: one test case per chain, level and controller (failure: the reasons),
+    each with its overall criticality measures as properties (``criticality.ttc`` ...)."""
+    document = junit_document(campaign_cases(outcome, suite_name), suite_name)
+    verdicts = [v for chain in outcome["chains"] for lv in chain["levels"]
+                for v in lv["verdicts"].values()]  # fmt: skip
+    if not any(v.get("criticality") for v in verdicts):
+        return document
+    root = ET.fromstring(document)
+    for case, verdict in zip(root.iter("testcase"), verdicts, strict=True):
+        properties = ET.Element("properties")
+        for measure in MEASURES:
+            value = overall_value(verdict, measure)
+            if value is not None:
+                ET.SubElement(properties, "property", name=f"criticality.{measure}",
+                              value=f"{value:g}")  # fmt: skip
+        if len(properties):
+            case.insert(0, properties)  # JUnit's schema: properties first
+    ET.indent(root)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, "unicode") + "\n"
 
 
 def campaign_cases(
@@ -335,6 +375,21 @@ def campaign_cases(
     return cases
 
 
+def campaign_paper_table(outcome: dict[str, Any]) -> PaperTable:
+    """The outcome as the paper's table: controllers against levels, a cell per level
+    with the share of its test-cases each controller fails and their most common cause."""
+    by_level: dict[int, dict[str, dict[str, Any]]] = {}  # level -> test-case id -> verdicts
+    for chain in outcome["chains"]:
+        for level in chain["levels"]:
+            by_level.setdefault(level["level"], {})[level["testcase"]] = level["verdicts"]
+    controllers = outcome["plan"]["controllers"]
+    levels = {
+        number: {c: [found[c] for found in cases.values()] for c in controllers}
+        for number, cases in by_level.items()
+    }
+    return paper_table(levels, controllers)
+
+
 def failure_table(outcome: dict[str, Any]) -> list[list[str]]:
     """Rows of failure shares: level, test-cases, then one column per controller."""
     controllers = outcome["plan"]["controllers"]
@@ -345,4 +400,24 @@ def failure_table(outcome: dict[str, Any]) -> list[list[str]]:
             share = level["controllers"][controller]
             cells.append(f"{share['failed']}/{share['evaluated']}")
         rows.append([str(level["level"]), str(level["testcases"]), *cells])
+    return rows
+
+
+def criticality_table(outcome: dict[str, Any], controller: str) -> list[list[str]] | None:
+    """Rows of one controller's criticality by level, beside its failure rate: each
+    measure's median, its range and how many test-cases had it (``2.1 (1.2–3.4) n=9``);
+    None when no verdict of the controller was measured."""
+    found = [level["controllers"][controller] for level in outcome["levels"]]
+    if not any((share.get("criticality") or {}).get("measured") for share in found):
+        return None
+    head = ["level", "failed", *(f"{LABELS[m]} ({UNITS[m]})" for m in MEASURES)]
+    rows = [head]
+    for level, share in zip(outcome["levels"], found, strict=True):
+        measured = share.get("criticality") or {}
+        cells = []
+        for measure in MEASURES:
+            spread = measured.get(measure)
+            cells.append("—" if spread is None else f"{spread['median']:g} "
+                         f"({spread['min']:g}–{spread['max']:g}) n={spread['count']}")  # fmt: skip
+        rows.append([str(level["level"]), f"{share['failed']}/{share['evaluated']}", *cells])
     return rows

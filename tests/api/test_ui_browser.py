@@ -6,6 +6,8 @@ played, scrubbed or with the certificates off) and its time-distance panel (axis
 curve names whole and apart, measured on the drawn SVG), the campaign with its
 failure-rate plot, and the verdict matrix whose cells open the replay of that very
 evaluation. The report `scengen report JOB --server` writes works from a file, offline.
+A campaign whose verdicts carry criticality (hand-made ones: the measures are tested
+where they are computed) plots each measure by level beside the failure rate.
 On a server of its own, a signalized test-case's animation draws each signal head in the
 colour its program shows at the moment on the slider.
 Screenshots go to build/screenshots/ui-*.png (look at them)."""
@@ -23,9 +25,12 @@ import pytest
 from matplotlib.colors import to_rgb
 from playwright.sync_api import Page
 
+from service.core.campaign import run_campaign
 from service.core.testcase import Signals
+from service.pictures.report import report_html
 from service.pictures.signals import SIGNAL_COLOURS
 from tests.api.test_docs_browser import SCREENSHOTS, external, opened_page
+from tests.core.test_campaign import RULES, FakeSteps, plan
 from tests.servers import Server
 
 pytestmark = pytest.mark.slow
@@ -331,6 +336,48 @@ def test_the_served_report_runs_under_its_content_security_policy(
     page.goto(f"{server.url}/jobs/{job}/campaign/report")
     page.wait_for_selector("#verdict-matrix")
     assert page.locator("#verdict-matrix a").count() > 0
+
+
+def test_the_campaign_plots_each_criticality_measure_by_level_beside_the_failure_rate(
+    browser_page: tuple[Page, list[str]], tmp_path: Path
+) -> None:
+    page, _ = browser_page
+    outcome = run_campaign(plan(), FakeSteps(measured=True), RULES)
+    job = "c" * 32
+    record = {"id": job, "name": "fake", "state": "succeeded", "done": 1, "total": 1,
+              "items": [{"position": 0, "kind": "campaign", "state": "succeeded",
+                         "progress": "", "error": None}]}  # fmt: skip
+    report = tmp_path / "report.html"
+    answers = {f"/jobs/{job}": record, f"/jobs/{job}/campaign": outcome}
+    report.write_text(report_html(job, answers, "criticality"))
+    page.goto(report.as_uri())
+    page.wait_for_selector("#criticality")
+    weak = page.locator(".criticality-card[data-controller='weak']")
+    assert weak.locator(".failure-rate").inner_text() == (
+        "failed: level 0 0/1 · level 1 0/1 · level 2 2/2 · level 3 2/2"
+    )
+    assert (
+        weak.locator(".trend")
+        .inner_text()
+        .startswith("criticality grows: median TTC 3.5 → 2.25 → 1.25 s (levels 1–3)")
+    )
+    ttc = weak.locator(".criticality-plot[data-measure='ttc']")
+    assert ttc.locator(".level-tick").all_text_contents() == ["0", "1", "2", "3"]
+    values = "circles => circles.map((c) => c.getAttribute('data-value'))"
+    dots = {
+        level: ttc.locator(f"g.level[data-level='{level}'] circle").evaluate_all(values)
+        for level in (0, 1, 2, 3)
+    }
+    assert dots == {0: [], 1: ["3.5"], 2: ["2", "2.5"], 3: ["1", "1.5"]}
+    # the median of a more critical level is drawn lower: TTC falls from level to level
+    heights = [
+        float(ttc.locator(f"g.level[data-level='{level}'] .median").get_attribute("y1") or 0)
+        for level in (1, 2, 3)
+    ]
+    assert heights == sorted(heights) and heights[0] < heights[2]
+    strong = page.locator(".criticality-plot[data-controller='strong'][data-measure='ttc']")
+    assert "never arose" in (strong.text_content() or "")  # strong never was on a collision course
+    page.locator("#criticality").screenshot(path=str(SCREENSHOTS / "ui-criticality.png"))
 
 
 # t-signal's own program with an offset: at t = 0 the light is 31 s into its 38 s cycle

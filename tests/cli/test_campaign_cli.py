@@ -113,6 +113,34 @@ def test_bad_campaign_input_is_a_one_line_error(tmp_path: Path) -> None:
     assert not_a_folder.returncode == 2 and "not a campaign folder" in not_a_folder.stderr
 
 
+def test_the_summary_prints_the_papers_table_and_criticality_by_level(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The command's printing over a campaign of hand-made verdicts (the loop and the
+    measures are tested in the core)."""
+    from service.cli import campaign_folder, campaigns
+    from service.cli.main import main
+    from service.core.campaign import run_campaign
+    from tests.core.test_campaign import RULES, FakeSteps, plan
+
+    outcome = run_campaign(plan(), FakeSteps(measured=True), RULES)
+    monkeypatch.setattr(campaign_folder, "run_folder_campaign", lambda *_: outcome)
+    monkeypatch.setattr(campaigns, "resolve_driver", lambda name: None)  # strong and weak
+    command = ["campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "3", "--chains", "2",
+               "--controller", "strong", "--controller", "weak", "-o", str(tmp_path)]  # fmt: skip
+    assert main([*command, "--table", "paper"]) == 1
+    out = capsys.readouterr().out
+    assert "weak        pass     pass     2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n" in out
+    assert "criticality of weak by level (median (min–max) n=test-cases that have it):" in out
+    assert re.search(r"^2 +2/2 +2\.25 \(2–2\.5\) n=2 +— +— +4\.5 \(4–5\) n=2$", out, re.M), out
+    assert "criticality of weak grows: median TTC 3.5 → 2.25 → 1.25 s (levels 1–3)" in out
+    assert "criticality of strong does not grow: median distance 5 → 5 → 5 m" in out
+    assert main([*command, "--markdown"]) == 1
+    assert (
+        "| weak | pass | pass | 2/2 FAIL 21800(a) | 2/2 FAIL 21800(a) |" in capsys.readouterr().out
+    )
+
+
 # the bundled T's program with shorter greens and an offset: the campaign's starts carry it
 T_PROGRAM = {"tls": "C", "program": "campaign", "offset": 4.0, "phases": [
     {"duration": 16.0, "state": "GgsrGG"}, {"duration": 3.0, "state": "yysrGy"},

@@ -119,6 +119,20 @@ def test_bad_input_exits_2_with_one_line(args: list[str], message: str) -> None:
     assert len(lines) == 1 and message in lines[0], result.stderr
 
 
+def test_example_refuses_unknown_or_repeated_controllers_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = tmp_path / "chain"
+    code = cli.main(["example", "four-way", "-o", str(folder), "--controllers", "sumo,nope"])
+    assert code == 2
+    error = capsys.readouterr().err
+    assert "unknown controller 'nope'; valid: " in error and "sumo-cautious" in error, error
+    assert list(folder.glob("*.json")) == []
+    with pytest.raises(SystemExit):
+        cli.main(["example", "four-way", "-o", str(folder), "--controllers", "sumo,,sumo"])
+    assert "controllers separated by commas, each once" in capsys.readouterr().err
+
+
 def test_unknown_control_choice_exits_2() -> None:
     result = run("intersection", "4way-stop", "--control", "traffic_light_unregulated")
     assert result.returncode == 2
@@ -284,9 +298,22 @@ def test_extend_starts_each_new_car_at_its_own_distance(tmp_path: Path) -> None:
 def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
     """Each level's certificates, judged by `scengen check` as a separate process: the
     solvability certificate passes the level, the complexity certificate passes the level
-    before and fails this one. So the complexity strictly increases along the chain."""
-    result = run("example", name, "-o", str(tmp_path))
+    before and fails this one. So the complexity strictly increases along the chain. The
+    t-junction's levels are evaluated into the paper's table (the others' are not: the
+    checks below judge them)."""
+    table = name == "t-junction"
+    evaluation = ["--controllers", "sumo,certificate:complexity"] if table else ["--no-evaluate"]
+    result = run("example", name, "-o", str(tmp_path), *evaluation)
     assert result.returncode == 0, result.stderr
+    if table:  # a certificate replays nothing on the ego-only level
+        assert result.stdout.endswith(
+            "t-junction, the paper's table (seed 0):\n"
+            "controller              level 0  level 1\n"
+            "sumo                    pass     pass\n"
+            "certificate:complexity  —        FAIL 21801(a) car1\n"
+        ), result.stdout
+    else:
+        assert "the paper's table" not in result.stdout
     levels = len(EXAMPLES[name].steps)
     files = [tmp_path / f"{name}-{level}.json" for level in range(levels + 1)]
     assert sorted(tmp_path.glob("*.json")) == sorted(files)

@@ -13,6 +13,8 @@ from service.core.campaign import (
     EGO_ONLY_RULES,
     CampaignPlan,
     campaign_junit,
+    campaign_paper_table,
+    criticality_table,
     failure_table,
     run_campaign,
 )
@@ -27,9 +29,13 @@ BREAKS = {"r1": "yieldToInside", "r2": "yieldToInside", "r3": "yieldToRight"}
 
 class FakeSteps:
     """Routes r1, r2, r3 in that order unless held back; r1 and r2 break yieldToInside, r3
-    yieldToRight. The controller 'weak' fails from level 2 on, 'strong' never."""
+    yieldToRight. The controller 'weak' fails from level 2 on, 'strong' never. With
+    ``measured``, verdicts beyond level 0 carry criticality: weak's TTC falls with the level
+    (a chain of seed s 0.5 (s - 7) s above another) and so does its distance (2 m per
+    second of TTC); strong has no TTC and keeps 5 m from every car."""
 
-    def __init__(self, end_at: int | None = None) -> None:
+    def __init__(self, end_at: int | None = None, measured: bool = False) -> None:
+        self.measured = measured
         self.base = new_testcase("4way-stop", "S2C_0:C2N_0")
         self.grown: list[tuple[str, int, tuple[str, ...]]] = []
         self.evaluated: list[tuple[str, str]] = []
@@ -50,6 +56,7 @@ class FakeSteps:
         route = sorted(BREAKS, key=lambda r: r in last)[0]
         provenance = {
             "level": level,
+            "seed": seed,
             "new_nonegos": [f"car{level}"],
             "complexity_certificate_violates": [{"car": f"car{level}", "rule": BREAKS[route]}],
             "complexity_certificate": {"rear_end": []},
@@ -63,8 +70,20 @@ class FakeSteps:
         self.evaluated.append((ident, controller))
         level = (testcase.provenance or {}).get("level", 0)
         failed = controller == "weak" and level >= 2
-        violations = [{"rule": "yieldToInside"}] if failed else []
+        violations = (
+            [{"rule": "yieldToInside", "law": "21800(a)", "other": "car2"}] if failed else []
+        )
+        criticality = None
+        if self.measured and level:
+            ttc = 4 - level + 0.5 * ((testcase.provenance or {})["seed"] - 7)
+            at = {"car": "car1", "t": 3.0}
+            weak = controller == "weak"
+            distance = {"value": 2 * ttc if weak else 5.0, **at}
+            overall = {"ttc": {"value": ttc, **at} if weak else None, "pet": None,
+                       "drac": None, "distance": distance}  # fmt: skip
+            criticality = {"others": {}, "overall": overall}
         return {
+            "criticality": criticality,
             "passed": not failed,
             "violations": violations,
             "collisions": [],
@@ -98,6 +117,61 @@ def test_every_level_is_judged_by_every_controller_and_summarised() -> None:
     assert outcome["finished"]
     rows = failure_table(outcome)
     assert rows[0] == ["level", "test-cases", "strong", "weak"] and rows[3][3] == "2/2"
+
+
+def test_criticality_by_level_and_the_papers_table_in_the_outcome() -> None:
+    outcome = run_campaign(plan(), FakeSteps(measured=True), RULES)
+    weak = [level["controllers"]["weak"]["criticality"] for level in outcome["levels"]]
+    assert weak[0] == {"measured": 0, "ttc": None, "pet": None, "drac": None, "distance": None}
+    assert weak[2]["measured"] == 2 and weak[2]["ttc"] == {
+        "count": 2, "min": 2.0, "q1": 2.125, "median": 2.25, "q3": 2.375, "max": 2.5,
+        "values": [2.0, 2.5],
+    }  # fmt: skip
+    trend = outcome["criticality_trend"]
+    assert trend["weak"]["grows"] is True  # TTC and distance fall, the others never arose
+    # level 1 is one test-case (both chains add r1 first): chain 2's, with seed 8
+    assert trend["weak"]["measures"]["ttc"]["medians"] == [[1, 3.5], [2, 2.25], [3, 1.25]]
+    assert trend["strong"]["grows"] is False  # 5 m at every level: no closer call
+    assert trend["strong"]["measures"]["distance"]["breaks"] == [[1, 2], [2, 3]]
+    kept = outcome["chains"][0]["levels"][2]["verdicts"]["weak"]
+    assert kept["cause"] == {"kind": "rule", "rule": "yieldToInside", "law": "21800(a)",
+                             "car": "car2"}  # fmt: skip
+    assert kept["criticality"]["overall"]["ttc"]["value"] == 2.0 and kept["guard"] is None
+    assert campaign_paper_table(outcome).text() == (
+        "controller  level 0  level 1  level 2            level 3\n"
+        "strong      pass     pass     pass 2/2           pass 2/2\n"
+        "weak        pass     pass     2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n"
+    )
+    rows = criticality_table(outcome, "weak")
+    assert rows is not None and rows[0][:3] == ["level", "failed", "TTC (s)"]
+    assert rows[3][:3] == ["2", "2/2", "2.25 (2–2.5) n=2"] and rows[1][2] == "—"
+    suite = ET.fromstring(campaign_junit(outcome)).find("testsuite")
+    assert suite is not None
+    cases = suite.findall("testcase")
+    assert cases[0].find("properties") is None  # the root: nothing measured
+    properties = cases[-1].find("properties")  # chain 2 level 3 / weak
+    assert properties is not None and cases[-1][0] is properties  # the schema's order
+    assert {p.get("name"): p.get("value") for p in properties} == {
+        "criticality.ttc": "1.5", "criticality.distance": "3"
+    }  # fmt: skip
+
+
+def test_a_campaign_without_criticality_says_so_and_keeps_its_tables() -> None:
+    outcome = run_campaign(plan(chains=1), FakeSteps(), RULES)
+    assert outcome["criticality_trend"]["weak"] == {
+        "grows": None, "summary": "not measured on two levels or more",
+        "measures": {m: {"medians": [], "grows": None, "breaks": []}
+                     for m in ("ttc", "pet", "drac", "distance")},
+    }  # fmt: skip
+    assert criticality_table(outcome, "weak") is None
+    assert "<properties>" not in campaign_junit(outcome)
+    # an outcome stored before verdicts kept their cause still gives the paper's table
+    for level in outcome["chains"][0]["levels"]:
+        for verdict in level["verdicts"].values():
+            del verdict["cause"], verdict["criticality"], verdict["guard"]
+    assert campaign_paper_table(outcome).cells()[2] == [
+        "weak", "pass", "pass", "FAIL yieldToInside", "FAIL yieldToInside"
+    ]  # fmt: skip
 
 
 def test_route_choice_holds_back_routes_whose_rules_are_covered() -> None:

@@ -181,8 +181,11 @@ def _campaign_or_404(state: AppState, job: str) -> dict[str, Any]:
 
 @router.get("/{job}/campaign", operation_id="get_job_campaign")
 async def get_job_campaign(state: State, job: str) -> dict[str, Any]:
-    """The campaign's outcome so far (schema scengen/campaign/1): failure shares per level
-    and controller, chains with their first failing levels, rule coverage."""
+    """The campaign's outcome so far (schema scengen/campaign/1).
+
+    Failure shares and the distribution of each criticality measure per level and
+    controller, whether criticality grows with the level per controller, chains with
+    their first failing levels, rule coverage."""
     return await asyncio.to_thread(_campaign_or_404, state, job)
 
 
@@ -193,7 +196,9 @@ async def get_job_campaign(state: State, job: str) -> dict[str, Any]:
     responses={200: {"content": {"application/xml": {}}, "description": "JUnit XML"}},
 )
 async def get_job_campaign_junit(state: State, job: str) -> Response:
-    """The campaign as JUnit XML: a test case per chain, level and controller."""
+    """The campaign as JUnit XML: a test case per chain, level and controller.
+
+    Each test case has its verdict's criticality measures as properties."""
     outcome = await asyncio.to_thread(_campaign_or_404, state, job)
     return Response(campaign_junit(outcome), media_type="application/xml")
 

@@ -757,6 +757,8 @@ function campaignView(outcome) {
     h("h2", {}, "Share of test-cases each controller fails, by level"),
     h("div", { class: "card" }, failurePlot(outcome)),
     table(["level", "test-cases", ...controllers], levelRows),
+    h("h2", {}, "Criticality by level"),
+    criticalityView(outcome),
     h("h2", {}, "Rule coverage"),
     h("p", { class: "muted" }, "A rule is covered when some level's complexity certificate breaks it: the suite then tests a controller on that rule."),
     table(["rule", "CVC", "covered by"], outcome.coverage.map((r) => [r.rule, r.law, r.covered ? h("span", {}, r.testcases.map((t, i) => [i ? ", " : "", link(short(t), `#/testcases/${t}`)])) : r.coverable !== false ? h("span", { class: "fail" }, "not covered") : h("span", { class: "muted" }, "the ego's own rule: no new car makes it harder")])),
@@ -790,6 +792,70 @@ function failurePlot(outcome) {
     points.forEach(([px, py]) => plot.append(svg("circle", { cx: px, cy: py, r: 3.5, fill: colour })));
     plot.append(svg("rect", { x: width - right + 14, y: 20 + i * 20, width: 12, height: 12, fill: colour }),
       svg("text", { x: width - right + 32, y: 30 + i * 20, "font-size": 12 }, c));
+  });
+  return plot;
+}
+
+// ---------- criticality by level ----------
+
+const MEASURES = [["ttc", "TTC", "s"], ["pet", "PET", "s"], ["drac", "DRAC", "m/s²"], ["distance", "distance", "m"]];
+function criticalityOf(level, controller) { return (level.controllers[controller] || {}).criticality || null; }
+function round3(value) { return String(Math.round(value * 1000) / 1000); }
+
+// per controller: its failure rate by level, whether criticality grows, and a box and strip
+// plot of each measure by level (box: quartiles, line: median, whiskers: min and max, dots:
+// every test-case's value)
+function criticalityView(outcome) {
+  const controllers = outcome.plan.controllers;
+  const measured = outcome.levels.some((l) => controllers.some((c) => (criticalityOf(l, c) || {}).measured));
+  if (!measured) return h("p", { class: "muted", id: "criticality-none" }, "Criticality was not measured: this campaign's verdicts carry none.");
+  const trends = outcome.criticality_trend || {};
+  return h("div", { id: "criticality" },
+    h("p", { class: "muted" }, "How close each run came, over the level's test-cases: the smallest time-to-collision (TTC), post-encroachment time (PET) and distance to any car, and the largest deceleration needed to avoid a crash (DRAC). Criticality grows when TTC, PET and distance fall and DRAC rises from level to level."),
+    controllers.map((c) => h("div", { class: "card criticality-card", "data-controller": c },
+      h("h3", {}, h("span", { class: "swatch", style: `background:${colourOf(c, controllers)}` }), c),
+      h("p", { class: "failure-rate" }, "failed: ", outcome.levels.map((l, i) => [i ? " · " : "", `level ${l.level} `,
+        h("span", { class: l.controllers[c].failed ? "fail" : "pass" }, `${l.controllers[c].failed}/${l.controllers[c].evaluated}`)])),
+      trends[c] ? h("p", { class: "trend" }, `criticality ${trends[c].summary}`) : null,
+      h("div", { class: "row" }, MEASURES.map(([key, label, unit]) => criticalityPlot(outcome, c, key, `${label} (${unit})`))))));
+}
+
+function criticalityPlot(outcome, controller, measure, title) {
+  const width = 230, height = 170, left = 40, right = 10, top = 22, bottom = 30;
+  const levels = outcome.levels.map((l) => l.level);
+  const spreads = outcome.levels.map((l) => (criticalityOf(l, controller) || {})[measure] || null);
+  const values = spreads.flatMap((s) => (s ? s.values : []));
+  const plot = svg("svg", { width, height, viewBox: `0 0 ${width} ${height}`, class: "criticality-plot", "data-controller": controller, "data-measure": measure });
+  plot.append(svg("text", { x: left, y: 14, "font-size": 12, "font-weight": 600 }, title));
+  const step = (width - left - right) / Math.max(1, levels.length);
+  const x = (i) => left + step * (i + 0.5);
+  levels.forEach((l, i) => plot.append(svg("text", { x: x(i), y: height - bottom + 14, "font-size": 10, "text-anchor": "middle", class: "level-tick" }, String(l))));
+  plot.append(svg("text", { x: (left + width - right) / 2, y: height - 3, "font-size": 10, "text-anchor": "middle" }, "level"));
+  if (!values.length) {
+    plot.append(svg("text", { x: (left + width - right) / 2, y: (top + height - bottom) / 2, "font-size": 11, "text-anchor": "middle", fill: "#6b7280" }, "never arose"));
+    return plot;
+  }
+  const low = Math.min(0, ...values), most = Math.max(...values);
+  const tick = niceStep(most > low ? most - low : 1, 3);
+  const high = Math.max(low + tick, Math.ceil(most / tick) * tick); // the axis ends on a tick
+  const y = (v) => height - bottom - ((v - low) / (high - low)) * (height - bottom - top);
+  for (let v = Math.ceil(low / tick) * tick; v <= high + 1e-9; v += tick) {
+    plot.append(svg("line", { x1: left, y1: y(v), x2: width - right, y2: y(v), stroke: "#eceef2" }),
+      svg("text", { x: left - 4, y: y(v) + 3.5, "font-size": 10, "text-anchor": "end" }, round3(v)));
+  }
+  plot.append(svg("line", { x1: left, y1: height - bottom, x2: width - right, y2: height - bottom, stroke: "#6b7280" }));
+  const colour = colourOf(controller, outcome.plan.controllers);
+  spreads.forEach((s, i) => {
+    const group = svg("g", { class: "level", "data-level": levels[i] });
+    plot.append(group);
+    if (!s) return;
+    const half = Math.min(14, step / 3);
+    group.append(svg("line", { x1: x(i), y1: y(s.min), x2: x(i), y2: y(s.max), stroke: colour }),
+      svg("rect", { x: x(i) - half, y: y(s.q3), width: 2 * half, height: Math.max(1, y(s.q1) - y(s.q3)), fill: colour, "fill-opacity": 0.18, stroke: colour }),
+      svg("line", { x1: x(i) - half, y1: y(s.median), x2: x(i) + half, y2: y(s.median), stroke: colour, "stroke-width": 2.2, class: "median" },
+        svg("title", {}, `level ${levels[i]}: median ${round3(s.median)}, quartiles ${round3(s.q1)}–${round3(s.q3)}, range ${round3(s.min)}–${round3(s.max)}, ${s.count} test-cases`)));
+    s.values.forEach((v, k) => group.append(svg("circle", { cx: x(i) + (s.values.length > 1 ? (k / (s.values.length - 1) - 0.5) * half : 0), cy: y(v), r: 2.4, fill: colour, "data-value": v },
+      svg("title", {}, `level ${levels[i]}: ${round3(v)}`))));
   });
   return plot;
 }

@@ -1,0 +1,110 @@
+"""How close the runs came, level by level: the criticality measures of a level's verdicts
+as distributions, and whether they grow more critical as the levels grow more complex.
+
+A verdict's ``criticality`` (null when it was not measured, as in campaigns stored before
+it existed) holds, overall, the smallest time-to-collision (``ttc``, s), post-encroachment
+time (``pet``, s) and distance (``distance``, m) to any other car and the largest
+deceleration needed to avoid a crash (``drac``, m/s²); each is null when it never arose
+(no car on a collision course: no TTC). A level's distribution of a measure is over the
+verdicts that have it: count, min, quartiles, median, max and the values themselves.
+
+Criticality grows from one level to the next when the median is more critical: TTC, PET
+and distance smaller, DRAC larger (strictly). A measure grows with complexity when it
+grows at every step between the levels that have it (at least two); where it does not,
+the step is named.
+"""
+
+from __future__ import annotations
+
+import itertools
+import statistics
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+MEASURES = ("ttc", "pet", "drac", "distance")
+UNITS = {"ttc": "s", "pet": "s", "drac": "m/s²", "distance": "m"}
+LABELS = {"ttc": "TTC", "pet": "PET", "drac": "DRAC", "distance": "distance"}
+SMALLER_IS_CRITICAL = {"ttc": True, "pet": True, "drac": False, "distance": True}
+DIGITS = 3  # values are rounded to the millimetre, millisecond
+
+
+def overall_value(verdict: Mapping[str, Any], measure: str) -> float | None:
+    """The verdict's overall ``measure``, None when not measured or when it never arose."""
+    criticality = verdict.get("criticality")
+    if not criticality:
+        return None
+    found = (criticality.get("overall") or {}).get(measure)
+    return None if found is None else float(found["value"])
+
+
+def distribution(values: Sequence[float]) -> dict[str, Any] | None:
+    """count, min, q1, median, q3, max and the sorted values (None for no value); the
+    quartiles are the inclusive ones (the median of a half, interpolated)."""
+    if not values:
+        return None
+    ordered = sorted(values)
+    if len(ordered) == 1:
+        q1 = median = q3 = ordered[0]
+    else:
+        q1, median, q3 = statistics.quantiles(ordered, n=4, method="inclusive")
+    summary = {"count": len(ordered), "min": ordered[0], "q1": q1, "median": median,
+               "q3": q3, "max": ordered[-1]}  # fmt: skip
+    rounded: dict[str, Any] = {k: round(v, DIGITS) for k, v in summary.items()}
+    rounded["count"] = len(ordered)
+    rounded["values"] = [round(v, DIGITS) for v in ordered]
+    return rounded
+
+
+def level_criticality(verdicts: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """A level's criticality for one controller: how many of its verdicts were measured,
+    and each measure's distribution (None where no verdict has it)."""
+    found: dict[str, Any] = {"measured": sum(1 for v in verdicts if v.get("criticality"))}
+    for measure in MEASURES:
+        values = [overall_value(v, measure) for v in verdicts]
+        found[measure] = distribution([v for v in values if v is not None])
+    return found
+
+
+def _more_critical(measure: str, before: float, after: float) -> bool:
+    return after < before if SMALLER_IS_CRITICAL[measure] else after > before
+
+
+def measure_trend(measure: str, levels: Sequence[tuple[int, Mapping[str, Any]]]) -> dict[str, Any]:
+    """One measure over ``levels`` (level, ``level_criticality``): the medians by level,
+    ``grows`` (None with fewer than two levels measured) and the steps where it does not
+    (``breaks``: [from level, to level])."""
+    medians = [[n, found[measure]["median"]] for n, found in levels if found.get(measure)]
+    breaks = [
+        [a, b]
+        for (a, before), (b, after) in itertools.pairwise(medians)
+        if not _more_critical(measure, before, after)
+    ]
+    grows = None if len(medians) < 2 else not breaks
+    return {"medians": medians, "grows": grows, "breaks": breaks}
+
+
+def criticality_trend(levels: Sequence[tuple[int, Mapping[str, Any]]]) -> dict[str, Any]:
+    """Whether criticality grows with complexity for one controller: each measure's trend,
+    ``grows`` (True when every measure with two levels grows, False when one does not,
+    None when none has two) and a sentence that says it."""
+    trends = {measure: measure_trend(measure, levels) for measure in MEASURES}
+    judged = [t["grows"] for t in trends.values() if t["grows"] is not None]
+    grows = None if not judged else all(judged)
+    return {"grows": grows, "measures": trends, "summary": _summary(grows, trends)}
+
+
+def _summary(grows: bool | None, trends: Mapping[str, Mapping[str, Any]]) -> str:
+    if grows is None:
+        return "not measured on two levels or more"
+    parts = []
+    for measure, trend in trends.items():
+        if trend["grows"] is None:
+            continue
+        medians = " → ".join(f"{m:g}" for _, m in trend["medians"])
+        levels = "–".join(str(trend["medians"][k][0]) for k in (0, -1))
+        said = f"median {LABELS[measure]} {medians} {UNITS[measure]} (levels {levels})"
+        if trend["breaks"]:
+            steps = ", ".join(f"{a} → {b}" for a, b in trend["breaks"])
+            said += f", not from level {steps}"
+        parts.append(said)
+    return ("grows: " if grows else "does not grow: ") + "; ".join(parts)
