@@ -25,16 +25,14 @@ from collections import Counter
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
-from xml.etree import ElementTree as ET
 
-from service.core.checker.verdict import JUnitCase, junit_document
+from service.core.checker.verdict import JUnitCase, junit_document, overall_properties
 from service.core.criticality_by_level import (
     LABELS,
     MEASURES,
     UNITS,
     criticality_trend,
     level_criticality,
-    overall_value,
 )
 from service.core.errors import BudgetExceeded, NoMoreComplexTestCase, NoneFound
 from service.core.paper_table import PaperTable, failure_cause, paper_table
@@ -334,23 +332,7 @@ def _coverage(
 def campaign_junit(outcome: dict[str, Any], suite_name: str = "scengen.campaign") -> str:
     """JUnit XML: one test case per chain, level and controller (failure: the reasons),
     each with its overall criticality measures as properties (``criticality.ttc`` ...)."""
-    document = junit_document(campaign_cases(outcome, suite_name), suite_name)
-    verdicts = [v for chain in outcome["chains"] for lv in chain["levels"]
-                for v in lv["verdicts"].values()]  # fmt: skip
-    if not any(v.get("criticality") for v in verdicts):
-        return document
-    root = ET.fromstring(document)
-    for case, verdict in zip(root.iter("testcase"), verdicts, strict=True):
-        properties = ET.Element("properties")
-        for measure in MEASURES:
-            value = overall_value(verdict, measure)
-            if value is not None:
-                ET.SubElement(properties, "property", name=f"criticality.{measure}",
-                              value=f"{value:g}")  # fmt: skip
-        if len(properties):
-            case.insert(0, properties)  # JUnit's schema: properties first
-    ET.indent(root)
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, "unicode") + "\n"
+    return junit_document(campaign_cases(outcome, suite_name), suite_name)
 
 
 def campaign_cases(
@@ -366,12 +348,14 @@ def campaign_cases(
         for level in chain["levels"]:
             for controller, verdict in level["verdicts"].items():
                 name = f"{stem} level {level['level']} ({level['testcase']}) / {controller}"
+                measured = verdict.get("criticality") or {}
+                properties = overall_properties(measured.get("overall") or {})
                 if verdict["passed"]:
-                    cases.append(JUnitCase(classname, name))
+                    cases.append(JUnitCase(classname, name, properties=properties))
                     continue
                 reasons = verdict["reasons"] or ["failed"]
                 cases.append(JUnitCase(classname, name, "failure", "; ".join(reasons),
-                                       "\n".join(reasons)))  # fmt: skip
+                                       "\n".join(reasons), properties))  # fmt: skip
     return cases
 
 

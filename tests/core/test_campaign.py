@@ -152,7 +152,9 @@ def test_criticality_by_level_and_the_papers_table_in_the_outcome() -> None:
     properties = cases[-1].find("properties")  # chain 2 level 3 / weak
     assert properties is not None and cases[-1][0] is properties  # the schema's order
     assert {p.get("name"): p.get("value") for p in properties} == {
-        "criticality.ttc": "1.5", "criticality.distance": "3"
+        "criticality.ttc": "1.5", "criticality.ttc.car": "car1", "criticality.ttc.t": "3",
+        "criticality.distance": "3", "criticality.distance.car": "car1",
+        "criticality.distance.t": "3",
     }  # fmt: skip
 
 

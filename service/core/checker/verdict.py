@@ -147,8 +147,13 @@ def criticality_properties(verdict: Verdict) -> tuple[tuple[str, str], ...]:
     ``criticality.ttc.car`` and ``.t``, the same for pet (and ``.area``), drac, distance."""
     if verdict.criticality is None:
         return ()
+    return overall_properties(verdict.criticality.to_dict()["overall"])
+
+
+def overall_properties(overall: dict[str, Any]) -> tuple[tuple[str, str], ...]:
+    """JUnit properties of a criticality's ``overall`` (as in the verdict's JSON)."""
     found = []
-    for name, extreme in verdict.criticality.to_dict()["overall"].items():
+    for name, extreme in overall.items():
         if extreme is not None:
             found.append((f"criticality.{name}", f"{extreme['value']:g}"))
             found.append((f"criticality.{name}.car", extreme["car"]))
