@@ -66,6 +66,9 @@ class Verdict:
     ego_events: tuple[EventRef, ...] = field(default=(), repr=False)
     duration: float = 0.0
     errors: tuple[str, ...] = ()  # what stopped the ego's controller (an evaluation)
+    # a guarded controller's record (service.core.sumo.rss_guard: kind, steps,
+    # interventions, braking, by_car, fallback, first); None: no guard
+    guard: dict[str, Any] | None = None
 
     @property
     def passed(self) -> bool:
@@ -112,6 +115,7 @@ class Verdict:
             ego_events=events(data["ego_events"]),
             duration=data["duration"],
             errors=tuple(data["errors"]),
+            guard=data.get("guard"),
         )
 
     def to_junit(self) -> str:
