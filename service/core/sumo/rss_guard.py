@@ -49,7 +49,8 @@ CARLA_DYNAMICS: dict[str, float] = {
 }
 HOLD_GAP = 2.0  # s: the time-gap rule forbids acceleration below this gap
 BRAKE_GAP = 1.0  # s: and brakes at brake_min below this one
-ROAD_MARGIN = 10.0  # m of road modelled before and after the cars and the conflict area
+ROAD_START = -1000.0  # m: every scene's road runs from here (in the scene's coordinate)
+ROAD_LENGTH = 3000.0  # m, the road's length: the test-cases' places lie well inside
 PRIORITIES = ("ego", "other", "same", "signal")
 INTERSECTION_SCENES = {  # RSS's constellation type by who has priority
     "ego": "IntersectionEgoHasPriority",
@@ -141,6 +142,7 @@ class RssGuard:
     current: Restriction | None = None
     _check: Any = None
     _world: Any = None
+    _templates: dict[tuple[str, bool], Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.ego_dynamics, self.other_dynamics = dynamics_from(self.params)
@@ -232,7 +234,6 @@ class RssGuard:
     ) -> Restriction | None:
         world = self._world
         model = world.model(self.steps)
-        length = float(self.section["ego_length"])
         for car, state in sorted(others.items()):
             scene = self._scene(car, ego, state)
             if scene is None:
@@ -240,11 +241,17 @@ class RssGuard:
             kind, ego_road, other_road = scene
             if kind == "intersection":
                 kind = INTERSECTION_SCENES[self.priority(car, signals)]
-            other = (self.ids[car], state, float(self.cars[car]["length"]), other_road)
-            width = float(self.section["lane_width"])
-            model.constellations.append(
-                world.constellation(kind, (ego, length, ego_road), other, width)
-            )
+            template = self._templates.get((car, kind == "SameDirection"))
+            if template is None:
+                template = world.template(
+                    kind == "SameDirection", (ego_road[1], ego_road[2]),
+                    (other_road[1], other_road[2]), self.ids[car],
+                    (float(self.section["ego_length"]), float(self.cars[car]["length"])),
+                    float(self.section["lane_width"]),
+                )  # fmt: skip
+                self._templates[(car, kind == "SameDirection")] = template
+            places = (ego_road[0], ego.speed), (other_road[0], state.speed)
+            model.constellations.append(world.place(template, kind, *places))
         if not model.constellations:
             return None
         response = world.respond(self._check, model)
@@ -343,7 +350,10 @@ class _Refused(Exception):
 
 
 class _RssWorld:
-    """Builds ``ad_rss`` world models; kept apart so that the guard's logic reads plainly."""
+    """Builds ``ad_rss`` world models. Each car's constellation is made once (its roads
+    do not move: one lane from ROAD_START metres, ROAD_LENGTH long, in the coordinate of
+    the scene) and only the cars' places and speeds are set at each step: making ad-rss's
+    values is what costs."""
 
     def __init__(self, ad_rss: Any, ego: dict[str, float], others: dict[str, float]) -> None:
         self.ad_rss = ad_rss
@@ -351,6 +361,10 @@ class _RssWorld:
         self.physics = ad_rss.physics
         self.ego_dynamics = self.dynamics(ego)
         self.other_dynamics = self.dynamics(others)
+        self.types = {
+            name: getattr(self.world.ConstellationType, name)
+            for name in ("SameDirection", *INTERSECTION_SCENES.values())
+        }
 
     def dynamics(self, values: dict[str, float]) -> Any:
         p, d = self.physics, self.world.RssDynamics()
@@ -378,106 +392,102 @@ class _RssWorld:
         model.default_ego_vehicle_rss_dynamics = self.ego_dynamics
         return model
 
-    def constellation(
+    def template(
         self,
-        kind: str,
-        ego: tuple[CarState, float, tuple[float, float, float]],
-        other: tuple[int, CarState, float, tuple[float, float, float]],
+        same_direction: bool,
+        ego_area: tuple[float, float],
+        other_area: tuple[float, float],
+        number: int,
+        lengths: tuple[float, float],
         lane_width: float,
-    ) -> Any:
+    ) -> tuple[Any, Any, Any, tuple[float, float]]:
+        """A constellation of the ego and car ``number``: one road for both (same
+        direction), or each its own with the conflict area marked (intersection)."""
         w = self.world
         c = w.Constellation()
-        c.constellation_type = getattr(w.ConstellationType, kind)
-        (ego_state, ego_length, ego_road), (number, state, length, other_road) = ego, other
-        if kind == "SameDirection":  # one road, both cars on it
-            fronts = [ego_road[0], other_road[0]]
-            origin = min(fronts) - max(ego_length, length) - ROAD_MARGIN
-            ego_place = other_place = (origin, max(fronts) + ROAD_MARGIN - origin)
-            c.ego_vehicle_road.append(self.road(1, *ego_place, None, lane_width))
-            ego_segment = other_segment = 1
-        else:
-            ego_place = self.extent(ego_road, ego_length)
-            other_place = self.extent(other_road, length)
-            c.ego_vehicle_road.append(self.road(1, *ego_place, ego_road, lane_width))
-            c.intersecting_road.append(self.road(2, *other_place, other_road, lane_width))
-            ego_segment, other_segment = 1, 2
-        c.ego_vehicle = self.vehicle(
-            0, w.ObjectType.EgoVehicle, ego_segment, *ego_place, ego_road[0], ego_length,
-            ego_state.speed, lane_width,
-        )  # fmt: skip
+        c.ego_vehicle_road.append(self.road(1, None if same_direction else ego_area, lane_width))
+        other_segment = 1
+        if not same_direction:
+            c.intersecting_road.append(self.road(2, other_area, lane_width))
+            other_segment = 2
+        c.ego_vehicle = self.vehicle(0, w.ObjectType.EgoVehicle, 1, lengths[0], lane_width)
         c.object = self.vehicle(
-            number, w.ObjectType.OtherVehicle, other_segment, *other_place, other_road[0],
-            length, state.speed, lane_width,
-        )  # fmt: skip
+            number, w.ObjectType.OtherVehicle, other_segment, lengths[1], lane_width
+        )
         c.ego_vehicle_rss_dynamics = self.ego_dynamics
         c.object_rss_dynamics = self.other_dynamics
+        # the regions as Python holds them: ad-rss's vectors hand out copies, so each step
+        # changes these and puts them back (``place``)
+        return c, c.ego_vehicle.occupied_regions[0], c.object.occupied_regions[0], lengths
+
+    def place(
+        self,
+        template: tuple[Any, Any, Any, tuple[float, float]],
+        kind: str,
+        ego: tuple[float, float],
+        other: tuple[float, float],
+    ) -> Any:
+        """The template's constellation of type ``kind`` with both cars' (front, speed) in
+        the scene's coordinate."""
+        c, ego_region, other_region, lengths = template
+        c.constellation_type = self.types[kind]
+        cars = ((c.ego_vehicle, ego_region, ego, lengths[0]),
+                (c.object, other_region, other, lengths[1]))  # fmt: skip
+        for vehicle, region, (front, speed), length in cars:
+            span = region.lon_range
+            span.minimum.mParametricValue = _parametric(front - length)
+            span.maximum.mParametricValue = _parametric(front)
+            vehicle.occupied_regions[0] = region
+            v = vehicle.velocity
+            v.speed_lon_min.mSpeed = v.speed_lon_max.mSpeed = speed
+            r = vehicle.state.speed_range
+            r.minimum.mSpeed = r.maximum.mSpeed = speed
         return c
 
-    @staticmethod
-    def extent(road: tuple[float, float, float], length: float) -> tuple[float, float]:
-        """(origin, total length) of a road holding the car and its conflict area."""
-        front, start, end = road
-        origin = min(front - length, start) - ROAD_MARGIN
-        return origin, max(front, end) + ROAD_MARGIN - origin
-
-    def road(
-        self,
-        segment: int,
-        origin: float,
-        total: float,
-        area: tuple[float, float, float] | None,
-        width: float,
-    ) -> Any:
+    def road(self, segment: int, area: tuple[float, float] | None, width: float) -> Any:
         """One road segment of one lane; with ``area`` an intersection segment whose
-        intersecting area lies between area[1] and area[2]."""
+        intersecting area lies between area[0] and area[1]."""
         p, w = self.physics, self.world
         r = w.RoadSegment()
         r.type = w.RoadSegmentType.Normal
         if area is not None:
             r.type = w.RoadSegmentType.Intersection
-            r.minimum_length_before_intersecting_area = p.Distance(area[1] - origin)
-            r.minimum_length_after_intersecting_area = p.Distance(origin + total - area[2])
+            start, end = (min(max(x, ROAD_START), ROAD_START + ROAD_LENGTH) for x in area)
+            r.minimum_length_before_intersecting_area = p.Distance(start - ROAD_START)
+            r.minimum_length_after_intersecting_area = p.Distance(ROAD_START + ROAD_LENGTH - end)
         lane = w.LaneSegment()
         lane.id = segment
-        lane.length.minimum = lane.length.maximum = p.Distance(total)
+        lane.length.minimum = lane.length.maximum = p.Distance(ROAD_LENGTH)
         lane.width.minimum = lane.width.maximum = p.Distance(width)
         lane.driving_direction = w.LaneDrivingDirection.Positive
         r.lane_segments.append(lane)
         return r
 
     def vehicle(
-        self,
-        number: int,
-        kind: Any,
-        segment: int,
-        origin: float,
-        total: float,
-        front: float,
-        length: float,
-        speed: float,
-        lane_width: float,
-        width: float = 1.8,
+        self, number: int, kind: Any, segment: int, length: float, lane_width: float
     ) -> Any:
+        """A car of ``length`` (and 1.8 m wide, centred in its lane), not yet placed."""
         p, w = self.physics, self.world
+        width = min(1.8, lane_width)
         o = w.Object()
         o.object_id = number
         o.object_type = kind
         region = w.OccupiedRegion()
         region.segment_id = segment
-        region.lon_range.minimum = p.ParametricValue((front - length - origin) / total)
-        region.lon_range.maximum = p.ParametricValue((front - origin) / total)
-        half = min(width, lane_width) / 2.0 / lane_width
+        region.lon_range.minimum = p.ParametricValue(0.0)
+        region.lon_range.maximum = p.ParametricValue(0.0)
+        half = width / 2.0 / lane_width
         region.lat_range.minimum = p.ParametricValue(0.5 - half)
         region.lat_range.maximum = p.ParametricValue(0.5 + half)
         o.occupied_regions.append(region)
         v = o.velocity
-        v.speed_lon_min = v.speed_lon_max = p.Speed(speed)
+        v.speed_lon_min = v.speed_lon_max = p.Speed(0.0)
         v.speed_lat_min = v.speed_lat_max = p.Speed(0.0)
         s = o.state
         s.yaw, s.yaw_rate, s.steering_angle = p.Angle(0.0), p.AngularVelocity(0.0), p.Angle(0.0)
         s.center_point.x = s.center_point.y = p.Distance(0.0)
         s.dimension.length, s.dimension.width = p.Distance(length), p.Distance(width)
-        s.speed_range.minimum = s.speed_range.maximum = p.Speed(speed)
+        s.speed_range.minimum = s.speed_range.maximum = p.Speed(0.0)
         return o
 
     def respond(self, check: Any, model: Any) -> tuple[float, tuple[int, str] | None] | None:
@@ -496,3 +506,9 @@ class _RssWorld:
                 scene = str(individual.constellation_type).rsplit(".", 1)[-1]
                 return ceiling, (int(individual.object_id), scene)
         return ceiling, None
+
+
+def _parametric(place: float) -> float:
+    """A place on a scene's road as ad-rss takes it: its share of the road from ROAD_START
+    (out of range when the place is: ad-rss then refuses the scene, and says so)."""
+    return (place - ROAD_START) / ROAD_LENGTH
