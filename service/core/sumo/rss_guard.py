@@ -140,6 +140,8 @@ class RssGuard:
     by_car: dict[str, int] = field(default_factory=dict)
     first: dict[str, Any] | None = None
     current: Restriction | None = None
+    spans: list[dict[str, Any]] = field(default_factory=list)  # consecutive interventions
+    _last_step: int = -2
     _check: Any = None
     _world: Any = None
     _templates: dict[tuple[str, bool], Any] = field(default_factory=dict)
@@ -193,6 +195,7 @@ class RssGuard:
         self.interventions += 1
         self.braking += restriction.kind == "brake"
         self.by_car[restriction.car] = self.by_car.get(restriction.car, 0) + 1
+        self._record_span(t, restriction)
         if self.first is None:
             why = (
                 f"{restriction.scene} with {restriction.car}: "
@@ -201,6 +204,20 @@ class RssGuard:
             )  # fmt: skip
             self.first = {"t": round(t, 9), "car": restriction.car, "why": why}
         return restriction.ceiling
+
+    def _record_span(self, t: float, restriction: Restriction) -> None:
+        """Every intervention, as spans of consecutive steps with one car, scene and kind."""
+        what = {"car": restriction.car, "scene": restriction.scene, "kind": restriction.kind}
+        last = self.spans[-1] if self.spans else None
+        if (
+            last is not None
+            and self._last_step == self.steps - 1
+            and all(last[key] == value for key, value in what.items())
+        ):
+            last["to"] = round(t, 9)
+        else:
+            self.spans.append({"from": round(t, 9), "to": round(t, 9), **what})
+        self._last_step = self.steps
 
     def summary(self) -> dict[str, Any]:
         """What the verdict's ``guard`` field says."""
@@ -212,6 +229,7 @@ class RssGuard:
             "by_car": dict(sorted(self.by_car.items())),
             "fallback": self.fallback,
             "first": self.first,
+            "spans": [dict(span) for span in self.spans],
         }
 
     def priority(self, car: str, signals: str | None) -> str:

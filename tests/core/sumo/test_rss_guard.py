@@ -37,6 +37,12 @@ def test_a_car_crossing_ahead_with_priority_forces_braking() -> None:
     summary = guard.summary()
     assert (summary["interventions"], summary["braking"], summary["by_car"]) == (1, 1, {"car1": 1})
     assert summary["first"]["why"].startswith("IntersectionObjectHasPriority with car1: brake")
+    guard.step(0.1, CarState(-9.0, 10.0), {"car1": CarState(-9.0, 10.0)}, None)
+    guard.limit(0.1, 2.0)
+    assert guard.summary()["spans"] == [  # every intervention, consecutive steps joined
+        {"from": 0.0, "to": 0.1, "car": "car1", "scene": "IntersectionObjectHasPriority",
+         "kind": "brake"}
+    ]  # fmt: skip
 
 
 def test_a_car_far_away_or_gone_changes_nothing() -> None:
