@@ -181,7 +181,8 @@ def drive(
         if guard is not None:
             _observe(traci, plan, guard, step, row, present)
             if sumo_driven:
-                capped = _cap(traci, guard, row, timestep, capped, rolling)
+                resume = float(controller["rolling_speed"]) if rolling else -1.0
+                capped = _cap(traci, guard, row, timestep, capped, resume)
         if on_step is not None:
             stopped = on_step(traci, row, present)
             if stopped is not None:
@@ -207,16 +208,17 @@ def _observe(
     guard.step(row["t"], ego, others, colours)
 
 
-def _cap(traci: Any, guard: Any, row: Row, timestep: float, capped: bool, rolling: bool) -> bool:
+def _cap(traci: Any, guard: Any, row: Row, timestep: float, capped: bool, resume: float) -> bool:
     """Cap SUMO's driver at the guard's ceiling (its own safety checks stay on: the speed
-    set is an upper bound it may still undercut); hand the ego back when the guard lets
-    go. Whether the ego is capped now."""
+    set is an upper bound it may still undercut); when the guard lets go, hand the ego
+    back (``resume``: -1, or the rolling stop's speed while it rolls). Whether the ego is
+    capped now."""
     accel = guard.limit(row["t"], math.inf)
     if accel < math.inf:
         traci.vehicle.setSpeed(EGO, max(0.0, row["speed"] + accel * timestep))
         return True
-    if capped and not rolling:
-        traci.vehicle.setSpeed(EGO, -1)
+    if capped:
+        traci.vehicle.setSpeed(EGO, resume)
     return False
 
 
