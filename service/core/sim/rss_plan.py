@@ -16,6 +16,9 @@ priority there by the junction's control type:
   to stop before the area unless the other can).
 - signals: ``signal``: the guard compares both links' colours at every step; equal colours
   fall back on the left-turn rule (``tie``).
+
+Where the same priority remains, the guard gives it to the car that entered the conflict
+area first (a car already in the intersection: CVC 21800(a), 21802(b)).
 """
 
 from __future__ import annotations

@@ -145,6 +145,8 @@ class RssGuard:
     _check: Any = None
     _world: Any = None
     _templates: dict[tuple[str, bool], Any] = field(default_factory=dict)
+    _entered: dict[tuple[str, str], int] = field(default_factory=dict)  # (car, "ego" or
+    # "other"): the step that one's front first entered their conflict area
 
     def __post_init__(self) -> None:
         self.ego_dynamics, self.other_dynamics = dynamics_from(self.params)
@@ -176,6 +178,12 @@ class RssGuard:
         others = {car: CarState(*state) for car, state in others.items()}
         self.steps += 1
         relevant = {car: state for car, state in others.items() if car in self.cars}
+        for car, state in relevant.items():
+            spec = self.cars[car]
+            if "ego_area" in spec and ego.front > spec["ego_area"][0]:
+                self._entered.setdefault((car, "ego"), self.steps)
+            if "other_area" in spec and state.front > spec["other_area"][0]:
+                self._entered.setdefault((car, "other"), self.steps)
         self.current = None
         if self.fallback is None:
             try:
@@ -235,17 +243,25 @@ class RssGuard:
     def priority(self, car: str, signals: str | None) -> str:
         """``ego``, ``other`` or ``same`` for ``car`` now: at a signal, the better colour
         (G over g over yellow over red) goes first, equal colours fall back on the
-        junction's own rule (``tie``)."""
+        junction's own rule (``tie``). Where that leaves the same priority, the car that
+        entered their conflict area first goes first (CVC 21800(a), 21802(b): yield to a
+        car already in the junction); before either has, the same priority."""
         spec = self.cars[car]
-        if spec["priority"] != "signal":
-            return str(spec["priority"])
-        if signals is None:
-            return str(spec.get("tie", "same"))
-        own = _colour(signals, self.section.get("ego_link", -1))
-        theirs = _colour(signals, spec.get("link", -1))
-        if own == theirs:
-            return str(spec.get("tie", "same"))
-        return "ego" if own > theirs else "other"
+        found = str(spec["priority"])
+        if found == "signal":
+            own = _colour(signals, self.section.get("ego_link", -1))
+            theirs = _colour(signals, spec.get("link", -1))
+            found = str(spec.get("tie", "same"))
+            if own != theirs:
+                found = "ego" if own > theirs else "other"
+        if found != "same":
+            return found
+        ego, other = self._entered.get((car, "ego")), self._entered.get((car, "other"))
+        if ego is not None and (other is None or ego < other):
+            return "ego"
+        if other is not None and (ego is None or other < ego):
+            return "other"
+        return "same"
 
     def _rss_restriction(
         self, ego: CarState, others: dict[str, CarState], signals: str | None
@@ -359,8 +375,10 @@ def time_gap_ceiling(
     return brake if ego_in - ego_front <= stopping else 0.0
 
 
-def _colour(signals: str, link: int) -> int:
-    return SIGNAL_RANK.get(signals[link], 0) if 0 <= link < len(signals) else 0
+def _colour(signals: str | None, link: int) -> int:
+    if signals is None or not 0 <= link < len(signals):
+        return 0
+    return SIGNAL_RANK.get(signals[link], 0)
 
 
 class _Refused(Exception):

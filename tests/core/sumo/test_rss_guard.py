@@ -68,6 +68,16 @@ def test_the_signal_colours_decide_priority() -> None:
     assert guard.priority("car1", None) == "same"
 
 
+def test_with_the_same_priority_the_car_already_in_the_area_goes_first() -> None:
+    guard = RssGuard(_section("same"))
+    guard.step(0.0, CarState(-10.0, 5.0), {"car1": CarState(-10.0, 5.0)}, None)
+    assert guard.priority("car1", None) == "same"  # neither has entered
+    guard.step(0.1, CarState(6.0, 5.0), {"car1": CarState(-9.0, 5.0)}, None)
+    assert guard.priority("car1", None) == "ego"  # the ego is past 5 m: in the area
+    guard.step(0.2, CarState(7.0, 5.0), {"car1": CarState(6.0, 5.0)}, None)
+    assert guard.priority("car1", None) == "ego"  # and stays first
+
+
 def test_a_car_close_ahead_in_the_ego_lane_forces_braking() -> None:
     section = _section()
     section["cars"]["car1"] = {"relation": "same_route", "priority": "same", "length": 5.0}
