@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 
+from service.core.checker.verdict import Verdict
 from service.core.errors import InvalidInput
 from service.core.export.bundle import export_bundle
 from service.core.motion.poses import generate_poses
@@ -86,8 +87,20 @@ def test_a_user_controller_flooring_the_accelerator_is_restricted(
     assert any(b < a - 0.1 for a, b in itertools.pairwise(speeds))
 
 
-def test_guarded_names_cover_the_sumo_drivers_and_not_the_certificates() -> None:
+def test_guarded_names_cover_the_drivers_and_not_the_certificates(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from importlib.metadata import EntryPoint
+
+    import service.core.sim.controllers as controllers
+
+    registered = [EntryPoint("steady", "steady:Steady", controllers.ENTRY_POINT_GROUP)]
+    monkeypatch.setattr(controllers, "entry_points", lambda group: registered)
+    assert resolve_driver("steady+rss") == GuardedDriver(
+        "steady+rss", UserDriver("steady", "steady:Steady")
+    )
     names = controller_names()
+    assert "steady+rss" in names
     assert {"sumo+rss", "sumo-cautious+rss", "sumo-aggressive+rss"} <= set(names)
     assert not any(n.startswith("certificate:") and n.endswith("+rss") for n in names)
     guarded = resolve_driver("my.module:Driver+rss")
@@ -98,6 +111,13 @@ def test_guarded_names_cover_the_sumo_drivers_and_not_the_certificates() -> None
         resolve_driver("certificate:solvability+rss")
     with pytest.raises(InvalidInput, match="twice"):
         resolve_driver("sumo+rss+rss")
+
+
+def test_the_verdict_keeps_the_guard_through_json() -> None:
+    verdict = Verdict("t", "sumo+rss", True, 1.0, guard={"kind": "rss", "interventions": 3})
+    assert Verdict.from_dict(verdict.to_dict()) == verdict
+    assert verdict.to_dict()["guard"]["interventions"] == 3
+    assert Verdict.from_dict(Verdict("t", "sumo", True, 1.0).to_dict()).guard is None
 
 
 def test_the_bundle_runs_the_guard_and_falls_back_without_ad_rss(
