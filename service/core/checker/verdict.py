@@ -67,8 +67,8 @@ class Verdict:
     duration: float = 0.0
     errors: tuple[str, ...] = ()  # what stopped the ego's controller (an evaluation)
     # a guarded controller's record (service.core.sumo.rss_guard: kind, steps,
-    # interventions, braking, by_car, fallback, first); None: no guard
-    guard: dict[str, Any] | None = None
+    # interventions, braking, by_car, fallback, first, spans); None: no guard (not hashed)
+    guard: dict[str, Any] | None = field(default=None, hash=False)
 
     @property
     def passed(self) -> bool:
