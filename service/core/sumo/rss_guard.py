@@ -11,7 +11,8 @@ What the guard knows of the junction comes from the run plan's ``rss`` section, 
 scengen from its intersection model: for each relevant car, its relation to the ego
 (``crossing``, ``merge``, ``same_fork``, ``same_route``), the conflict area along both
 routes (metres from each car's stop line), and who has priority (``ego``, ``other``,
-``same``, or ``signal``: the signal colours decide at every step). Positions are metres of
+``same``, or ``signal``: the signal colours decide at every step; where the same priority
+remains, the car that entered the conflict area first has it). Positions are metres of
 the front bumper from the car's own stop line (negative before it).
 
 When ``ad_rss`` is not installed, or refuses a world model (it checks every input range),
