@@ -17,7 +17,7 @@ help:
 	@echo "make openapi  regenerate openapi/openapi.json from the app"
 	@echo "make lint     ruff and mypy --strict"
 	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
-	@echo "make bench    time the checker, the generator, the API and batch jobs (docs/benchmarks.md)"
+	@echo "make bench    time the checker, the RSS guard, the generator, the API and batch jobs (docs/benchmarks.md)"
 	@echo "make bench-generator   only the generator: targets, chain growth, Step 2 theories"
 	@echo "make bench-api / bench-jobs   one of those benchmarks"
 	@echo "make bench-reliability   hostile requests and 30 MB documents against a server (docs/reliability.md)"
@@ -82,6 +82,7 @@ demo: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/pip install --quiet -e '.[test,bench]'
 	$(BIN)/python -m bench.bench_check
+	$(BIN)/python -m bench.bench_rss
 	$(BIN)/python -m bench.bench_generate
 	$(BIN)/python -m bench.bench_chains
 	$(BIN)/python -m bench.bench_ordering

@@ -9,6 +9,7 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from service.cli.arguments import JUNIT, NETWORK_FILE, TESTCASE, read_input, testcase_intersection
 from service.cli.output import (
@@ -18,6 +19,7 @@ from service.cli.output import (
     EXIT_OK,
     StepProgress,
     exit_code,
+    guard_note,
     print_table,
     print_verdict,
     short,
@@ -30,6 +32,7 @@ from service.core.errors import InvalidInput, ScengenError
 from service.core.motion.trajectory import read_trajectory
 from service.core.sim.controllers import CertificateDriver, controller_names, resolve_driver
 from service.core.sim.replay import evaluate as evaluate_controller
+from service.core.sumo.rss_guard import GuardError, load_params
 
 
 @command(
@@ -89,21 +92,29 @@ def check(args: argparse.Namespace) -> int:
         metavar="SECONDS",
         help="time budget of each replay (default 60 s)",
     ),
+    arg(
+        "--rss-params",
+        type=Path,
+        metavar="FILE",
+        help="RSS dynamics (JSON) for the NAME+rss controllers, overriding CARLA's defaults "
+        "(docs/controllers.md)",
+    ),
     NETWORK_FILE,
     description="Replays each test-case in SUMO (non-egos exactly as recorded) with each "
     "controller driving the ego, and judges the ego with the checker. Controllers: "
     + ", ".join(controller_names())
-    + ", or a user controller as module:attribute.",
+    + ", or a user controller as module:attribute (NAME+rss: under the RSS guard).",
 )
 def evaluate(args: argparse.Namespace) -> int:
     controllers = args.controller or ["sumo"]
     drivers = [resolve_driver(name) for name in controllers]  # bad names fail before any replay
+    rss_params = _rss_params(args.rss_params)
     files = _testcase_files(args.testcases)
     if len(files) == 1 and len(controllers) == 1:  # one verdict: errors are the command's
         testcase = read_input(files[0])
         junction = testcase_intersection(testcase, args, files[0])
-        verdict = evaluate_controller(testcase, controllers[0], junction,
-                                      args.budget).verdict  # fmt: skip
+        verdict = evaluate_controller(testcase, controllers[0], junction, args.budget,
+                                      rss_params).verdict  # fmt: skip
         return _report_evaluations(args, [(verdict, files[0])], [], [], [])
     rows = [["test-case", "file", *controllers]]
     verdicts: list[tuple[Verdict, Path]] = []
@@ -129,18 +140,31 @@ def evaluate(args: argparse.Namespace) -> int:
                 steps.step(f"{label} / {name}: (none)")
                 continue
             try:
-                verdict = evaluate_controller(testcase, name, junction, args.budget).verdict
+                verdict = evaluate_controller(
+                    testcase, name, junction, args.budget, rss_params
+                ).verdict
             except ScengenError as error:
                 row.append("ERROR (below)")
                 problems.append((label, name, error))
                 steps.step(f"{label} / {name}: error")
                 continue
             verdicts.append((verdict, path))
-            row.append("pass" if verdict.passed else "FAIL: " + short(verdict))
+            cell = "pass" if verdict.passed else "FAIL: " + short(verdict)
+            row.append(cell + guard_note(verdict))
             steps.step(f"{label} / {name}: {'pass' if verdict.passed else 'FAIL'}")
         rows.append(row)
     steps.close()
     return _report_evaluations(args, verdicts, skipped, problems, rows)
+
+
+def _rss_params(path: Path | None) -> dict[str, Any] | None:
+    """``--rss-params``: the RSS dynamics file, checked (InvalidInput names the problem)."""
+    if path is None:
+        return None
+    try:
+        return load_params(path)
+    except GuardError as exc:
+        raise InvalidInput(str(exc)) from exc
 
 
 def _label(name: str, path: Path) -> str:

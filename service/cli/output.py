@@ -20,6 +20,7 @@ from service.core.checker.verdict import Verdict
 from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
 from service.core.files import replacing, write_atomically
 from service.core.motion.criticality import Criticality
+from service.core.sumo.run import guard_text
 from service.core.testcase import TestCase, dump_testcase, with_network_path
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
@@ -125,6 +126,8 @@ def print_verdict(verdict: Verdict) -> None:
         print(f"  reached its exit at {verdict.goal_time:.2f} s")
     for reason in verdict.reasons:
         print(f"  {reason}")
+    if verdict.guard is not None:
+        print(f"  {guard_text(verdict.guard)}")
     if verdict.criticality is not None:
         print(f"  {describe_criticality(verdict.criticality)}")
 
@@ -144,6 +147,14 @@ def describe_criticality(criticality: Criticality) -> str:
         else:
             parts.append(f"{name} {extreme.value:.2f} {unit} ({extreme.car} at {extreme.t:.2f} s)")
     return "criticality: " + ", ".join(parts)
+
+
+def guard_note(verdict: Verdict) -> str:
+    """A guarded verdict's table cell suffix: how often the guard intervened."""
+    if verdict.guard is None:
+        return ""
+    fallback = ", time-gap fallback" if verdict.guard.get("fallback") else ""
+    return f" [RSS {verdict.guard['interventions']}/{verdict.guard['steps']}{fallback}]"
 
 
 def progress(started: float) -> Callable[[str], None]:

@@ -325,6 +325,19 @@ def test_sumo_driver_is_judged(api: httpx.Client, chain: list[dict[str, Any]]) -
     assert ET.fromstring(reply.text).find("testsuite") is not None
 
 
+def test_a_guarded_controller_is_listed_and_judged(
+    api: httpx.Client, chain: list[dict[str, Any]]
+) -> None:
+    listed = {c["name"]: c["description"] for c in api.get("/controllers").json()}
+    assert "under the RSS guard" in listed["sumo+rss"]
+    reply = api.post(
+        "/evaluations", json={"testcase_id": chain[-1]["id"], "controller": "sumo+rss"}
+    )
+    assert reply.status_code == 201, reply.text
+    guard = reply.json()["verdict"]["guard"]
+    assert guard["kind"] == "rss" and guard["steps"] > 0 and guard["fallback"] is None
+
+
 def test_pictures(api: httpx.Client, chain: list[dict[str, Any]], town05: dict[str, Any]) -> None:
     png = api.get(chain[-1]["links"]["plot"])
     assert png.headers["content-type"] == "image/png" and png.content[:8] == b"\x89PNG\r\n\x1a\n"

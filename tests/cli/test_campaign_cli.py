@@ -109,6 +109,9 @@ def test_bad_campaign_input_is_a_one_line_error(tmp_path: Path) -> None:
     assert "valid routes" in wrong_route.stderr and "Traceback" not in wrong_route.stderr
     wrong_driver = scengen(*COMMAND[:-1], "no-such-driver", "-o", str(tmp_path / "b"))
     assert wrong_driver.returncode == 2 and "Traceback" not in wrong_driver.stderr
+    guarded_replay = scengen(*COMMAND[:-1], "certificate:complexity+rss", "-o", str(tmp_path / "g"))
+    assert guarded_replay.returncode == 2 and "cannot be guarded" in guarded_replay.stderr
+    assert "sumo-rolling-stop+rss" in guarded_replay.stderr  # the guarded ones it could use
     not_a_folder = scengen("report", str(tmp_path), "-o", str(tmp_path / "r.html"))
     assert not_a_folder.returncode == 2 and "not a campaign folder" in not_a_folder.stderr
 

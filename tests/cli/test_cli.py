@@ -477,6 +477,22 @@ def test_evaluate_one_passing_controller_exits_0(tmp_path: Path) -> None:
     assert result.stdout.startswith("PASS  4way-stop C S2C_1:C2W_1 level 0 / sumo-cautious")
 
 
+def test_evaluate_a_guarded_controller_with_rss_parameters(tmp_path: Path) -> None:
+    testcase = tmp_path / "left.json"
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "-o", str(testcase)]) == 0
+    params = tmp_path / "rss.json"
+    params.write_text('{"response_time": 0.5, "others": {"accel_max": 2.0}}')
+    result = run("evaluate", str(testcase), "--controller", "sumo+rss", "--rss-params", str(params))
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout.startswith("PASS  4way-stop C S2C_1:C2W_1 level 0 / sumo+rss")
+    assert "the RSS guard intervened at 0 of" in result.stdout  # nobody else: nothing to do
+    params.write_text('{"reaction_time": 0.5}')
+    refused = run(
+        "evaluate", str(testcase), "--controller", "sumo+rss", "--rss-params", str(params)
+    )
+    assert refused.returncode == 2 and "unknown RSS parameter 'reaction_time'" in refused.stderr
+
+
 def test_evaluate_with_a_budget_too_small_exits_3_without_a_verdict(tmp_path: Path) -> None:
     """The budget is the command's limit, not the controller's: an error, never a FAIL."""
     testcase = tmp_path / "left.json"
@@ -492,6 +508,8 @@ def test_evaluate_with_a_budget_too_small_exits_3_without_a_verdict(tmp_path: Pa
     [
         (["--controller", "autopilot"], "unknown controller 'autopilot'; valid: certificate"),
         (["--controller", "certificate:complexity"], "has none"),
+        (["--controller", "certificate:complexity+rss"], "cannot be guarded"),
+        (["--controller", "sumo+rss", "--rss-params", "missing.json"], "cannot read RSS"),
     ],
 )
 def test_evaluate_bad_input_exits_2(args: list[str], message: str, tmp_path: Path) -> None:

@@ -49,6 +49,19 @@ def test_a_batch_of_known_things_passes(store: Store, stored: str) -> None:
     check_references(batch, store)
 
 
+def test_guarded_controllers_are_known_and_guarded_certificates_are_not(
+    store: Store, stored: str
+) -> None:
+    batch = parse_batch({"items": [
+        {"kind": "evaluate", "testcase_id": stored, "controllers": ["sumo+rss"]},
+        {"kind": "campaign", "network": "y-uncontrolled", "all_egos": True, "depth": 1,
+         "chains": 1, "controllers": ["sumo-cautious+rss"]},
+        {"kind": "evaluate", "testcase_id": stored, "controllers": ["certificate:complexity+rss"]},
+    ]})  # fmt: skip
+    (found,) = unknown_references(batch, store)
+    assert found.startswith("items[2].controllers: 'certificate:complexity+rss' is not")
+
+
 def test_each_unknown_thing_is_named_with_the_choices(store: Store, stored: str) -> None:
     batch = parse_batch({"items": [
         {"kind": "extend", "testcase_id": "0123456789abcdef", "routes": ["a:b"]},

@@ -27,6 +27,7 @@ from service.api.schemas import (
 from service.api.state import State, Token, json_answer
 from service.core.checker.verdict import Verdict
 from service.core.sim.controllers import BUILT_IN, controller_names
+from service.core.sumo.rss_guard import RSS_SUFFIX
 from service.store import DRIVE_COLUMNS, EvaluationRecord
 
 router = APIRouter(tags=["evaluations"], route_class=OffLoopValidation)
@@ -53,11 +54,15 @@ def _answer(record: EvaluationRecord, junit: bool) -> Response:
 @router.get("/controllers", operation_id="list_controllers", tags=["evaluations"])
 async def list_controllers() -> list[Controller]:
     """The ego controllers installed on this server."""
-    names = controller_names()
-    return [
-        Controller(name=n, description=BUILT_IN[n].about if n in BUILT_IN else "plug-in")
-        for n in names
-    ]
+    return [Controller(name=n, description=_about(n)) for n in controller_names()]
+
+
+def _about(name: str) -> str:
+    """A controller's description: the built-in's, "plug-in", and under the RSS guard
+    (with CARLA's RSS dynamics: the API takes no others)."""
+    inner = name.removesuffix(RSS_SUFFIX)
+    about = BUILT_IN[inner].about if inner in BUILT_IN else "plug-in"
+    return about if inner == name else f"{about}, under the RSS guard (CARLA's RSS dynamics)"
 
 
 @router.post(

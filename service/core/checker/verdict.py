@@ -69,6 +69,9 @@ class Verdict:
     duration: float = 0.0
     errors: tuple[str, ...] = ()  # what stopped the ego's controller (an evaluation)
     criticality: Criticality | None = None  # how close it came (None: not measured)
+    # a guarded controller's record (service.core.sumo.rss_guard: kind, steps,
+    # interventions, braking, by_car, fallback, first, spans); None: no guard (not hashed)
+    guard: dict[str, Any] | None = field(default=None, hash=False)
 
     @property
     def passed(self) -> bool:
@@ -119,6 +122,7 @@ class Verdict:
             criticality=(
                 Criticality.from_dict(data["criticality"]) if data.get("criticality") else None
             ),
+            guard=data.get("guard"),
         )
 
     def to_junit(self) -> str:

@@ -6,6 +6,10 @@ like a non-ego). User controllers implement a small protocol: every step they ge
 ego can observe and return a longitudinal command (an acceleration); the route is fixed by
 the test-case. They are named ``module:attribute`` (a class or a factory called with no
 arguments) or registered under the entry-point group ``scengen.controllers``.
+
+``NAME+rss`` guards SUMO's drivers and user controllers with Responsibility-Sensitive
+Safety (service.core.sumo.rss_guard): the wrapped driver's acceleration is restricted to
+RSS's proper response every step. Certificates are replays, not drivers: they take no guard.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from importlib.metadata import entry_points
 from typing import Any, Protocol, runtime_checkable
 
 from service.core.errors import InvalidInput
+from service.core.sumo.rss_guard import RSS_SUFFIX
 
 ENTRY_POINT_GROUP = "scengen.controllers"
 LEADER_LOOKAHEAD = 100.0  # metres ahead of the ego's front within which a leader is reported
@@ -54,7 +59,15 @@ class UserDriver:
     reference: str  # module:attribute
 
 
-Driver = SumoDriver | CertificateDriver | UserDriver
+@dataclass(frozen=True)
+class GuardedDriver:
+    """A SUMO driver or a user controller under the RSS guard (``NAME+rss``)."""
+
+    name: str
+    inner: SumoDriver | UserDriver
+
+
+Driver = SumoDriver | CertificateDriver | UserDriver | GuardedDriver
 
 BUILT_IN: dict[str, SumoDriver | CertificateDriver] = {
     driver.name: driver
@@ -138,12 +151,28 @@ class Controller(Protocol):
 
 
 def controller_names() -> list[str]:
-    """Every name ``resolve_driver`` accepts besides ``module:attribute``."""
-    return sorted(BUILT_IN) + sorted(e.name for e in entry_points(group=ENTRY_POINT_GROUP))
+    """Every name ``resolve_driver`` accepts besides ``module:attribute`` (and
+    ``module:attribute+rss``): the built-in and registered controllers, and each of them
+    but the certificates guarded (``NAME+rss``)."""
+    plain = sorted(BUILT_IN) + sorted(e.name for e in entry_points(group=ENTRY_POINT_GROUP))
+    guarded = [name + RSS_SUFFIX for name in plain if not name.startswith("certificate:")]
+    return plain + guarded
 
 
 def resolve_driver(name: str) -> Driver:
-    """The driver called ``name``: built-in, registered entry point, or module:attribute."""
+    """The driver called ``name``: built-in, registered entry point, or module:attribute;
+    with ``+rss`` the same under the RSS guard (not a certificate)."""
+    if name.endswith(RSS_SUFFIX):
+        inner = resolve_driver(name.removesuffix(RSS_SUFFIX))
+        if isinstance(inner, CertificateDriver | GuardedDriver):
+            why = "twice" if isinstance(inner, GuardedDriver) else "(a certificate is a replay)"
+            guarded = [n for n in controller_names() if n.endswith(RSS_SUFFIX)]
+            raise InvalidInput(
+                f"controller {name!r}: {inner.name} cannot be guarded {why}; guarded "
+                f"controllers: {', '.join(guarded)}, or module:attribute+rss",
+                choices=controller_names(),
+            )
+        return GuardedDriver(name, inner)
     if name in BUILT_IN:
         return BUILT_IN[name]
     for entry in entry_points(group=ENTRY_POINT_GROUP):
@@ -154,7 +183,7 @@ def resolve_driver(name: str) -> Driver:
         return UserDriver(name, name)
     raise InvalidInput(
         f"unknown controller {name!r}; valid: {', '.join(controller_names())}, "
-        "or a user controller as module:attribute",
+        "or a user controller as module:attribute (module:attribute+rss under the RSS guard)",
         choices=controller_names(),
     )
 

@@ -42,12 +42,15 @@ from service.core.sim.controllers import (
     BUILT_IN,
     CertificateDriver,
     Driver,
+    GuardedDriver,
     SumoDriver,
     UserDriver,
     resolve_driver,
 )
 from service.core.sim.replay_child import run_replay
+from service.core.sim.rss_plan import rss_section
 from service.core.sumo import run as sumo_run
+from service.core.sumo.rss_guard import RSS_SUFFIX, GuardError, dynamics_from
 from service.core.testcase import TestCase, load_testcase_intersection
 
 REPLAY_BUDGET = 60.0  # seconds for one evaluation
@@ -177,7 +180,10 @@ def xml_file(root: str, lines: list[str]) -> str:
 
 
 def controller_spec(driver: Driver) -> dict[str, Any]:
-    """How the runner (service.core.sumo.run) drives the ego for ``driver``."""
+    """How the runner (service.core.sumo.run) drives the ego for ``driver``; a guarded
+    driver's has ``"guard": "rss"``."""
+    if isinstance(driver, GuardedDriver):
+        return {**controller_spec(driver.inner), "guard": "rss"}
     if isinstance(driver, SumoDriver):
         return {
             "kind": "sumo", "speed_mode": driver.speed_mode,
@@ -219,11 +225,13 @@ def run_plan(
     others: Sequence[Departure],
     network: str,
     signals: dict[str, Any] | None = None,
+    rss: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The runner's plan: its files, the time step, every car's departure (``departures``)
     and distance per step, the certificates, the signals (``signals_spec``: the program's
-    file, the traffic light and the ego's link index, or None), and the built-in
-    controllers (JSON, ``testcase.run.json``)."""
+    file, the traffic light and the ego's link index, or None), what the RSS guard needs
+    of the junction (``rss_section``), and the built-in controllers, SUMO's drivers also
+    guarded (``NAME+rss``) (JSON, ``testcase.run.json``)."""
     certificates = None
     if testcase.certificates is not None:
         certificates = {
@@ -262,7 +270,15 @@ def run_plan(
             "a_max": testcase.params.a_max,
             "v_max": testcase.params.v_max,
         },
-        "controllers": {name: controller_spec(d) for name, d in BUILT_IN.items()},
+        "rss": rss,
+        "controllers": {
+            **{name: controller_spec(d) for name, d in BUILT_IN.items()},
+            **{
+                name + RSS_SUFFIX: {**controller_spec(d), "guard": "rss"}
+                for name, d in BUILT_IN.items()
+                if isinstance(d, SumoDriver)
+            },
+        },
     }
 
 
@@ -278,7 +294,10 @@ def write_run_files(
     at a signalized junction the test-case's signal program (``sumo_signals``), and the
     plan (``network`` as the plan names it, relative to ``folder`` or absolute). The texts
     written, by file name."""
-    plan = run_plan(testcase, ego, others, network, signals_spec(testcase, intersection))
+    plan = run_plan(
+        testcase, ego, others, network, signals_spec(testcase, intersection),
+        rss_section(testcase, intersection),
+    )  # fmt: skip
     files = {
         TYPES_FILE: xml_file("additional", vtype_lines(ego, others, testcase)),
         ROUTES_FILE: xml_file("routes", vehicle_lines([ego, *others])),
@@ -298,27 +317,37 @@ def evaluate(
     controller: str,
     intersection: Intersection | None = None,
     budget: float = REPLAY_BUDGET,
+    rss_params: dict[str, Any] | None = None,
 ) -> Evaluation:
     """Replay ``testcase`` with ``controller`` driving the ego, in a child process under
     ``budget``, and judge the ego. A controller that raises fails; a replay that does not
     finish within ``budget`` is BudgetExceeded (the budget is the caller's limit, so it
-    gives no verdict: a controller that hangs is not told apart from a budget too small)."""
+    gives no verdict: a controller that hangs is not told apart from a budget too small).
+    A guarded controller (``NAME+rss``) uses ``rss_params`` (RSS dynamics overriding
+    CARLA's defaults, service.core.sumo.rss_guard) and its verdict says how often the
+    guard intervened (``guard``)."""
     driver = resolve_driver(controller)
+    if rss_params is not None:
+        try:
+            dynamics_from(rss_params)
+        except GuardError as exc:
+            raise InvalidInput(str(exc)) from exc
     if isinstance(driver, CertificateDriver) and testcase.certificates is None:
         raise InvalidInput(
             f"controller {driver.name} replays a certificate, but this test-case has none "
             "(only generated test-cases carry certificates)"
         )
     junction = intersection or load_testcase_intersection(testcase)
-    reference = driver.reference if isinstance(driver, UserDriver) else None
+    inner = driver.inner if isinstance(driver, GuardedDriver) else driver
+    reference = inner.reference if isinstance(inner, UserDriver) else None
     with tempfile.TemporaryDirectory(prefix="scengen-replay-") as folder:
         ego, others = departures(testcase, junction)
         network = str(junction.network_file.resolve())
         write_run_files(testcase, ego, others, Path(folder), network, junction)
         plan_file = str(Path(folder) / sumo_run.PLAN_FILE)
-        arguments = (plan_file, controller_spec(driver), driver.name, reference)
+        arguments = (plan_file, controller_spec(driver), driver.name, reference, rss_params)
         try:
-            rows, error = run_with_budget(run_replay, arguments, budget, "the replay")
+            rows, error, guard = run_with_budget(run_replay, arguments, budget, "the replay")
         except BudgetExceeded as exc:  # the server's limit: no verdict on the controller
             raise type(exc)(
                 f"{exc.message}; no verdict on {controller} (raise the evaluation's budget)",
@@ -327,11 +356,11 @@ def evaluate(
     samples = [row_sample(row, testcase.ego.length) for row in rows]
     if len(samples) < 2:
         verdict = _failed(testcase, controller, error or "the ego never moved in SUMO")
-        return Evaluation(verdict, samples, error)
+        return Evaluation(replace(verdict, guard=guard), samples, error)
     verdict = check_testcase(testcase, samples, controller, junction)
     if error is not None:
         verdict = replace(verdict, errors=(*verdict.errors, error))
-    return Evaluation(verdict, samples, error)
+    return Evaluation(replace(verdict, guard=guard), samples, error)
 
 
 def _failed(testcase: TestCase, controller: str, error: str) -> Verdict:

@@ -21,34 +21,49 @@ from service.core.sim.controllers import (
     load_user_controller,
 )
 from service.core.sumo import run as sumo_run
+from service.core.sumo.rss_guard import RssGuard
 
 Lanes = dict[str, float]  # a car's lanes in driving order, each with where it starts (m)
 
 
 def run_replay(
-    plan_file: str, controller: dict[str, Any], name: str, reference: str | None
-) -> tuple[list[sumo_run.Row], str | None]:
-    """Run the plan in libsumo; the ego's rows (front bumper) and what stopped it early.
-    ``reference``: a user controller's ``module:attribute``, driving the ego."""
+    plan_file: str,
+    controller: dict[str, Any],
+    name: str,
+    reference: str | None,
+    rss_params: dict[str, Any] | None = None,
+) -> tuple[list[sumo_run.Row], str | None, dict[str, Any] | None]:
+    """Run the plan in libsumo; the ego's rows (front bumper), what stopped it early, and
+    the RSS guard's summary (None: unguarded). ``reference``: a user controller's
+    ``module:attribute``, driving the ego; ``rss_params``: the guard's dynamics."""
     import libsumo
 
+    plan = sumo_run.load_plan(Path(plan_file))
+    guard = None
+    if controller.get("guard") == "rss":
+        guard = RssGuard(plan.get("rss") or {}, rss_params)
+    summary = guard.summary if guard is not None else (lambda: None)
     on_step = None
     if reference is not None:
         try:
             user = load_user_controller(reference)
         except ScengenError as exc:
-            return [], str(exc)
-        on_step = _user_step(user, name, sumo_run.load_plan(Path(plan_file)))
+            return [], str(exc), summary()
+        on_step = _user_step(user, name, plan, guard)
     try:
-        return sumo_run.run(libsumo, Path(plan_file), controller, on_step)
+        rows, error = sumo_run.run(libsumo, Path(plan_file), controller, on_step, guard=guard)
+        return rows, error, summary()
     except sumo_run.RunFailed as exc:
         raise SimulationFailed(str(exc)) from exc
     except libsumo.TraCIException as exc:
         raise SimulationFailed(f"SUMO refused the replay: {exc}") from exc
 
 
-def _user_step(user: Controller, name: str, plan: dict[str, Any]) -> sumo_run.OnStep:
-    """The runner's hook for a user controller: observe, ask, clip, set the ego's speed."""
+def _user_step(
+    user: Controller, name: str, plan: dict[str, Any], guard: RssGuard | None = None
+) -> sumo_run.OnStep:
+    """The runner's hook for a user controller: observe, ask, clip (to the RSS guard's
+    ceiling too, when guarded), set the ego's speed."""
     timestep = float(plan["timestep"])
     bounds = plan["bounds"]
     ego = plan["ego"]
@@ -81,7 +96,10 @@ def _user_step(user: Controller, name: str, plan: dict[str, Any]) -> sumo_run.On
                 raise ValueError(f"acceleration {command!r} is not a finite number")
         except Exception as exc:  # the user's code: any failure fails the evaluation
             return f"controller {name} raised {type(exc).__name__}: {exc}"
-        accel = min(max(command, bounds["a_min"]), bounds["a_max"])
+        accel = min(command, bounds["a_max"])
+        if guard is not None:
+            accel = guard.limit(row["t"], accel)
+        accel = max(accel, bounds["a_min"])
         new_speed = min(max(speed + accel * timestep, 0.0), bounds["v_max"])
         traci.vehicle.setSpeed(sumo_run.EGO, new_speed)
         return None

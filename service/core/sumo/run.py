@@ -15,13 +15,18 @@ free of scengen imports.
 
 In a bundle::
 
-    python run.py [--controller NAME] [--fcd-output FILE] [--traci] [--gui]
+    python run.py [--controller NAME] [--fcd-output FILE] [--rss-params FILE] [--traci] [--gui]
+
+``NAME+rss`` (e.g. ``sumo+rss``) drives with the RSS guard of ``rss_guard.py``, the file
+next to this one (it needs ``pip install ad-rss``; without it the guard says so and uses
+its time-gap rule).
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import json
 import math
 import os
@@ -106,13 +111,20 @@ def ego_signal(traci: Any, plan: dict[str, Any]) -> str | None:
 
 
 def drive(
-    traci: Any, plan: dict[str, Any], controller: dict[str, Any], on_step: OnStep | None = None
+    traci: Any,
+    plan: dict[str, Any],
+    controller: dict[str, Any],
+    on_step: OnStep | None = None,
+    guard: Any = None,
 ) -> tuple[list[Row], str | None]:
     """Run the started simulation step by step; the ego's rows and what stopped it early.
 
     ``controller``: ``{"kind": "sumo", "speed_mode", "stop_sign_wait", "rolling_speed"}``,
     ``{"kind": "certificate", "certificate": "solvability"|"complexity"}``, or
-    ``{"kind": "external"}`` (speed mode 0; ``on_step`` sets the ego's speed every step)."""
+    ``{"kind": "external"}`` (speed mode 0; ``on_step`` sets the ego's speed every step).
+    ``guard``: an RSS guard (rss_guard.RssGuard) told every car's state each step; SUMO's
+    driver is then capped to its ceiling (``setSpeed`` with SUMO's own checks on, -1 hands
+    the ego back), an ``on_step`` asks ``guard.limit`` for its command."""
     timestep = float(plan["timestep"])
     steps = int(plan["steps"])
     ego = plan["ego"]
@@ -125,7 +137,7 @@ def drive(
     sumo_driven = controller["kind"] == "sumo"
     moved = {car["id"]: car["start_on"] for car in (ego, *plan["nonegos"]) if car["start_on"]}
     rows: list[Row] = []
-    rolling = False
+    rolling = capped = False
     odometer = 0.0  # the ego's SUMO odometer at its start
     for step in range(steps + 1):
         traci.simulationStep()
@@ -166,11 +178,48 @@ def drive(
                 present.discard(car)  # gone for the controller too: SUMO no longer knows it
         if sumo_driven and controller.get("rolling_speed") is not None:
             rolling = _roll(traci, plan, controller, row, rolling)
+        if guard is not None:
+            _observe(traci, plan, guard, step, row, present)
+            if sumo_driven:
+                resume = float(controller["rolling_speed"]) if rolling else -1.0
+                capped = _cap(traci, guard, row, timestep, capped, resume)
         if on_step is not None:
             stopped = on_step(traci, row, present)
             if stopped is not None:
                 return rows, stopped
     return rows, None
+
+
+def _observe(
+    traci: Any, plan: dict[str, Any], guard: Any, step: int, row: Row, present: set[str]
+) -> None:
+    """Tell the guard where every car is: its front's metres from its own stop line (the
+    ego's from its odometer, a non-ego's from its trajectory) and its speed."""
+    cars = (plan.get("rss") or {}).get("cars", {})
+    others = {}
+    for car in plan["nonegos"]:
+        name = car["id"]
+        if name in present and name in cars and step < len(car["distances"]):
+            front = car["distances"][step] - cars[name]["stop_line"]
+            others[name] = (front, traci.vehicle.getSpeed(name))
+    ego = (row["odometer"] - float(plan["ego"]["start_distance"]), row["speed"])
+    signals = plan.get("signals")
+    colours = traci.trafficlight.getRedYellowGreenState(signals["tls"]) if signals else None
+    guard.step(row["t"], ego, others, colours)
+
+
+def _cap(traci: Any, guard: Any, row: Row, timestep: float, capped: bool, resume: float) -> bool:
+    """Cap SUMO's driver at the guard's ceiling (its own safety checks stay on: the speed
+    set is an upper bound it may still undercut); when the guard lets go, hand the ego
+    back (``resume``: -1, or the rolling stop's speed while it rolls). Whether the ego is
+    capped now."""
+    accel = guard.limit(row["t"], math.inf)
+    if accel < math.inf:
+        traci.vehicle.setSpeed(EGO, max(0.0, row["speed"] + accel * timestep))
+        return True
+    if capped:
+        traci.vehicle.setSpeed(EGO, resume)
+    return False
 
 
 def _roll(
@@ -204,6 +253,7 @@ def run(
     on_step: OnStep | None = None,
     program: str = "sumo",
     extra: tuple[str, ...] = (),
+    guard: Any = None,
 ) -> tuple[list[Row], str | None]:
     """Start SUMO (``traci`` is the libsumo or traci module) on the plan, drive, close."""
     plan = load_plan(plan_file)
@@ -212,7 +262,7 @@ def run(
         types = write_types(plan, folder, controller, Path(scratch) / "types.xml")
         traci.start([program, *sumo_arguments(plan, folder, types), *extra])
         try:
-            return drive(traci, plan, controller, on_step)
+            return drive(traci, plan, controller, on_step, guard)
         finally:
             traci.close()
 
@@ -260,6 +310,34 @@ def _sumo(use_traci: bool, name: str) -> tuple[Any, str]:
     return importlib.import_module("traci"), find_program(name)
 
 
+def load_guard(here: Path, plan: dict[str, Any], params_file: Path | None) -> Any:
+    """The RSS guard of ``rss_guard.py`` next to this file, for this plan."""
+    source = here / "rss_guard.py"
+    if not source.exists():
+        raise RunFailed(f"{source} is missing: the +rss controllers need it")
+    spec = importlib.util.spec_from_file_location("rss_guard", source)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["rss_guard"] = module  # dataclasses look their module up by name
+    spec.loader.exec_module(module)
+    params = module.load_params(params_file) if params_file is not None else None
+    return module.RssGuard(plan.get("rss") or {}, params)
+
+
+def guard_text(summary: dict[str, Any]) -> str:
+    """One line on what the guard did."""
+    text = (
+        f"the RSS guard intervened at {summary['interventions']} of {summary['steps']} steps "
+        f"({summary['braking']} braking)"
+    )
+    if summary.get("first"):
+        first = summary["first"]
+        text += f", first at {first['t']:.2f} s: {first['why']}"
+    if summary.get("fallback"):
+        text += f"; fell back on the time-gap rule: {summary['fallback']}"
+    return text
+
+
 def main(argv: list[str] | None = None) -> int:
     here = Path(__file__).resolve().parent
     parser = argparse.ArgumentParser(
@@ -270,6 +348,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--plan", type=Path, default=here / PLAN_FILE, help="the run plan")
     parser.add_argument("--controller", default="sumo", help="who drives the ego (default sumo)")
     parser.add_argument("--fcd-output", type=Path, default=Path("run.fcd.xml"), metavar="FILE")
+    parser.add_argument("--rss-params", type=Path, metavar="FILE", help="RSS dynamics (JSON) "
+                        "overriding CARLA's defaults, for a NAME+rss controller")  # fmt: skip
     parser.add_argument("--traci", action="store_true", help="use traci and the sumo binary, "
                         "not libsumo")  # fmt: skip
     parser.add_argument("--gui", action="store_true", help="watch it in sumo-gui (implies --traci)")
@@ -289,10 +369,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"run.py: {args.controller} replays a certificate, but this test-case has none",
               file=sys.stderr)  # fmt: skip
         return 2
+    guard = None
+    if controller.get("guard") == "rss":
+        try:
+            guard = load_guard(here, plan, args.rss_params)
+        except (RunFailed, ValueError) as exc:
+            print(f"run.py: cannot start the RSS guard: {exc}", file=sys.stderr)
+            return 2
     try:
         module, program = _sumo(args.gui or args.traci, "sumo-gui" if args.gui else "sumo")
         extra = ("--start", "--quit-on-end") if args.gui else ()
-        rows, _ = run(module, args.plan, controller, program=program, extra=extra)
+        rows, _ = run(module, args.plan, controller, program=program, extra=extra, guard=guard)
     except Exception as exc:  # SUMO's own errors: TraCIException, FatalTraCIError, ...
         print(f"run.py: SUMO failed: {exc}", file=sys.stderr)
         return 3
@@ -305,6 +392,8 @@ def main(argv: list[str] | None = None) -> int:
         else f"until it left the network at the end of its route at {last:.2f} s"
     )
     print(f"run.py: {args.controller} drove the ego {until}; wrote {args.fcd_output}")
+    if guard is not None:
+        print(f"run.py: {guard_text(guard.summary())}")
     testcase = os.path.relpath(here / "testcase.json")
     print(f"judge it: scengen check {testcase} --ego {args.fcd_output} "
           f"--controller {args.controller}")  # fmt: skip

@@ -1,0 +1,129 @@
+"""What the RSS guard (service.core.sumo.rss_guard) needs to know of the junction, from the
+intersection model: the run plan's ``rss`` section.
+
+For each non-ego that matters to the ego: its relation (``crossing`` or ``merge``: the
+routes' connecting lanes overlap; ``same_fork``: both queue on one incoming lane;
+``same_route``), the conflict area along both routes (metres from each stop line: where the
+overlap of the two connecting lanes begins and ends along each centreline), and who has
+priority there by the junction's control type:
+
+- ``priority_stop``: a car without a stop sign over one with it (CVC 22450, 21802); two
+  without: the left turn yields to the oncoming car (21801); two with: ``same`` (the first
+  to stop goes first, which RSS cannot know beforehand).
+- ``right_before_left``: the car on the right (21800(a)/(b)); head-on, the left turn yields
+  (21801); otherwise ``same``.
+- ``allway_stop``: ``same`` (the first to stop goes first: RSS then asks each car to be able
+  to stop before the area unless the other can).
+- signals: ``signal``: the guard compares both links' colours at every step; equal colours
+  fall back on the left-turn rule (``tie``).
+
+Where the same priority remains, the guard gives it to the car that entered the conflict
+area first (a car already in the intersection: CVC 21800(a), 21802(b)).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from shapely.geometry import LineString, Point
+
+from service.core.motion.poses import centre_to_front, start_distance_of
+from service.core.network import ControlType, Intersection, Route
+from service.core.network.model import Turn
+from service.core.testcase import TestCase
+
+
+def rss_section(testcase: TestCase, intersection: Intersection) -> dict[str, Any]:
+    """The plan's ``rss`` section for ``testcase`` (see the module docstring)."""
+    ego_route = intersection.route(testcase.ego.route.id)
+    cars: dict[str, Any] = {}
+    for nonego in testcase.nonegos:
+        route = intersection.route(nonego.route.id)
+        relation = _relation(intersection, ego_route, route)
+        if relation is None:
+            continue
+        first = nonego.trajectory[0]
+        front = centre_to_front(first.x, first.y, first.heading, nonego.length)
+        spec: dict[str, Any] = {
+            "relation": relation,
+            "length": nonego.length,
+            # metres from its start to its stop line: its front is at distance - stop_line
+            "stop_line": start_distance_of(intersection, route, front) + first.distance,
+            "link": route.link_index,
+        }
+        if relation in ("crossing", "merge"):
+            spec["ego_area"], spec["other_area"] = conflict_area(intersection, ego_route, route)
+            spec["ego_exit"] = intersection.connecting_lane_of(ego_route).length
+            spec["other_exit"] = intersection.connecting_lane_of(route).length
+            spec.update(priority(intersection, ego_route, route))
+        else:
+            spec["priority"] = "same"
+        cars[nonego.id] = spec
+    return {
+        "control": intersection.control.value,
+        "ego_length": testcase.ego.length,
+        "ego_link": ego_route.link_index,
+        "lane_width": intersection.connecting_lane_of(ego_route).width,
+        "cars": cars,
+    }
+
+
+def _relation(intersection: Intersection, ego: Route, other: Route) -> str | None:
+    if ego.id == other.id:
+        return "same_route"
+    if ego.fork == other.fork:
+        return "same_fork"
+    if other.id in intersection.conflicts.get(ego.id, frozenset()):
+        return "merge" if ego.exit == other.exit else "crossing"
+    return None
+
+
+def conflict_area(
+    intersection: Intersection, ego: Route, other: Route
+) -> tuple[list[float], list[float]]:
+    """Where the two connecting lanes overlap, as [start, end] metres along each route
+    from its stop line (the overlap's outline projected onto each centreline)."""
+    ego_lane = intersection.connecting_lane_of(ego)
+    other_lane = intersection.connecting_lane_of(other)
+    overlap = ego_lane.polygon.intersection(other_lane.polygon)
+    points = list(getattr(overlap, "exterior", LineString()).coords)
+    if not points:  # several pieces: their hull
+        points = list(overlap.convex_hull.exterior.coords)
+    return _along(ego_lane.centreline, points), _along(other_lane.centreline, points)
+
+
+def _along(line: LineString, points: list[tuple[float, ...]]) -> list[float]:
+    places = [float(line.project(Point(p[0], p[1]))) for p in points]
+    return [round(min(places), 3), round(max(places), 3)]
+
+
+def priority(intersection: Intersection, ego: Route, other: Route) -> dict[str, str]:
+    """``{"priority": ...}`` (and at a signal the ``tie``) for a crossing or merge."""
+    control = intersection.control
+    if control.signalized:
+        return {"priority": "signal", "tie": _left_turn_rule(intersection, ego, other)}
+    if control == ControlType.PRIORITY_STOP:
+        ego_stop = intersection.fork(ego.fork).stop_sign
+        other_stop = intersection.fork(other.fork).stop_sign
+        if ego_stop != other_stop:
+            return {"priority": "other" if ego_stop else "ego"}
+        if ego_stop:
+            return {"priority": "same"}
+        return {"priority": _left_turn_rule(intersection, ego, other)}
+    if control == ControlType.RIGHT_BEFORE_LEFT:
+        if other.fork in intersection.to_its_right.get(ego.fork, frozenset()):
+            return {"priority": "other"}
+        if ego.fork in intersection.to_its_right.get(other.fork, frozenset()):
+            return {"priority": "ego"}
+        return {"priority": _left_turn_rule(intersection, ego, other)}
+    return {"priority": "same"}
+
+
+def _left_turn_rule(intersection: Intersection, ego: Route, other: Route) -> str:
+    """CVC 21801: head-on, a left turn yields to the oncoming car that does not turn left."""
+    if other.fork not in intersection.opposite.get(ego.fork, frozenset()):
+        return "same"
+    ego_left, other_left = ego.turn == Turn.LEFT, other.turn == Turn.LEFT
+    if ego_left == other_left:
+        return "same"
+    return "other" if ego_left else "ego"

@@ -1,0 +1,120 @@
+"""The RSS guard on its own: real ad-rss, situations set by hand (no SUMO)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from service.core.sumo.rss_guard import (
+    CARLA_DYNAMICS,
+    CarState,
+    GuardError,
+    RssGuard,
+    dynamics_from,
+    load_params,
+)
+
+
+def _section(priority: str = "other", **car: Any) -> dict[str, Any]:
+    """The ego and one car whose route crosses the ego's 5-10 m past both stop lines."""
+    spec = {"relation": "crossing", "priority": priority, "length": 5.0, "stop_line": 0.0,
+            "ego_area": [5.0, 10.0], "other_area": [5.0, 10.0], "link": 1, **car}  # fmt: skip
+    return {"ego_length": 5.0, "lane_width": 3.2, "ego_link": 0, "cars": {"car1": spec}}
+
+
+def test_a_car_crossing_ahead_with_priority_forces_braking() -> None:
+    guard = RssGuard(_section("other"))
+    restriction = guard.step(0.0, CarState(-10.0, 10.0), {"car1": CarState(-10.0, 10.0)}, None)
+    assert guard.fallback is None
+    assert restriction is not None and restriction.kind == "brake"
+    assert restriction.ceiling == CARLA_DYNAMICS["brake_min"]
+    assert (restriction.car, restriction.scene) == ("car1", "IntersectionObjectHasPriority")
+    assert guard.limit(0.0, 2.0) == CARLA_DYNAMICS["brake_min"]
+    assert guard.limit(0.0, -6.0) == -6.0  # braking harder than RSS asks is the driver's
+    summary = guard.summary()
+    assert (summary["interventions"], summary["braking"], summary["by_car"]) == (1, 1, {"car1": 1})
+    assert summary["first"]["why"].startswith("IntersectionObjectHasPriority with car1: brake")
+    guard.step(0.1, CarState(-9.0, 10.0), {"car1": CarState(-9.0, 10.0)}, None)
+    guard.limit(0.1, 2.0)
+    assert guard.summary()["spans"] == [  # every intervention, consecutive steps joined
+        {"from": 0.0, "to": 0.1, "car": "car1", "scene": "IntersectionObjectHasPriority",
+         "kind": "brake"}
+    ]  # fmt: skip
+
+
+def test_a_car_far_away_or_gone_changes_nothing() -> None:
+    guard = RssGuard(_section("other"))
+    assert guard.step(0.0, CarState(-10.0, 10.0), {"car1": CarState(-200.0, 5.0)}, None) is None
+    # car1 has cleared the conflict area (its rear past 10 m): it no longer matters
+    assert guard.step(0.1, CarState(-10.0, 10.0), {"car1": CarState(16.0, 10.0)}, None) is None
+    assert guard.step(0.2, CarState(-10.0, 10.0), {}, None) is None
+    assert guard.limit(0.2, 3.0) == 3.0
+    assert guard.summary()["interventions"] == 0
+
+
+def test_the_ego_with_priority_is_not_braked_for_the_yielding_car() -> None:
+    guard = RssGuard(_section("ego"))
+    assert guard.step(0.0, CarState(-30.0, 10.0), {"car1": CarState(-30.0, 10.0)}, None) is None
+
+
+def test_the_signal_colours_decide_priority() -> None:
+    guard = RssGuard(_section("signal", tie="same"))
+    assert guard.priority("car1", "Gr") == "ego"
+    assert guard.priority("car1", "rG") == "other"
+    assert guard.priority("car1", "gg") == "same"
+    assert guard.priority("car1", None) == "same"
+
+
+def test_with_the_same_priority_the_car_already_in_the_area_goes_first() -> None:
+    guard = RssGuard(_section("same"))
+    guard.step(0.0, CarState(-10.0, 5.0), {"car1": CarState(-10.0, 5.0)}, None)
+    assert guard.priority("car1", None) == "same"  # neither has entered
+    guard.step(0.1, CarState(6.0, 5.0), {"car1": CarState(-9.0, 5.0)}, None)
+    assert guard.priority("car1", None) == "ego"  # the ego is past 5 m: in the area
+    guard.step(0.2, CarState(7.0, 5.0), {"car1": CarState(6.0, 5.0)}, None)
+    assert guard.priority("car1", None) == "ego"  # and stays first
+
+
+def test_a_car_close_ahead_in_the_ego_lane_forces_braking() -> None:
+    section = _section()
+    section["cars"]["car1"] = {"relation": "same_route", "priority": "same", "length": 5.0}
+    guard = RssGuard(section)
+    restriction = guard.step(0.0, CarState(-30.0, 10.0), {"car1": CarState(-20.0, 10.0)}, None)
+    assert restriction is not None and restriction.scene == "SameDirection"
+
+
+def test_a_situation_ad_rss_refuses_is_reported_and_the_time_gap_rule_takes_over() -> None:
+    guard = RssGuard(_section("other"))
+    far = 5e9  # beyond ad-rss's input range (1e9 m)
+    guard.step(0.0, CarState(-10.0, 10.0), {"car1": CarState(-10.0 - far, 10.0)}, None)
+    assert guard.fallback is not None and "could not model" in guard.fallback
+    restriction = guard.step(0.1, CarState(-10.0, 10.0), {"car1": CarState(-10.0, 10.0)}, None)
+    assert restriction is not None and restriction.scene == "time gap (intersection)"
+    assert guard.summary()["fallback"] == guard.fallback
+
+
+def test_without_ad_rss_the_time_gap_rule_brakes_and_says_so() -> None:
+    guard = RssGuard(_section("other"), use_ad_rss=False)
+    assert guard.fallback is not None
+    restriction = guard.step(0.0, CarState(-10.0, 10.0), {"car1": CarState(-10.0, 10.0)}, None)
+    assert restriction is not None and restriction.kind == "brake"
+    # far from its area the ego may keep its speed but not accelerate
+    restriction = guard.step(0.1, CarState(-60.0, 10.0), {"car1": CarState(-50.0, 10.0)}, None)
+    assert restriction is not None and restriction.kind == "no-accel"
+
+
+def test_rss_parameters_override_carla_defaults_and_bad_ones_are_named(tmp_path: Path) -> None:
+    ego, others = dynamics_from({"response_time": 0.5, "others": {"accel_max": 2.0}})
+    assert (ego["response_time"], ego["accel_max"]) == (0.5, 3.5)
+    assert (others["response_time"], others["accel_max"]) == (0.5, 2.0)
+    with pytest.raises(GuardError, match=r"unknown RSS parameter 'reaction'.*response_time"):
+        dynamics_from({"reaction": 1.0})
+    with pytest.raises(GuardError, match="brake_max <= brake_min"):
+        dynamics_from({"brake_min": -9.0})
+    path = tmp_path / "rss.json"
+    path.write_text(json.dumps({"brake_min": "hard"}))
+    with pytest.raises(GuardError, match="must be a number"):
+        load_params(path)
