@@ -203,7 +203,7 @@ def _broken(testcase: TestCase) -> list[str]:
 
 def _compact(verdict: dict[str, Any]) -> dict[str, Any]:
     """What a campaign keeps of a verdict: the cause the paper's table shows, and the
-    criticality measures and the guard's record as the verdict has them (null if not)."""
+    criticality measures and the guard's counts as the verdict has them (null if not)."""
     return {
         "evaluation": verdict.get("evaluation"),
         "passed": bool(verdict["passed"]),
@@ -214,8 +214,15 @@ def _compact(verdict: dict[str, Any]) -> dict[str, Any]:
         "reasons": list(verdict["reasons"]),
         "cause": failure_cause(verdict),
         "criticality": verdict.get("criticality"),
-        "guard": verdict.get("guard"),
+        "guard": _guard_counts(verdict.get("guard")),
     }
+
+
+def _guard_counts(guard: dict[str, Any] | None) -> dict[str, Any] | None:
+    """The guard's record without its spans (they stay in the stored evaluation)."""
+    if guard is None:
+        return None
+    return {key: value for key, value in guard.items() if key != "spans"}
 
 
 def _covered_routes(

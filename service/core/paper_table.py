@@ -6,7 +6,9 @@ holds one verdict (``pass``, ``FAIL 21800(a) car2``, ``FAIL collision car3``, ``
 ``FAIL error``) or, when a level holds several test-cases (a campaign's chains), how many
 failed and their most common cause (``2/3 FAIL 21800(a)``; ``pass 3/3`` when none did).
 A verdict fails for one shown cause: a collision first, then the first rule it broke, then
-an error of its controller, then the goal it missed.
+an error of its controller, then the goal it missed. A cell of one verdict also says how
+close the run came (its smallest time-to-collision) and, for a guarded controller, at how
+many of its steps the guard intervened: ``pass (TTC 2.6 s, RSS 8/199)``.
 """
 
 from __future__ import annotations
@@ -74,11 +76,26 @@ def paper_cell(verdicts: Sequence[Mapping[str, Any]]) -> str:
     causes = [failure_cause(v) for v in verdicts]
     failed = [c for c in causes if c is not None]
     if len(verdicts) == 1:
-        return "pass" if not failed else f"FAIL {cause_text(failed[0])}"
+        shown = "pass" if not failed else f"FAIL {cause_text(failed[0])}"
+        return shown + closeness(verdicts[0])
     if not failed:
         return f"pass {len(verdicts)}/{len(verdicts)}"
     common = Counter(cause_text(c, with_car=False) for c in failed).most_common(1)[0][0]
     return f"{len(failed)}/{len(verdicts)} FAIL {common}"
+
+
+def closeness(verdict: Mapping[str, Any]) -> str:
+    """How close one run came and how often its guard stepped in, for a cell:
+    `` (TTC 2.6 s, RSS 8/199)``; empty when the verdict has neither."""
+    parts = []
+    ttc = ((verdict.get("criticality") or {}).get("overall") or {}).get("ttc")
+    if ttc is not None:
+        parts.append(f"TTC {ttc['value']:.1f} s")
+    guard = verdict.get("guard")
+    if guard is not None:
+        fallback = " time-gap" if guard.get("fallback") else ""
+        parts.append(f"RSS{fallback} {guard['interventions']}/{guard['steps']}")
+    return f" ({', '.join(parts)})" if parts else ""
 
 
 @dataclass(frozen=True)

@@ -310,7 +310,7 @@ def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
             "t-junction, the paper's table (seed 0):\n"
             "controller              level 0  level 1\n"
             "sumo                    pass     pass\n"
-            "certificate:complexity  —        FAIL 21801(a) car1\n"
+            "certificate:complexity  —        FAIL 21801(a) car1 (TTC 1.5 s)\n"
         ), result.stdout
     else:
         assert "the paper's table" not in result.stdout

@@ -138,9 +138,9 @@ def test_criticality_by_level_and_the_papers_table_in_the_outcome() -> None:
                              "car": "car2"}  # fmt: skip
     assert kept["criticality"]["overall"]["ttc"]["value"] == 2.0 and kept["guard"] is None
     assert campaign_paper_table(outcome).text() == (
-        "controller  level 0  level 1  level 2            level 3\n"
-        "strong      pass     pass     pass 2/2           pass 2/2\n"
-        "weak        pass     pass     2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n"
+        "controller  level 0  level 1           level 2            level 3\n"
+        "strong      pass     pass              pass 2/2           pass 2/2\n"
+        "weak        pass     pass (TTC 3.5 s)  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n"
     )
     rows = criticality_table(outcome, "weak")
     assert rows is not None and rows[0][:3] == ["level", "failed", "TTC (s)"]

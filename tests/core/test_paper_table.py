@@ -84,3 +84,15 @@ def test_the_table_reads_as_the_papers_in_text_and_markdown() -> None:
         "| sumo | pass | pass | FAIL 21800(a) car2 |\n"
         "| sumo+rss | pass | pass | — |\n"
     )
+
+
+def test_a_cell_of_one_run_says_how_close_it_came_and_how_often_the_guard_stepped_in() -> None:
+    verdict = {
+        "passed": True,
+        "criticality": {"overall": {"ttc": {"value": 2.58, "car": "car3", "t": 5.0}}},
+        "guard": {"kind": "rss", "steps": 199, "interventions": 8, "fallback": None},
+    }
+    assert paper_cell([verdict]) == "pass (TTC 2.6 s, RSS 8/199)"
+    fallen_back = {**verdict, "guard": {**verdict["guard"], "fallback": "ad_rss missing"}}
+    assert paper_cell([fallen_back]) == "pass (TTC 2.6 s, RSS time-gap 8/199)"
+    assert paper_cell([verdict, verdict]) == "pass 2/2"  # several runs: the shares only
