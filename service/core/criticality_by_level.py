@@ -8,10 +8,12 @@ deceleration needed to avoid a crash (``drac``, m/s²); each is null when it nev
 (no car on a collision course: no TTC). A level's distribution of a measure is over the
 verdicts that have it: count, min, quartiles, median, max and the values themselves.
 
-Criticality grows from one level to the next when the median is more critical: TTC, PET
-and distance smaller, DRAC larger (strictly). A measure grows with complexity when it
-grows at every step between the levels that have it (at least two); where it does not,
-the step is named.
+A measure is more critical at one level than at another when its median is: TTC, PET and
+distance smaller, DRAC larger. It grows with complexity, over the levels that have it (at
+least two), when no step between consecutive levels makes it less critical and the last
+level is more critical than the first; the steps where it falls back (``breaks``) and
+those where it stays the same (``flat``: a new car that never came closer than the old
+ones leaves the smallest TTC where it was) are named.
 """
 
 from __future__ import annotations
@@ -72,15 +74,15 @@ def _more_critical(measure: str, before: float, after: float) -> bool:
 def measure_trend(measure: str, levels: Sequence[tuple[int, Mapping[str, Any]]]) -> dict[str, Any]:
     """One measure over ``levels`` (level, ``level_criticality``): the medians by level,
     ``grows`` (None with fewer than two levels measured) and the steps where it does not
-    (``breaks``: [from level, to level])."""
+    (``breaks``: [from level, to level], less critical) or where it stays (``flat``)."""
     medians = [[n, found[measure]["median"]] for n, found in levels if found.get(measure)]
-    breaks = [
-        [a, b]
-        for (a, before), (b, after) in itertools.pairwise(medians)
-        if not _more_critical(measure, before, after)
-    ]
-    grows = None if len(medians) < 2 else not breaks
-    return {"medians": medians, "grows": grows, "breaks": breaks}
+    steps = list(itertools.pairwise(medians))
+    breaks = [[a, b] for (a, before), (b, after) in steps if _more_critical(measure, after, before)]
+    flat = [[a, b] for (a, before), (b, after) in steps if before == after]
+    grows = None
+    if len(medians) >= 2:
+        grows = not breaks and _more_critical(measure, medians[0][1], medians[-1][1])
+    return {"medians": medians, "grows": grows, "breaks": breaks, "flat": flat}
 
 
 def criticality_trend(levels: Sequence[tuple[int, Mapping[str, Any]]]) -> dict[str, Any]:
@@ -103,8 +105,9 @@ def _summary(grows: bool | None, trends: Mapping[str, Mapping[str, Any]]) -> str
         medians = " → ".join(f"{m:g}" for _, m in trend["medians"])
         levels = "–".join(str(trend["medians"][k][0]) for k in (0, -1))
         said = f"median {LABELS[measure]} {medians} {UNITS[measure]} (levels {levels})"
-        if trend["breaks"]:
-            steps = ", ".join(f"{a} → {b}" for a, b in trend["breaks"])
-            said += f", not from level {steps}"
+        for key, how in (("breaks", "less critical"), ("flat", "unchanged")):
+            if trend[key]:
+                steps = ", ".join(f"{a} → {b}" for a, b in trend[key])
+                said += f", {how} from level {steps}"
         parts.append(said)
     return ("grows: " if grows else "does not grow: ") + "; ".join(parts)

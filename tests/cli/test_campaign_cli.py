@@ -133,14 +133,14 @@ def test_the_summary_prints_the_papers_table_and_criticality_by_level(
                "--controller", "strong", "--controller", "weak", "-o", str(tmp_path)]  # fmt: skip
     assert main([*command, "--table", "paper"]) == 1
     out = capsys.readouterr().out
-    assert "weak        pass     pass     2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n" in out
+    assert "weak        pass     pass (TTC 3.5 s)  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n" in out
     assert "criticality of weak by level (median (min–max) n=test-cases that have it):" in out
     assert re.search(r"^2 +2/2 +2\.25 \(2–2\.5\) n=2 +— +— +4\.5 \(4–5\) n=2$", out, re.M), out
     assert "criticality of weak grows: median TTC 3.5 → 2.25 → 1.25 s (levels 1–3)" in out
     assert "criticality of strong does not grow: median distance 5 → 5 → 5 m" in out
     assert main([*command, "--markdown"]) == 1
     assert (
-        "| weak | pass | pass | 2/2 FAIL 21800(a) | 2/2 FAIL 21800(a) |" in capsys.readouterr().out
+        "| weak | pass | pass (TTC 3.5 s) | 2/2 FAIL 21800(a) | 2/2 FAIL 21800(a) |" in capsys.readouterr().out
     )
 
 

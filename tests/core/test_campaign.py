@@ -132,7 +132,8 @@ def test_criticality_by_level_and_the_papers_table_in_the_outcome() -> None:
     # level 1 is one test-case (both chains add r1 first): chain 2's, with seed 8
     assert trend["weak"]["measures"]["ttc"]["medians"] == [[1, 3.5], [2, 2.25], [3, 1.25]]
     assert trend["strong"]["grows"] is False  # 5 m at every level: no closer call
-    assert trend["strong"]["measures"]["distance"]["breaks"] == [[1, 2], [2, 3]]
+    assert trend["strong"]["measures"]["distance"]["flat"] == [[1, 2], [2, 3]]
+    assert trend["strong"]["measures"]["distance"]["breaks"] == []
     kept = outcome["chains"][0]["levels"][2]["verdicts"]["weak"]
     assert kept["cause"] == {"kind": "rule", "rule": "yieldToInside", "law": "21800(a)",
                              "car": "car2"}  # fmt: skip
@@ -162,7 +163,7 @@ def test_a_campaign_without_criticality_says_so_and_keeps_its_tables() -> None:
     outcome = run_campaign(plan(chains=1), FakeSteps(), RULES)
     assert outcome["criticality_trend"]["weak"] == {
         "grows": None, "summary": "not measured on two levels or more",
-        "measures": {m: {"medians": [], "grows": None, "breaks": []}
+        "measures": {m: {"medians": [], "grows": None, "breaks": [], "flat": []}
                      for m in ("ttc", "pet", "drac", "distance")},
     }  # fmt: skip
     assert criticality_table(outcome, "weak") is None

@@ -62,7 +62,7 @@ def test_criticality_grows_when_every_median_gets_more_critical() -> None:
     trend = criticality_trend(levels)
     assert trend["grows"] is True
     assert trend["measures"]["ttc"] == {
-        "medians": [[1, 2.5], [2, 1.5], [3, 1.0]], "grows": True, "breaks": []
+        "medians": [[1, 2.5], [2, 1.5], [3, 1.0]], "grows": True, "breaks": [], "flat": []
     }  # fmt: skip
     assert trend["summary"].startswith("grows: median TTC 2.5 → 1.5 → 1 s (levels 1–3);")
     # DRAC grows by rising; PET falling back up at level 3 is where it breaks
@@ -70,7 +70,7 @@ def test_criticality_grows_when_every_median_gets_more_critical() -> None:
     trend = criticality_trend(levels)
     assert trend["grows"] is False and trend["measures"]["drac"]["grows"] is True
     assert trend["measures"]["pet"]["breaks"] == [[2, 3]]
-    assert "median PET 2 → 1 → 1.2 s (levels 1–3), not from level 2 → 3" in trend["summary"]
+    assert "median PET 2 → 1 → 1.2 s (levels 1–3), less critical from level 2 → 3" in trend["summary"]
     assert trend["summary"].startswith("does not grow: ")
     alone = criticality_trend(levels[:2])  # one level measured: nothing to compare
     assert alone["grows"] is None and alone["summary"] == "not measured on two levels or more"
