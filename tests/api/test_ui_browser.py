@@ -289,6 +289,15 @@ def test_campaign_matrix_opens_the_replay_of_that_evaluation(
     page.goto(f"{server.url}/ui/#/evaluations")
     page.wait_for_selector("td.cell a")
     assert page.locator("td.cell a").count() == 3 * 2  # three test-cases, two controllers
+    guarded = server.client.post(  # the RSS guard's record beside the measures
+        "/evaluations", json={"testcase_id": level["testcase"], "controller": "sumo+rss"},
+        headers={"Authorization": f"Bearer {TOKEN}"},
+    ).json()  # fmt: skip
+    page.goto(f"{server.url}/ui/#/replay/{guarded['id']}")
+    page.wait_for_selector("#guard")
+    guard = guarded["verdict"]["guard"]
+    said = page.locator("#guard").inner_text()
+    assert f"Intervened at {guard['interventions']} of {guard['steps']} steps" in said
     assert external(server, requested) == []
 
 

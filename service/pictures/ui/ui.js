@@ -652,8 +652,21 @@ async function replayPage(id) {
     samples.length ? null : h("p", { class: "muted" }, "This evaluation was stored before drives were kept: the ego is not shown."),
     h("div", { class: "row" }, h("div", { class: "card" }, player.element, player.legend()), h("div", { class: "card" }, h("h2", {}, "Time and distance"), timeDistance(tracks, testcase.duration))),
     criticalityTable(verdict.criticality),
+    verdict.guard ? guardCard(verdict.guard) : null,
   );
   player.seek(0);
+}
+
+// a guarded controller's record (docs/controllers.md): how often the RSS guard cut the
+// controller's acceleration, for which car, and each span of steps it did
+function guardCard(guard) {
+  const byCar = Object.entries(guard.by_car).map(([car, n]) => `${car} ${n}`).join(", ") || "none";
+  const spans = (guard.spans || []).map((s) => [`${s.from.toFixed(2)}–${s.to.toFixed(2)} s`, s.car, s.scene, s.kind]);
+  return h("div", { id: "guard", class: "card" }, h("h2", {}, "RSS guard"),
+    h("p", {}, `Intervened at ${guard.interventions} of ${guard.steps} steps (${guard.braking} braking); by car: ${byCar}.`,
+      guard.first ? ` First at ${guard.first.t.toFixed(2)} s: ${guard.first.why}.` : ""),
+    guard.fallback ? h("p", { class: "fail" }, `ad-rss was not used: ${guard.fallback}; the time-gap rule guarded instead.`) : null,
+    spans.length ? h("details", {}, h("summary", {}, `${spans.length} spans of steps`), table(["when", "car", "scene", "restriction"], spans)) : null);
 }
 
 // how close the ego came to a crash (README, Criticality): overall, then against each car
