@@ -19,7 +19,7 @@ Three chains per ego route, depth 5, seed 0, test-cases of 45 s (room for deep c
 in bench_chains). Run with `make campaign-curve` (both groups, about an hour on two cores)
 or `python -m bench.campaign_curve signals` (one group; the other's block is kept).
 Campaign folders go to build/campaigns/; run it again and finished campaigns are read
-back, not grown again.
+back, not grown again (the criticality's trend is judged anew from their levels).
 """
 
 from __future__ import annotations
@@ -133,7 +133,7 @@ def table(outcome: dict[str, Any]) -> list[str]:
 def criticality_table(outcome: dict[str, Any]) -> list[str]:
     """Each controller's median of each criticality measure by level, and whether it grows
     (nothing when no verdict was measured: a campaign stored before verdicts had it)."""
-    from service.core.criticality_by_level import LABELS, MEASURES, UNITS
+    from service.core.criticality_by_level import LABELS, MEASURES, UNITS, criticality_trend
 
     levels = outcome["levels"]
     if not any(lv["controllers"][c].get("criticality", {}).get("measured")
@@ -143,14 +143,18 @@ def criticality_table(outcome: dict[str, Any]) -> list[str]:
     lines = [f"| controller | median of | {head} | grows with the level |",
              "|---|---|" + "---:|" * len(levels) + "---|"]  # fmt: skip
     for name in CONTROLLERS:
-        trend = outcome["criticality_trend"][name]
+        trend = criticality_trend([(lv["level"], lv["controllers"][name]["criticality"])
+                                   for lv in levels])  # fmt: skip
         for measure in MEASURES:
             spreads = [lv["controllers"][name]["criticality"][measure] for lv in levels]
             cells = ["—" if s is None else f"{s['median']:g}" for s in spreads]
             said = trend["measures"][measure]
             grows = {True: "yes", False: "no", None: "—"}[said["grows"]]
-            if said["breaks"]:
-                grows += " (not " + ", ".join(f"L{a}→L{b}" for a, b in said["breaks"]) + ")"
+            where = [f"{how} " + ", ".join(f"L{a}→L{b}" for a, b in said[key])
+                     for key, how in (("breaks", "less critical"), ("flat", "unchanged"))
+                     if said[key]]  # fmt: skip
+            if where:
+                grows += f" ({'; '.join(where)})"
             lines.append(f"| {name} | {LABELS[measure]} ({UNITS[measure]}) | "
                          + " | ".join(cells) + f" | {grows} |")  # fmt: skip
     return lines
