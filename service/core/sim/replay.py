@@ -274,7 +274,7 @@ def run_plan(
         "controllers": {
             **{name: controller_spec(d) for name, d in BUILT_IN.items()},
             **{
-                name + RSS_SUFFIX: {**controller_spec(d), "guard": "rss"}
+                name + RSS_SUFFIX: controller_spec(GuardedDriver(name + RSS_SUFFIX, d))
                 for name, d in BUILT_IN.items()
                 if isinstance(d, SumoDriver)
             },
