@@ -69,9 +69,11 @@ def grow(
     intersection: Intersection | None = None,
     progress: Progress | None = None,
     last: Collection[str] = (),
+    avoid: Sequence[TestCase] = (),
 ) -> Growth:
     """The next level of a chain: one new car on the first candidate route (in the seed's
-    order, those in ``last`` after the others) that has an extension.
+    order, those in ``last`` after the others) that has an extension that differs from
+    every test-case in ``avoid`` (another chain's level: service.core.generator.variety).
     NoMoreComplexTestCase when none can have one; NoneFound when some were not found (with
     ``budget_exhausted`` when the budget stopped it)."""
     junction = intersection or load_testcase_intersection(old)
@@ -85,7 +87,7 @@ def grow(
     proven = True
     for group in _by_free_fork(old, junction, candidates):
         found, proven_here = _first_extension(old, group, seed, budget, end, (junction, judge),
-                                              progress, outcomes)  # fmt: skip
+                                              progress, outcomes, avoid)  # fmt: skip
         proven = proven and proven_here
         if found is not None:
             return found
@@ -104,6 +106,7 @@ def _first_extension(
     checker: tuple[Intersection, Judge],
     progress: Progress | None,
     outcomes: list[str],
+    avoid: Sequence[TestCase] = (),
 ) -> tuple[Growth | None, bool]:
     """The first of ``candidates`` with an extension: each first gets ROUTE_ORDERS answer
     sets, then those cut short get MAX_ORDERS. Also whether every other one is proven to
@@ -118,7 +121,7 @@ def _first_extension(
                 raise _exhausted(budget, outcomes, seed)
             try:
                 extension = extend_testcase(
-                    old, [route], seed, left, None, progress, junction, orders, judge
+                    old, [route], seed, left, None, progress, junction, orders, judge, avoid
                 )
             except (NoMoreComplexTestCase, InvalidInput) as error:  # no room on its fork
                 outcomes.append(f"{route}: {error}")

@@ -18,7 +18,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -55,7 +55,17 @@ from service.core.generator.timing import (
     TimingFailure,
     TimingProblem,
     TimingSolution,
+    entry_window,
     solve_timing,
+)
+from service.core.generator.variety import (
+    AIMS,
+    DISTINCT_GAP,
+    Signature,
+    is_new,
+    seed_aim,
+    signature,
+    test_relations,
 )
 from service.core.motion.collisions import Motion, first_collision
 from service.core.motion.events import EventKind, LaneEvent, compute_events
@@ -151,6 +161,7 @@ def extend_testcase(
     intersection: Intersection | None = None,
     max_orders: int = MAX_ORDERS,
     judge: Judge | None = None,
+    avoid: Sequence[TestCase] = (),
 ) -> Extension:
     """A strictly more complex, solvable test-case with new non-egos on ``routes``, each
     starting ``start_distance`` before its stop line (one number for all, one per route,
@@ -159,7 +170,62 @@ def extend_testcase(
     At most ``max_orders`` answer sets of Step 2 are tried; ``budget`` (seconds) only
     stops a call that takes longer (NoneFound with ``budget_exhausted``). ``judge``: the
     checker of ``old`` from ``checked_judge`` (a chain tries many routes on one test-case
-    and makes it once)."""
+    and makes it once). The seed draws the order Step 2 tries first and where in its
+    timings Step 3 aims (variety.seed_aim: seed 0 takes the smoothest). ``avoid``:
+    test-cases the result must differ from (variety.Signature)."""
+    return extend_testcases(
+        old, routes, 1, seed, budget, start_distance, progress, intersection, max_orders,
+        judge, avoid,
+    ).found[0]  # fmt: skip
+
+
+@dataclass
+class Extensions:
+    """Distinct extensions of one test-case on the same routes, and how far the search went."""
+
+    found: list[Extension]
+    orders_tried: int  # answer sets drawn
+    exhausted: bool  # every order of events was drawn
+    timings_tried: int  # other timings of verified orders
+
+    def shortfall(self, wanted: int) -> str | None:
+        """Why fewer than ``wanted`` came back (None when that many did)."""
+        have = len(self.found)
+        if have >= wanted:
+            return None
+        timings = f", and {self.timings_tried} other timings of the verified ones"
+        if self.exhausted:
+            return (
+                f"{have} distinct extensions exist for these routes: all orders of events "
+                f"tried ({self.orders_tried}){timings if self.timings_tried else ''}"
+            )
+        return (
+            f"{have} distinct extensions found within the search's count of "
+            f"{self.orders_tried} answer sets{timings if self.timings_tried else ''}"
+        )
+
+
+def extend_testcases(
+    old: TestCase,
+    routes: Sequence[str],
+    count: int = 1,
+    seed: int = 0,
+    budget: float = 60.0,
+    start_distance: StartDistances = None,
+    progress: Progress | None = None,
+    intersection: Intersection | None = None,
+    max_orders: int = MAX_ORDERS,
+    judge: Judge | None = None,
+    avoid: Sequence[TestCase] = (),
+) -> Extensions:
+    """Up to ``count`` verified extensions (as ``extend_testcase`` makes one) that differ
+    from each other and from ``avoid`` (variety.Signature): different orders of events
+    first, each answer set at most once; then other timings of the verified orders, aimed
+    at the points of variety.AIMS of the new cars' entry windows. Raises what
+    ``extend_testcase`` raises when there is none; fewer than ``count`` is not an error
+    (``Extensions.shortfall`` says why)."""
+    if count < 1:
+        raise InvalidInput(f"count must be at least 1, not {count}")
     deadline = _Deadline(budget, routes, seed)
     say = progress or (lambda _: None)
     seconds: dict[str, float] = {}
@@ -203,72 +269,231 @@ def extend_testcase(
 
     cars = _ordering_cars(old, old_judge, junction, ego_track, new_tracks, new_routes, ids)
     queue = _queue(old, old_judge, junction, cars, tracks_of, ids)
-    seconds["ordering"] = seconds["timing"] = seconds["verification"] = 0.0
-    tried: list[Ordering] = []
-    ruled_out: list[Sequence[tuple[str, Any, Any]]] = []
-    exhausted = False
-    for share in SEARCH_SHARES:
-        clock = time.monotonic()
-        search = OrderingSearch(
-            junction, cars, old.params.m, seed, _limits(old, share=share), queue.bounds
+    search = _Search(
+        old, junction, cars, queue, tracks_of, (new_routes, ids), seed, old_judge, deadline,
+        say, seconds, attempts,
+    )  # fmt: skip
+    taken = [signature(t) for t in avoid]
+    found: list[Extension] = []
+    verified: list[Ordering] = []
+    for ordering, candidate in search.orders(max_orders):
+        verified.append(ordering)
+        mark = signature(candidate)
+        if not is_new(mark, taken):
+            say(f"step 2/3 answer set {len(attempts)}: the same test-case as one before")
+            continue
+        taken.append(mark)
+        _note_shortened(candidate, shortened, ids)
+        found.append(Extension(candidate, list(attempts), dict(seconds), search.problem))
+        if len(found) >= count:
+            break
+    if len(found) < count and verified:
+        for _, candidate in search.timings(verified, taken, count - len(found)):
+            taken.append(signature(candidate))
+            _note_shortened(candidate, shortened, ids)
+            found.append(Extension(candidate, list(attempts), dict(seconds), search.problem))
+    if not found and verified:
+        raise NoneFound(
+            f"every extension found ({len(verified)} orders of events"
+            + (f", {len(search.variants)} other timings" if search.variants else "")
+            + ") is the same test-case as one already taken",
+            routes=list(routes),
+            seed=seed,
+            search_exhausted=search.exhausted,
         )
-        for ordering in tried:
-            search.block(ordering)
-        for relations in ruled_out:
-            search.forbid(relations)
-        seconds["ordering"] += time.monotonic() - clock
-        exhausted = False
-        while len(attempts) < max_orders:
-            deadline.check(attempts, "Step 2")
+    if not found:
+        raise _not_found(
+            old, junction, cars, queue.bounds, seed, routes, attempts, search.exhausted
+        )
+    return Extensions(found, len(search.tried), search.exhausted, len(search.variants))
+
+
+class _Search:
+    """Step 2 and 3 over one extension's cars: verified candidates, order by order
+    (``orders``), then other timings of the verified orders (``timings``). Each answer set
+    is drawn once; the seed's aim (variety.seed_aim) is tried first for every order."""
+
+    def __init__(
+        self,
+        old: TestCase,
+        junction: Intersection,
+        cars: list[OrderingCar],
+        queue: _Queue,
+        tracks: dict[str, PoseTrack],
+        added: tuple[Sequence[Route], Sequence[str]],
+        seed: int,
+        judge: Judge,
+        deadline: _Deadline,
+        say: Progress,
+        seconds: dict[str, float],
+        attempts: list[Attempt],
+    ) -> None:
+        self.old, self.junction, self.cars, self.queue = old, junction, cars, queue
+        self.tracks, self.added, self.seed, self.judge = tracks, added, seed, judge
+        self.deadline, self.say, self.seconds, self.attempts = deadline, say, seconds, attempts
+        self.tried: list[Ordering] = []
+        self.exhausted = False
+        self.problem: TimingProblem | None = None  # of the last verified candidate
+        self.variants: list[tuple[int, float]] = []  # (answer set, aim) of every timing tried
+        self.keys: dict[tuple[tuple[str, ...], frozenset[str]], int] = {}  # verified: number
+        self.windows: dict[int, list[tuple[str, tuple[float, float]]]] = {}  # by order
+        for stage in ("ordering", "timing", "verification"):
+            seconds[stage] = 0.0
+
+    def orders(self, max_orders: int) -> Iterator[tuple[Ordering, TestCase]]:
+        """Every verified order with its candidate, at most ``max_orders`` answer sets:
+        first those that SEARCH_SHARES[0] of the bounds can time, then the rest."""
+        attempts, seconds = self.attempts, self.seconds
+        ruled_out: list[Sequence[tuple[str, Any, Any]]] = []
+        aim = seed_aim(self.seed)
+        for share in SEARCH_SHARES:
             clock = time.monotonic()
-            try:
-                drawn = search.next_ordering()
-            except SearchLimitReached as limit:
-                attempts.append(Attempt(len(attempts), f"ordering: {limit}"))
-                break
+            search = OrderingSearch(
+                self.junction, self.cars, self.old.params.m, self.seed,
+                _limits(self.old, share=share), self.queue.bounds,
+            )  # fmt: skip
+            for ordering in self.tried:
+                search.block(ordering)
+            for relations in ruled_out:
+                search.forbid(relations)
             seconds["ordering"] += time.monotonic() - clock
-            if drawn is None:
-                exhausted = True
-                break
-            ordering = drawn
-            tried.append(ordering)
-            number = len(attempts)
-            deadline.check(attempts, "Step 3")
-            clock = time.monotonic()
-            problem = _timing_problem(old, junction, cars, ordering, tracks_of, queue)
-            result = solve_timing(problem)
-            seconds["timing"] += time.monotonic() - clock
-            if isinstance(result, TimingFailure):
-                if result.core:  # given the phases chosen: their bounds are part of it
-                    core = [ordering.relations[i] for i in result.core]
+            self.exhausted = False
+            while len(attempts) < max_orders:
+                self.deadline.check(attempts, "Step 2")
+                clock = time.monotonic()
+                try:
+                    drawn = search.next_ordering()
+                except SearchLimitReached as limit:
+                    attempts.append(Attempt(len(attempts), f"ordering: {limit}"))
+                    break
+                seconds["ordering"] += time.monotonic() - clock
+                if drawn is None:
+                    self.exhausted = True
+                    break
+                ordering = drawn
+                self.tried.append(ordering)
+                number = len(attempts)
+                same = self.keys.get(self._key(ordering))
+                if same is not None:  # nothing new for the test-case, only for a certificate
+                    attempts.append(Attempt(number, f"the same test-case order as #{same}"))
+                    continue
+                outcome, candidate, core = self.attempt(ordering, aim, number + 1)
+                if candidate is None and aim is not None and core is None:
+                    self.say(f"step 2/3 answer set {number + 1}, aimed: {outcome}")
+                    outcome, candidate, core = self.attempt(ordering, None, number + 1)
+                if core is not None:  # given the phases chosen: their bounds are part of it
                     ruled_out.append([*core, *ordering.phases])
                     search.forbid(ruled_out[-1])
-                attempts.append(Attempt(number, f"timing: {result.reason}"))
-                say(f"step 2/3 answer set {number + 1}: {result.reason}")
-                continue
-            clock = time.monotonic()
-            outcome, candidate = _judge(
-                old,
-                ordering,
-                result,
-                tracks_of,
-                junction,
-                (new_routes, ids),
-                seed,
-                number + 1,
-                old_judge,
+                attempts.append(Attempt(number, outcome))
+                self.say(f"step 2/3 answer set {number + 1}: {outcome}")
+                if candidate is not None:
+                    self.keys[self._key(ordering)] = number + 1
+                    yield ordering, candidate
+            if not self.exhausted:
+                return
+
+    def _key(self, ordering: Ordering) -> tuple[tuple[str, ...], frozenset[str]]:
+        """What of an order the test-case keeps (variety.Signature): the relations among
+        its cars and which new cars stop; orders alike in these differ only in how the
+        certificates drive, and Step 3 plans the new cars alike for them."""
+        ids = self.added[1]
+        return tuple(test_relations(ordering.describe())), ordering.stops & set(ids)
+
+    def timings(
+        self, verified: Sequence[Ordering], taken: list[Signature], wanted: int
+    ) -> Iterator[tuple[Ordering, TestCase]]:
+        """Up to ``wanted`` more candidates from the verified orders, each aimed at the
+        points of variety.AIMS in turn, those that differ from ``taken`` (which the caller
+        extends with every one it keeps). A point whose entry times are close to those of
+        one taken is passed over without solving."""
+        given = 0
+        for ordering in verified:
+            number = self.keys[self._key(ordering)]
+            for aim in AIMS:
+                if given >= wanted:
+                    return
+                aims = self._aims(ordering, aim)
+                if not aims or _near(aims, taken):
+                    continue
+                self.variants.append((number, aim))
+                outcome, candidate, _ = self.attempt(ordering, aim, number)
+                self.say(f"step 3 answer set {number} at {aim:g} of its timings: {outcome}")
+                if candidate is None or not is_new(signature(candidate), taken):
+                    continue
+                given += 1
+                yield ordering, candidate
+
+    def _aims(self, ordering: Ordering, aim: float) -> tuple[tuple[str, float], ...]:
+        """Each new car's junction entry aimed at ``aim`` of its window of entry times
+        (timing.entry_window, worked out once an order); empty when a car has none."""
+        if ordering.index not in self.windows:
+            problem = _timing_problem(
+                self.old, self.junction, self.cars, ordering, self.tracks, self.queue
             )
-            seconds["verification"] += time.monotonic() - clock
-            if candidate is not None:
-                _note_shortened(candidate, shortened, ids)
-                attempts.append(Attempt(number, f"verified ({result.method})"))
-                say(f"step 2/3 answer set {number + 1}: verified ({result.method})")
-                return Extension(candidate, attempts, seconds, problem)
-            attempts.append(Attempt(number, outcome))
-            say(f"step 2/3 answer set {number + 1}: {outcome}")
-        if not exhausted:
-            break
-    raise _not_found(old, junction, cars, queue.bounds, seed, routes, attempts, exhausted)
+            windows: list[tuple[str, tuple[float, float]]] = []
+            for plan in problem.cars:
+                if plan.car not in self.added[1]:
+                    continue
+                symbol = _entry_symbol(plan)
+                window = entry_window(problem, symbol) if symbol is not None else None
+                if symbol is None or window is None:
+                    windows = []
+                    break
+                windows.append((symbol, window))
+            self.windows[ordering.index] = windows
+        return tuple(
+            (symbol, round(lo + aim * (hi - lo), 4))
+            for symbol, (lo, hi) in self.windows[ordering.index]
+        )
+
+    def attempt(
+        self, ordering: Ordering, aim: float | None, number: int
+    ) -> tuple[str, TestCase | None, list[tuple[str, Any, Any]] | None]:
+        """The outcome of timing and judging one order, aimed at ``aim`` of the new cars'
+        entry windows (None: the smoothest plan): what happened, the verified candidate
+        (or None), and the relations that cannot hold together (a core, or None)."""
+        old, seconds = self.old, self.seconds
+        self.deadline.check(self.attempts, "Step 3")
+        clock = time.monotonic()
+        aims = self._aims(ordering, aim) if aim is not None else ()
+        if aim is not None and not aims:
+            seconds["timing"] += time.monotonic() - clock
+            return "no window of entry times to aim in", None, None
+        problem = _timing_problem(old, self.junction, self.cars, ordering, self.tracks, self.queue)
+        result = solve_timing(dataclasses.replace(problem, aims=aims))
+        seconds["timing"] += time.monotonic() - clock
+        if isinstance(result, TimingFailure):
+            core = [ordering.relations[i] for i in result.core] if result.core else None
+            return f"timing: {result.reason}", None, core
+        clock = time.monotonic()
+        outcome, candidate = _judge(
+            old, ordering, result, self.tracks, self.junction, self.added, self.seed,
+            number, self.judge,
+        )  # fmt: skip
+        seconds["verification"] += time.monotonic() - clock
+        if candidate is None:
+            return outcome, None, None
+        if aims:
+            assert candidate.provenance is not None
+            candidate.provenance["timing_aim"] = {
+                "share": aim, "entries": {s: round(t, 3) for s, t in aims}
+            }  # fmt: skip
+        self.problem = problem
+        return f"verified ({result.method})", candidate, None
+
+
+def _near(aims: Sequence[tuple[str, float]], taken: Sequence[Signature]) -> bool:
+    """Whether the first aimed entry is within half of DISTINCT_GAP of the entry of a
+    test-case taken (of any order: its signature tells the orders apart after solving)."""
+    _, target = aims[0]
+    return any(abs(mark.cars[0].entry - target) < DISTINCT_GAP / 2 for mark in taken if mark.cars)
+
+
+def _entry_symbol(plan: CarPlan) -> str | None:
+    """The time symbol of the car entering its lane in the junction (else its first)."""
+    if plan.inside is not None:
+        return plan.knots[plan.inside[0]].symbol
+    return next((k.symbol for k in plan.knots if k.symbol is not None), None)
 
 
 def _note_shortened(

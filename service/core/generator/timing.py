@@ -60,6 +60,7 @@ INSIDE_WEIGHT = 0.1  # plan cost of a second inside the junction beyond three ti
 CRUISE = 0.5  # share of v_max a car makes for after its last event (the curve's end)
 TAIL_WEIGHT = 1.0  # cost per m/s and second the speed misses that after the last event
 TICK = 2e-4  # seconds at least between two knots (plans are rounded to 0.1 ms)
+AIM_WEIGHT = 10.0  # plan cost per second an aimed event misses its aim (beats smoothness)
 
 
 @dataclass(frozen=True)
@@ -124,6 +125,7 @@ class TimingProblem:
     follows: tuple[Following, ...] = ()
     timestep: float = 0.1  # the test-case's: where the following is kept
     crossing: float | None = None  # least average speed from entering to leaving its lane
+    aims: tuple[tuple[str, float], ...] = ()  # (s, t): the plan keeps s close to t (variety)
 
     @property
     def bounds(self) -> Bounds:
@@ -189,7 +191,9 @@ class _Plan:
         if queued:
             self._queues()
         self.cost = total([self._kinematics(number, car, share)
-                           for number, car in enumerate(problem.cars)])  # fmt: skip
+                           for number, car in enumerate(problem.cars)]
+                          + [self.program.magnitude(self.var[symbol] - t) * AIM_WEIGHT
+                             for symbol, t in problem.aims if symbol in self.var])  # fmt: skip
 
     def term(self, symbol: str) -> Linear:
         return self.var[symbol] if symbol in self.var else Linear.of(self.fixed[symbol])
@@ -410,6 +414,23 @@ def plan_on_speed_grid(
     times = {car: [round(t, 4) for t in values(solution, names)]
              for car, names in plan.knots.items()}  # fmt: skip
     return times, None
+
+
+def entry_window(problem: TimingProblem, symbol: str) -> tuple[float, float] | None:
+    """The earliest and the latest time of ``symbol`` in any plan with the comfortable
+    share of the bounds (Step 3 aims within it for a variety of timings); None when there
+    is no plan or the symbol is not planned."""
+    ends = []
+    for sign in (1.0, -1.0):
+        plan = _Plan(problem, SHARES[0])
+        if symbol not in plan.var:
+            return None
+        plan.program.minimize(plan.var[symbol] * sign)
+        solution = plan.program.solve()
+        if solution is None:
+            return None
+        ends.append(round(value_of(plan.var[symbol], solution), 4))
+    return ends[0], ends[1]
 
 
 def order_core(problem: TimingProblem) -> list[int] | None:

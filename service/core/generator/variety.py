@@ -1,0 +1,128 @@
+"""When two extensions are the same test-case, and where in an order's timings to aim.
+
+A test-case is its cars' trajectories; its certificates only prove what it is. So two
+extensions of one test-case are the same when they add cars on the same routes that
+either both stop at their sign or both do not, keep the same order of events among the
+cars of the test-case (Step 2's relations without the certificates' events: orders that
+differ only in how the ego could drive make the same test), and every new car arrives at
+its line and enters the junction within DISTINCT_GAP seconds of its counterpart; else
+they are distinct. Extensions of different test-cases are always distinct (they keep
+their parents' cars). The signature is read from the test-case itself (its provenance and
+its new cars' events), so test-cases from a store, a campaign or another process compare
+the same way.
+
+Within one order, the timings differ by where the new cars enter the junction: Step 3 can
+aim at a point of each new car's window of entry times (``timing.entry_window``).
+``AIMS`` lists the points, as shares of the window, in the order they are tried: the ends
+first, then halves, quarters and eighths, so any first k spread over the window. A seed
+picks a point of ``seed_aim``'s sequence, so that seeds 1, 2, 3, ... land on points apart.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+
+from service.core.testcase import TestCase
+
+DISTINCT_GAP = 1.0  # seconds: new cars entering the junction this far apart make a new test-case
+AIMS = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875)  # shares of the entry window
+
+
+@dataclass(frozen=True)
+class Signature:
+    """What tells one extension from another: the parent, each new car (its route, whether
+    it stops at its sign, when it arrives at its line and enters the junction), and the
+    order of events among the test-case's cars."""
+
+    parent: str | None
+    level: int
+    cars: tuple[NewCar, ...]  # by id
+    order: tuple[str, ...]  # relations without the certificates' events
+
+    def same_as(self, other: Signature, gap: float = DISTINCT_GAP) -> bool:
+        if (self.parent, self.level, self.order) != (other.parent, other.level, other.order):
+            return False
+        if [c.kind for c in self.cars] != [c.kind for c in other.cars]:
+            return False
+        return all(
+            abs(a.arrival - b.arrival) < gap and abs(a.entry - b.entry) < gap
+            for a, b in zip(self.cars, other.cars, strict=True)
+        )
+
+
+@dataclass(frozen=True)
+class NewCar:
+    """A new car as its signature sees it (times in seconds; its last event's time when it
+    never arrives or never enters)."""
+
+    car: str
+    route: str  # FORK:EXIT
+    stops: bool
+    arrival: float
+    entry: float
+
+    @property
+    def kind(self) -> tuple[str, str, bool]:
+        return self.car, self.route, self.stops
+
+
+def signature(testcase: TestCase) -> Signature:
+    """The signature of a test-case as its last level made it (the cars it added)."""
+    level = max((n.added_in for n in testcase.nonegos), default=0)
+    provenance = testcase.provenance or {}
+    cars = []
+    for car in sorted(testcase.nonegos, key=lambda n: n.id):
+        if car.added_in != level:
+            continue
+        times: dict[str, float] = {}
+        for event in reversed(car.events):  # the first of each kind wins
+            times[str(event.kind)] = event.t
+        last = car.events[-1].t if car.events else 0.0
+        cars.append(
+            NewCar(
+                car.id,
+                f"{car.route.fork}:{car.route.exit}",
+                "stopped" in times,
+                round(times.get("arrived", last), 3),
+                round(times.get("entered", last), 3),
+            )
+        )
+    order = test_relations(provenance.get("order") or ())
+    return Signature(provenance.get("parent"), level, tuple(cars), tuple(order))
+
+
+def test_relations(order: Iterable[str]) -> list[str]:
+    """The relations of an order (as provenance["order"] states them) among the
+    test-case's cars: without those that speak of a certificate's (the ego's or the
+    illegal ego's) events."""
+    return [r for r in order if '"ego"' not in r and '"illegal"' not in r]
+
+
+def is_new(candidate: Signature, taken: Iterable[Signature], gap: float = DISTINCT_GAP) -> bool:
+    """Whether ``candidate`` differs from every one of ``taken``."""
+    return not any(candidate.same_as(other, gap) for other in taken)
+
+
+def distinct_count(testcases: Sequence[TestCase], gap: float = DISTINCT_GAP) -> int:
+    """How many of ``testcases`` differ from every one before them."""
+    kept: list[Signature] = []
+    for testcase in testcases:
+        mark = signature(testcase)
+        if is_new(mark, kept, gap):
+            kept.append(mark)
+    return len(kept)
+
+
+def seed_aim(seed: int) -> float | None:
+    """Where in the entry window seed ``seed`` aims: nothing for seed 0 (Step 3's smoothest
+    plan), else the van der Corput point of the seed (1: 0.5, 2: 0.25, 3: 0.75, 4: 0.125,
+    ...), so that the first seeds spread over the window and no two seeds share a point."""
+    if seed <= 0:
+        return None
+    point, scale, n = 0.0, 0.5, seed
+    while n:
+        n, bit = divmod(n, 2)
+        point += bit * scale
+        scale /= 2
+    return point

@@ -1,0 +1,103 @@
+"""Distinct extensions: --count, seeds that matter, and avoiding test-cases already taken.
+Real SUMO, clingo and z3; every test-case returned is checked by the checker on its own."""
+
+from __future__ import annotations
+
+import itertools
+
+import pytest
+
+from service.core.errors import InvalidInput, NoneFound
+from service.core.generator.extension import Extensions, extend_testcase, extend_testcases
+from service.core.generator.variety import (
+    DISTINCT_GAP,
+    distinct_count,
+    is_new,
+    seed_aim,
+    signature,
+)
+from service.core.testcase import TestCase, dump_testcase, new_testcase
+from tests.core.generator.test_extension import assert_strictly_more_complex
+
+ROUTE = ["W2C_0:C2E_0"]  # crosses the ego's route at the four-way stop
+
+
+@pytest.fixture(scope="module")
+def start() -> TestCase:
+    return new_testcase("4way-stop", "S2C_1:C2N_1", duration=30.0, name="variety")
+
+
+@pytest.fixture(scope="module")
+def five(start: TestCase) -> Extensions:
+    return extend_testcases(start, ROUTE, count=5, seed=0, budget=240)
+
+
+def test_count_returns_distinct_verified_extensions(start: TestCase, five: Extensions) -> None:
+    testcases = [e.testcase for e in five.found]
+    assert len(testcases) == 5, five.shortfall(5)
+    assert distinct_count(testcases) == 5
+    for a, b in itertools.combinations(testcases, 2):
+        assert dump_testcase(a) != dump_testcase(b)
+        assert not signature(a).same_as(signature(b))
+    for testcase in testcases:
+        assert_strictly_more_complex(start, testcase)
+
+
+def test_the_first_of_count_is_the_single_extension(start: TestCase, five: Extensions) -> None:
+    single = extend_testcase(start, ROUTE, seed=0, budget=240)
+    assert dump_testcase(single.testcase) == dump_testcase(five.found[0].testcase)
+
+
+def test_distinct_means_another_order_or_entries_a_gap_apart(five: Extensions) -> None:
+    marks = [signature(e.testcase) for e in five.found]
+    for a, b in itertools.combinations(marks, 2):
+        pairs = list(zip(a.cars, b.cars, strict=True))
+        assert (
+            a.order != b.order
+            or any(x.stops != y.stops for x, y in pairs)
+            or any(abs(x.entry - y.entry) >= DISTINCT_GAP for x, y in pairs)
+            or any(abs(x.arrival - y.arrival) >= DISTINCT_GAP for x, y in pairs)
+        )
+
+
+def test_seeds_give_distinct_test_cases(start: TestCase) -> None:
+    testcases = [extend_testcase(start, ROUTE, seed=s, budget=240).testcase for s in range(4)]
+    assert distinct_count(testcases) == 4
+    again = extend_testcase(start, ROUTE, seed=3, budget=240).testcase
+    assert dump_testcase(again) == dump_testcase(testcases[3])  # the same seed, the same bytes
+    for testcase in testcases:
+        assert_strictly_more_complex(start, testcase)
+
+
+def test_avoid_gives_the_next_distinct_one(start: TestCase, five: Extensions) -> None:
+    first = five.found[0].testcase
+    other = extend_testcase(start, ROUTE, seed=0, budget=240, avoid=[first]).testcase
+    assert is_new(signature(other), [signature(first)])
+    assert_strictly_more_complex(start, other)
+
+
+def test_fewer_than_asked_says_why(start: TestCase) -> None:
+    many = extend_testcases(start, ROUTE, count=200, seed=0, budget=600, max_orders=3)
+    assert len(many.found) < 200
+    reason = many.shortfall(200)
+    assert reason is not None and f"{len(many.found)} distinct extensions" in reason
+    assert distinct_count([e.testcase for e in many.found]) == len(many.found)
+
+
+def test_avoiding_everything_found_is_none_found(start: TestCase) -> None:
+    few = extend_testcases(start, ROUTE, count=200, seed=0, budget=600, max_orders=1)
+    with pytest.raises(NoneFound, match="the same test-case as one already taken"):
+        extend_testcase(start, ROUTE, seed=0, budget=600, max_orders=1,
+                        avoid=[e.testcase for e in few.found])  # fmt: skip
+
+
+def test_count_below_one_is_bad_input(start: TestCase) -> None:
+    with pytest.raises(InvalidInput, match="count must be at least 1"):
+        extend_testcases(start, ROUTE, count=0)
+
+
+def test_seed_aims_spread_and_never_repeat() -> None:
+    aims = [seed_aim(s) for s in range(1, 64)]
+    assert seed_aim(0) is None
+    assert aims[:4] == [0.5, 0.25, 0.75, 0.125]
+    assert len(set(aims)) == len(aims) and all(0 < a < 1 for a in aims if a is not None)
