@@ -880,8 +880,10 @@ def _passes(curve: Curve, distance: float, timestep: float) -> float:
 def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     """Curves for every car, or what failed. First the smooth plan with the comfortable
     share of the bounds; when its curves do not fit and a speed-grid plan exists within the
-    largest share, the smooth plan again with continuous speeds around it, then speed-grid
-    plans (smoothed and as they are), the comfortable share first. When no grid plan
+    largest share (checked first: most orders that fail, fail here), the smooth plan with
+    its followers planned behind the cars ahead, the smooth plan again with continuous
+    speeds around the grid plan, then speed-grid plans (smoothed and as they are), the
+    comfortable share first. When no grid plan
     exists: the relations that cannot hold together, a proof when even the necessary
     conditions rule them out, else those that no grid plan within the largest share keeps
     (orders at the very edge of the bounds are left alone: no curve with room to spare
@@ -892,11 +894,6 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     curves = fitter.fit_all(smooth)
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
-    curves = _fit_behind(problem, fitter, functools.partial(plan_times, share=comfortable))
-    if curves:
-        return TimingSolution(
-            curves, f"linear, {round(comfortable * 100)} % of the bounds, {BEHIND}"
-        )
     edge, unreachable = plan_on_speed_grid(problem, largest)
     if edge is None:  # no grid plan: an order at the very edge of the bounds, or beyond
         core = order_core(problem) if smooth is None else None
@@ -904,6 +901,11 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
             return TimingFailure("no event times can realise this order", tuple(core), True)
         reason = f"no speed profile within {round(largest * 100)} % of the bounds"
         return TimingFailure(reason, tuple(unreachable or ()))
+    curves = _fit_behind(problem, fitter, functools.partial(plan_times, share=comfortable))
+    if curves:
+        return TimingSolution(
+            curves, f"linear, {round(comfortable * 100)} % of the bounds, {BEHIND}"
+        )
     curves = fitter.fit_all(smooth and plan_times(problem, comfortable, smooth))
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
