@@ -382,23 +382,22 @@ def test_a_user_controller_is_no_longer_shown_a_car_that_left(
 
 
 def test_a_car_that_starts_faster_than_its_lane_allows_replays() -> None:
-    """The outside test's chain: car3 starts at 14.09 m/s on N2C (limit 13.89 m/s). The
-    non-egos follow their trajectories, not the lanes' limits, and SUMO accepts them."""
-    from service.core.generator.chain import grow_chain
+    """The outside test's case: a non-ego starts at 14.09 m/s on N2C (limit 13.89 m/s; a
+    generated car may, up to v_max). The non-egos follow their trajectories, not the lanes'
+    limits, and SUMO accepts them."""
+    base = new_testcase("4way-stop", "S2C_0:C2N_0", duration=30.0)
+    junction = load_testcase_intersection(base)
+    (track,) = generate_poses(junction, [(junction.route("N2C_0:C2S_0"), 60.0)], 8.0, 30.0, 0.1)
 
-    root = new_testcase("4way-stop", "S2C_0:C2N_0", duration=30.0)
-    level3 = grow_chain(root, 3, seed=7)[-1].extension.testcase
-    intersection = load_testcase_intersection(level3)
-    net = parsed_network(intersection.network_file)
-    fast = [
-        car.id
-        for car in level3.nonegos
-        if car.trajectory[0].speed > net.getLane(car.route.fork).getSpeed()
-    ]
-    assert fast  # the case the outside test found (the chain is deterministic)
-    for controller in ("sumo", "certificate:solvability"):
-        evaluation = evaluate(level3, controller, intersection)
-        assert evaluation.error is None and not evaluation.verdict.errors
+    def braking(t: float) -> tuple[float, float]:  # 14.09 m/s, braking at 2 m/s² to 5 m/s
+        slow = min(t, (14.09 - 5.0) / 2.0)
+        return 14.09 * slow - slow * slow + 5.0 * (t - slow), 14.09 - 2.0 * slow
+
+    case = with_nonegos(base, [("fast", "N2C_0:C2S_0", retime(track, braking, 12.0, 0.1))])
+    net = parsed_network(junction.network_file)
+    assert case.nonegos[0].trajectory[0].speed > net.getLane("N2C_0").getSpeed()
+    evaluation = evaluate(case, "sumo", junction)
+    assert evaluation.error is None and not evaluation.verdict.errors
 
 
 def test_an_ego_faster_than_its_lane_allows_is_the_users_error() -> None:
