@@ -88,6 +88,22 @@ def test_seeds_give_different_testcases_and_the_same_seed_the_same_bytes(
     assert distinct_count(made) == 2
 
 
+def test_fewer_than_asked_say_why(root: Path, tmp_path: Path) -> None:
+    """Far fewer than 50 distinct extensions exist here: those found are written, and the
+    last line says how far the search went."""
+    result = run("extend", str(root), "--add", NEW, "--count", "50", "-o", str(tmp_path / "s.json"))
+    assert result.returncode == 0, result.stderr
+    written = sorted(tmp_path.iterdir(), key=lambda path: int(path.stem.split("-")[1]))
+    have = len(written)
+    assert 3 < have < 50 and [p.name for p in written] == [
+        f"s-{k}.json" for k in range(1, have + 1)
+    ]
+    assert distinct_count([read_testcase(p) for p in written]) == have
+    assert f"{have} distinct extensions of 50 asked for" in result.stderr
+    last = result.stderr.splitlines()[-1]
+    assert last.startswith(f"{have} distinct extensions ") and "answer sets" in last, last
+
+
 @pytest.mark.parametrize(
     ("given", "words"),
     [
