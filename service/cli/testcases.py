@@ -289,7 +289,7 @@ def _extend_variants(
     )
     differences = describe_variants([e.testcase for e in found])
     for number, (extension, difference) in enumerate(zip(found, differences, strict=True), 1):
-        path = variant_path(args.output, number)
+        path = _variant_path(args.output, number)
         print(f"{path.name}: {difference}", file=sys.stderr)
         emit(_variant(extension, old, args.name, number), path, network_file)
     shortfall = extensions.shortfall(args.count)
@@ -298,7 +298,7 @@ def _extend_variants(
     return EXIT_OK
 
 
-def variant_path(output: Path, number: int) -> Path:
+def _variant_path(output: Path, number: int) -> Path:
     """Where variant ``number`` of ``-o FILE.json`` goes: ``FILE-K.json`` beside it."""
     return output.with_name(f"{output.stem}-{number}{output.suffix}")
 
