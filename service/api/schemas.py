@@ -17,6 +17,7 @@ from pydantic import (
     model_validator,
 )
 
+from service.core.generator.variety import MAX_COUNT
 from service.core.network import ControlType
 from service.core.testcase import (
     MAX_DURATION,
@@ -201,6 +202,13 @@ class ExtendRequest(_Body):
     seed: int = Field(0, ge=0, le=MAX_SEED, description="same seed, same bytes")
     budget: float | None = Field(None, gt=0, description="seconds (default SCENGEN_EXTEND_BUDGET)")
     start_distance: StartDistancesField = Field(None, description=START_DISTANCES)
+    count: int = Field(
+        1,
+        ge=1,
+        le=MAX_COUNT,
+        description="up to this many distinct extensions (different orders of events first, "
+        "then timings a second apart); above 1 the answer is an `ExtensionsPublic`",
+    )
 
     _no_null = field_validator("testcase", "testcase_id", mode="before")(no_null_base)
 
@@ -216,6 +224,24 @@ class ExtensionPublic(TestCasePublic):
     new_cars: list[str]
     attempts: list[Attempt]
     seconds: dict[str, float] = Field(description="time spent per step")
+
+
+class ExtensionVariantPublic(ExtensionPublic):
+    difference: str = Field(
+        description="what tells it from the others: its order of events among the test's "
+        "cars, each new car's route, stop, arrival and entry, the rule its complexity "
+        "certificate breaks, and where Step 3 aimed its timing"
+    )
+
+
+class ExtensionsPublic(BaseModel):
+    """The answer to `POST /extend` with `count` above 1: every extension found (each
+    stored, with the old test-case as its parent), and why fewer than asked came back."""
+
+    extensions: list[ExtensionVariantPublic] = Field(description="distinct, in the order found")
+    shortfall: str | None = Field(
+        description="why fewer than `count` came back (null when that many did)"
+    )
 
 
 class EvaluationCreate(_Body):

@@ -49,6 +49,34 @@ def extend(
     }
 
 
+def extend_variants(
+    document: str,
+    network_file: Path,
+    cache_dir: Path,
+    routes: list[str],
+    count: int,
+    seed: int,
+    budget: float,
+    start_distance: float | list[float | None] | None,
+    deadline: float | None = None,
+) -> dict[str, Any]:
+    """``tasks.extend_variants``, each extension in its stored form with its new cars."""
+    from service.jobs import tasks
+    from service.store import stored_form
+
+    result = tasks.extend_variants(
+        document, network_file, cache_dir, routes, count, seed, budget, start_distance, deadline
+    )
+    variants = []
+    for variant in result["extensions"]:
+        new = parse_testcase(variant.pop("document"))
+        assert new.provenance is not None
+        variants.append(
+            {**variant, "stored": stored_form(new), "new_cars": list(new.provenance["new_nonegos"])}
+        )
+    return {**result, "extensions": variants}
+
+
 def evaluate(
     document: str, network_file: Path, cache_dir: Path, controller: str, budget: float
 ) -> dict[str, Any]:

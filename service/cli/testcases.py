@@ -25,10 +25,16 @@ from service.cli.arguments import (
 from service.cli.examples import EXAMPLES, evaluate_levels, run_example, write_testcase
 from service.cli.output import EXIT_OK, StepProgress, emit, output_file, print_table, progress
 from service.cli.table import arg, command
-from service.core.generator.extension import StartDistances, extend_testcase
+from service.core.generator.extension import (
+    Extension,
+    StartDistances,
+    extend_testcase,
+    extend_testcases,
+)
+from service.core.generator.variety import MAX_COUNT, describe_variants, variant_name
 from service.core.motion.events import compute_events
 from service.core.motion.poses import generate_poses
-from service.core.network import bundled_networks, load_intersection
+from service.core.network import Intersection, bundled_networks, load_intersection
 from service.core.paper_table import PAPER_CONTROLLERS
 from service.core.sim.controllers import resolve_driver
 from service.core.testcase import (
@@ -170,6 +176,19 @@ def drive(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def extension_count(text: str) -> int:
+    """``--count``: a whole number from 1 to MAX_COUNT."""
+    try:
+        count = int(text)
+    except ValueError:
+        count = 0
+    if not 1 <= count <= MAX_COUNT:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: a whole number of extensions from 1 to {MAX_COUNT}"
+        )
+    return count
+
+
 @command(
     "extend",
     "add new non-egos so that the test-case becomes strictly more complex",
@@ -200,6 +219,14 @@ def drive(args: argparse.Namespace) -> int:
         "never further back than the road before the fork goes)",
     ),
     arg(
+        "--count",
+        type=extension_count,
+        default=1,
+        metavar="N",
+        help=f"up to N distinct extensions (1 to {MAX_COUNT}; default 1), written as "
+        "FILE-1.json ... FILE-N.json for -o FILE.json and named '... variant K level N'",
+    ),
+    arg(
         "--name",
         help="the new test-case's name (default: the old one's with the new level, "
         "'... level 1' after '... level 0')",
@@ -209,6 +236,11 @@ def drive(args: argparse.Namespace) -> int:
 )
 def extend(args: argparse.Namespace) -> int:
     start_distance = start_distances(args)
+    if args.count > 1 and args.output is None:
+        args.usage.error(
+            f"--count {args.count} writes {args.count} files: give -o FILE.json "
+            "(they are written as FILE-1.json, FILE-2.json, ...)"
+        )
     old = read_input(args.testcase)
     if args.name is not None:
         renamed(old, args.name)  # a name that cannot be stored fails before the search
@@ -217,6 +249,8 @@ def extend(args: argparse.Namespace) -> int:
         load_intersection(network_file, old.junction, old.control, major_road=old.major_road), old
     )
     started = time.monotonic()
+    if args.count > 1:
+        return _extend_variants(args, old, start_distance, intersection, network_file, started)
     extension = extend_testcase(
         old, args.add, args.seed, args.budget, start_distance, progress(started), intersection
     )
@@ -230,6 +264,50 @@ def extend(args: argparse.Namespace) -> int:
         file=sys.stderr,
     )
     return emit(extended, args.output, network_file)
+
+
+def _extend_variants(
+    args: argparse.Namespace,
+    old: TestCase,
+    start_distance: StartDistances,
+    intersection: Intersection,
+    network_file: Path,
+    started: float,
+) -> int:
+    """``extend --count N`` (N > 1): up to N distinct extensions, each written to
+    ``FILE-K.json`` and named as variant K, with a line on stderr saying what tells it from
+    the others, and why fewer came back when they did."""
+    extensions = extend_testcases(
+        old, args.add, args.count, args.seed, args.budget, start_distance, progress(started),
+        intersection,
+    )  # fmt: skip
+    found = extensions.found
+    print(
+        f"extended in {time.monotonic() - started:.1f} s after {extensions.orders_tried} "
+        f"answer sets: {len(found)} distinct extensions of {args.count} asked for",
+        file=sys.stderr,
+    )
+    differences = describe_variants([e.testcase for e in found])
+    for number, (extension, difference) in enumerate(zip(found, differences, strict=True), 1):
+        path = _variant_path(args.output, number)
+        print(f"{path.name}: {difference}", file=sys.stderr)
+        emit(_variant(extension, old, args.name, number), path, network_file)
+    shortfall = extensions.shortfall(args.count)
+    if shortfall is not None:
+        print(shortfall, file=sys.stderr)
+    return EXIT_OK
+
+
+def _variant_path(output: Path, number: int) -> Path:
+    """Where variant ``number`` of ``-o FILE.json`` goes: ``FILE-K.json`` beside it."""
+    return output.with_name(f"{output.stem}-{number}{output.suffix}")
+
+
+def _variant(extension: Extension, old: TestCase, name: str | None, number: int) -> TestCase:
+    """Variant ``number`` of the extensions, named as ``variety.variant_name`` says after
+    ``--name`` or the default (the old name with the new level)."""
+    chosen = name or readable_name(extension.testcase, name_stem(old.name))
+    return renamed(extension.testcase, variant_name(chosen, number))
 
 
 def start_distances(args: argparse.Namespace) -> StartDistances:

@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from service.core.errors import InvalidInput
+from service.core.generator.variety import MAX_COUNT
 from service.core.testcase import Control, Signals
 from service.start_distances import DESCRIPTION as START_DISTANCES
 from service.start_distances import StartDistancesField, check_start_count
@@ -49,6 +50,13 @@ class ExtendItem(_Based):
     seed: int = Field(0, ge=0, le=MAX_SEED)
     budget: float | None = Field(None, gt=0, description="seconds (default: the server's)")
     start_distance: StartDistancesField = Field(None, description=START_DISTANCES)
+    count: int = Field(
+        1,
+        ge=1,
+        le=MAX_COUNT,
+        description="up to this many distinct extensions, each stored (an `after` of a "
+        "later item takes the last of them)",
+    )
 
     @model_validator(mode="after")
     def _one_start_per_route(self) -> ExtendItem:
@@ -184,13 +192,16 @@ class Batch(BaseModel):
 
     def fingerprint(self) -> str:
         """What an Idempotency-Key is bound to: the batch, not its formatting. An extend
-        item's automatic start (``start_distance`` null) and a campaign's network program
-        (``signals`` null) are left out, so that batches stored before those fields existed
-        keep their fingerprint (a campaign folder too: ``scengen campaign`` resumes)."""
+        item's automatic start (``start_distance`` null) and single extension (``count``
+        1), and a campaign's network program (``signals`` null) are left out, so that
+        batches stored before those fields existed keep their fingerprint (a campaign
+        folder too: ``scengen campaign`` resumes)."""
         document = self.model_dump(mode="json")
         for item in document["items"]:
             if item.get("kind") == "extend" and item.get("start_distance") is None:
                 item.pop("start_distance", None)
+            if item.get("kind") == "extend" and item.get("count") == 1:
+                item.pop("count", None)
             if item.get("kind") == "campaign" and item.get("signals") is None:
                 item.pop("signals", None)
         canonical = json.dumps(document, sort_keys=True)

@@ -149,8 +149,34 @@ class Work:
             return  # made before this worker was killed: never recomputed
         old = self._source(spec)
         self.jobs.record(self.item.job, self.item.position, self.owner, "extending")
-        made = self._extension(old, spec.routes, spec.seed, spec.budget, spec.start_distance)
-        self.jobs.record(self.item.job, self.item.position, self.owner, "done", [made.id])
+        if spec.count > 1:
+            made, progress = self._variants(old, spec)
+        else:
+            extension = self._extension(
+                old, spec.routes, spec.seed, spec.budget, spec.start_distance
+            )
+            made, progress = [extension.id], "done"
+        self.jobs.record(self.item.job, self.item.position, self.owner, progress, made)
+
+    def _variants(self, old: TestCaseRecord, spec: ExtendItem) -> tuple[list[str], str]:
+        """Up to ``spec.count`` distinct extensions of ``old``, every one stored, and the
+        item's last progress: how many came back, and why fewer than asked when they did
+        (the item succeeds with those found)."""
+        budget = spec.budget or self.settings.extend_budget
+        result = self.call(
+            tasks.extend_variants,
+            (old.document, self.store.network_file_for(old.testcase), self.settings.cache_dir,
+             spec.routes, spec.count, spec.seed, budget, spec.start_distance),
+            budget + 5.0,
+            f"extending {old.id} by {', '.join(spec.routes)} ({spec.count} distinct)",
+        )  # fmt: skip
+        made = [
+            self.store.add_testcase(parse_testcase(variant["document"]), parent=old.id).id
+            for variant in result["extensions"]
+        ]
+        progress = f"done: {len(made)} distinct extensions of {spec.count} asked for"
+        shortfall = result["shortfall"]
+        return made, progress if shortfall is None else f"{progress}; {shortfall}"
 
     def _chain(self, spec: ChainItem) -> None:
         made = list(self.item.testcases)

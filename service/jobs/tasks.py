@@ -16,8 +16,9 @@ import io
 import tempfile
 import time
 import zipfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from service.core.errors import NoneFound
 from service.core.network import load_intersection
@@ -36,6 +37,8 @@ from service.core.testcase import (
     readable_name,
     renamed,
 )
+
+T = TypeVar("T")
 
 
 def list_junctions(network_file: Path) -> list[dict[str, Any]]:
@@ -170,21 +173,76 @@ def extend(
 
     old = parse_testcase(document)
     intersection = load_testcase_intersection(old, cache_dir, network_file)
-    left = budget if deadline is None else min(budget, deadline - time.time())
-    try:
-        extension = extend_testcase(
-            old, routes, seed, max(0.1, left), start_distance, intersection=intersection
-        )
-    except NoneFound as error:
-        if left == budget or not error.context.get("budget_exhausted"):
-            raise
-        message = error.message.replace(f"{max(0.1, left):g} s", f"{budget:g} s", 1)
-        raise NoneFound(message, **error.context) from None
+    extension = _within(
+        budget,
+        deadline,
+        lambda left: extend_testcase(
+            old, routes, seed, left, start_distance, intersection=intersection
+        ),
+    )
     return {
         "document": named_extension(extension.testcase, old, network_file, None),
         "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],
         "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
     }
+
+
+def extend_variants(
+    document: str,
+    network_file: Path,
+    cache_dir: Path,
+    routes: list[str],
+    count: int,
+    seed: int,
+    budget: float,
+    start_distance: float | list[float | None] | None,
+    deadline: float | None = None,
+) -> dict[str, Any]:
+    """Up to ``count`` distinct extensions of a test-case (as ``extend`` makes one), each
+    named as variant K (``variety.variant_name``): ``extensions``, each with its document,
+    attempts, step timings and what tells it from the others (``difference``); and
+    ``shortfall``, why fewer than ``count`` came back (None when that many did)."""
+    from service.core.generator.extension import extend_testcases
+    from service.core.generator.variety import describe_variants, variant_name
+
+    old = parse_testcase(document)
+    intersection = load_testcase_intersection(old, cache_dir, network_file)
+    extensions = _within(
+        budget,
+        deadline,
+        lambda left: extend_testcases(
+            old, routes, count, seed, left, start_distance, intersection=intersection
+        ),
+    )
+    found = extensions.found
+    differences = describe_variants([e.testcase for e in found])
+    variants = []
+    for number, (extension, difference) in enumerate(zip(found, differences, strict=True), 1):
+        named = parse_testcase(named_extension(extension.testcase, old, network_file, None))
+        variants.append(
+            {
+                "document": dump_testcase(renamed(named, variant_name(named.name, number))),
+                "attempts": [
+                    {"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts
+                ],
+                "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
+                "difference": difference,
+            }
+        )
+    return {"extensions": variants, "shortfall": extensions.shortfall(count)}
+
+
+def _within(budget: float, deadline: float | None, generate: Callable[[float], T]) -> T:
+    """``generate(seconds)`` with what is left of ``budget`` at ``deadline`` (a Unix time;
+    None: all of it); a budget that runs out is reported as the request's whole budget."""
+    left = budget if deadline is None else min(budget, deadline - time.time())
+    try:
+        return generate(max(0.1, left))
+    except NoneFound as error:
+        if left == budget or not error.context.get("budget_exhausted"):
+            raise
+        message = error.message.replace(f"{max(0.1, left):g} s", f"{budget:g} s", 1)
+        raise NoneFound(message, **error.context) from None
 
 
 def evaluate_controller(

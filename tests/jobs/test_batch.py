@@ -49,6 +49,10 @@ def test_the_fingerprint_ignores_formatting_not_content() -> None:
     same = parse_batch({"items": [{"routes": ["a:b"], **ROOT, "kind": "extend", "seed": 0}]})
     other = parse_batch({"items": [{"kind": "extend", **ROOT, "routes": ["a:b"], "seed": 1}]})
     assert one.fingerprint() == same.fingerprint() != other.fingerprint()
+    # count 1 is the single extension batches meant before count existed
+    counted = parse_batch({"items": [{"kind": "extend", **ROOT, "routes": ["a:b"], "count": 1}]})
+    more = parse_batch({"items": [{"kind": "extend", **ROOT, "routes": ["a:b"], "count": 2}]})
+    assert counted.fingerprint() == one.fingerprint() != more.fingerprint()
 
 
 def test_a_campaign_item_reads_its_defaults() -> None:
@@ -104,6 +108,10 @@ def test_a_campaign_item_takes_a_signal_control_and_program() -> None:
             "items.0.extend.start_distance: a start distance must be a finite number >= 0 m",
         ),
         ([{"kind": "extend", **ROOT, "routes": ["a:b"], "start_distance": [True]}], "True"),
+        ([{"kind": "extend", **ROOT, "routes": ["a:b"], "count": 0}],
+         "items.0.extend.count: Input should be greater than or equal to 1"),
+        ([{"kind": "extend", **ROOT, "routes": ["a:b"], "count": 51}],
+         "items.0.extend.count: Input should be less than or equal to 50"),
         ([{**CAMPAIGN, "all_egos": True}], "exactly one of egos (routes) and all_egos"),
         ([{**CAMPAIGN, "egos": ["a:b", "a:b"]}], "egos names a route twice"),
         ([{**CAMPAIGN, "controllers": ["sumo", "certificate:complexity"]}],

@@ -22,11 +22,13 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
-from service.core.testcase import TestCase
+from service.core.testcase import MAX_NAME_LENGTH, TestCase
 
 DISTINCT_GAP = 1.0  # seconds: new cars entering the junction this far apart make a new test-case
 AIMS = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875)  # shares of the entry window
+MAX_COUNT = 50  # distinct extensions one call (CLI, API, batch item) asks for at most
 
 
 @dataclass(frozen=True)
@@ -126,3 +128,56 @@ def seed_aim(seed: int) -> float | None:
         point += bit * scale
         scale /= 2
     return point
+
+
+def describe_variants(testcases: Sequence[TestCase]) -> list[str]:
+    """What tells each of ``testcases`` (extensions of one test-case) from the others, a
+    line each: its order of events among the test's cars (numbered by first appearance:
+    ``order 2 of 3``), each new car's route, whether it stops, when it arrives at its line
+    and enters the junction, the rule its complexity certificate breaks, and where in the
+    entry window Step 3 aimed (``smoothest timing`` when it did not)."""
+    marks = [signature(t) for t in testcases]
+    orders = list(dict.fromkeys(_order_of(mark) for mark in marks))
+    lines = []
+    for testcase, mark in zip(testcases, marks, strict=True):
+        provenance = testcase.provenance or {}
+        parts = [f"order {orders.index(_order_of(mark)) + 1} of {len(orders)}"]
+        parts += [
+            f"{c.car} ({c.route}) {'stops' if c.stops else 'does not stop'}, arrives at "
+            f"{c.arrival:.2f} s, enters at {c.entry:.2f} s"
+            for c in mark.cars
+        ]
+        violated = provenance.get("complexity_certificate_violates", [])
+        broken = [f"{v['rule']} of {v['car']}" for v in violated]
+        rear_end = (provenance.get("complexity_certificate") or {}).get("rear_end") or []
+        broken += [f"drives into {car} (rear-end)" for car in rear_end]
+        parts.append(f"breaks {', '.join(broken)}" if broken else "breaks no rule named")
+        parts.append(_aimed(provenance.get("timing_aim")))
+        lines.append("; ".join(parts))
+    return lines
+
+
+def _aimed(aim: dict[str, Any] | None) -> str:
+    """Where Step 3 aimed the new cars' entries (provenance["timing_aim"])."""
+    if not aim:
+        return "smoothest timing"
+    share = float(aim["share"])
+    ends = {0.0: "the earliest entry", 1.0: "the latest entry"}
+    return f"timing aimed at {ends.get(share, f'{share * 100:g} % of the entry window')}"
+
+
+def _order_of(mark: Signature) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """An order of events as a test-case keeps it: its relations and which new cars stop."""
+    return mark.order, tuple(c.car for c in mark.cars if c.stops)
+
+
+def variant_name(name: str, number: int) -> str:
+    """The name of variant ``number`` of an extension named ``name``: ``STEM variant K level
+    N`` for ``STEM level N`` (so that the next level renames it, as ``name_stem`` expects),
+    else ``NAME variant K``; within the test-case's name length."""
+    stem, level = name, ""
+    head, space, tail = name.rpartition(" level ")
+    if space and tail.isdigit():
+        stem, level = head, f" level {tail}"
+    suffix = f" variant {number}{level}"
+    return stem[: MAX_NAME_LENGTH - len(suffix)] + suffix

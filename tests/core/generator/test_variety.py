@@ -11,12 +11,20 @@ from service.core.errors import InvalidInput, NoneFound
 from service.core.generator.extension import Extensions, extend_testcase, extend_testcases
 from service.core.generator.variety import (
     DISTINCT_GAP,
+    describe_variants,
     distinct_count,
     is_new,
     seed_aim,
     signature,
+    variant_name,
 )
-from service.core.testcase import TestCase, dump_testcase, new_testcase
+from service.core.testcase import (
+    MAX_NAME_LENGTH,
+    TestCase,
+    dump_testcase,
+    name_stem,
+    new_testcase,
+)
 from tests.core.generator.test_extension import assert_strictly_more_complex
 
 ROUTE = ["W2C_0:C2E_0"]  # crosses the ego's route at the four-way stop
@@ -101,3 +109,42 @@ def test_seed_aims_spread_and_never_repeat() -> None:
     assert seed_aim(0) is None
     assert aims[:4] == [0.5, 0.25, 0.75, 0.125]
     assert len(set(aims)) == len(aims) and all(0 < a < 1 for a in aims if a is not None)
+
+
+def test_each_variant_is_described_by_what_tells_it_apart(five: Extensions) -> None:
+    testcases = [e.testcase for e in five.found]
+    lines = describe_variants(testcases)
+    orders = {(signature(t).order, signature(t).cars[0].stops) for t in testcases}
+    for line, testcase in zip(lines, testcases, strict=True):
+        car = signature(testcase).cars[0]
+        assert line.startswith("order ") and f" of {len(orders)}; " in line
+        assert f"car1 ({ROUTE[0]}) {'stops' if car.stops else 'does not stop'}" in line
+        assert f"arrives at {car.arrival:.2f} s, enters at {car.entry:.2f} s" in line
+        violated = (testcase.provenance or {})["complexity_certificate_violates"]
+        assert f"breaks {violated[0]['rule']} of car1" in line
+        aimed = (testcase.provenance or {}).get("timing_aim")
+        assert line.endswith("smoothest timing") == (aimed is None), line
+    # variants of one order carry its number; another order gets the next
+    numbers = [line.split(";")[0] for line in lines]
+    keys = [(signature(t).order, signature(t).cars[0].stops) for t in testcases]
+    assert all((numbers[i] == numbers[j]) == (keys[i] == keys[j])
+               for i, j in itertools.combinations(range(len(lines)), 2))  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("name", "number", "expected"),
+    [
+        ("4way-stop C S2C_1:C2N_1 level 1", 2, "4way-stop C S2C_1:C2N_1 variant 2 level 1"),
+        ("west variant 2 level 3", 1, "west variant 2 variant 1 level 3"),
+        ("left", 3, "left variant 3"),
+        (
+            "x" * MAX_NAME_LENGTH + " level 12",
+            7,
+            "x" * (MAX_NAME_LENGTH - 19) + " variant 7 level 12",
+        ),
+    ],
+)
+def test_variant_names_keep_the_level_last(name: str, number: int, expected: str) -> None:
+    named = variant_name(name, number)
+    assert named == expected and len(named) <= MAX_NAME_LENGTH
+    assert name_stem(named).endswith(f" variant {number}")  # the next level renames it
