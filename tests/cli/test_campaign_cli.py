@@ -5,6 +5,7 @@ same folder is refused; bad input is a one-line error."""
 
 from __future__ import annotations
 
+import copy
 import itertools
 import json
 import os
@@ -155,7 +156,8 @@ def test_a_campaign_holds_no_repeated_test_case_at_any_level(tmp_path: Path) -> 
     test-cases differ pairwise (variety's signature, read from the files the campaign
     wrote, and the documents themselves), the campaign counts them all as distinct, the
     shares carry the Wilson interval, and the diversity is that of the files."""
-    from service.cli.campaign_folder import testcase_file_name
+    from service.cli.campaign_folder import open_store, testcase_file_name
+    from service.core.campaign import resummarized
     from service.core.generator.variety import Signature, distinct_count, signature
     from service.core.testcase import dump_testcase, read_testcase
 
@@ -194,6 +196,24 @@ def test_a_campaign_holds_no_repeated_test_case_at_any_level(tmp_path: Path) -> 
                rf"\({round(100 * lower)}–{round(100 * upper)}%\)$")  # fmt: skip
         assert re.search(row, done.stdout, re.M), done.stdout
     assert "diversity per level" in done.stdout
+    # the outcome as a campaign stored before schema 2 kept it is counted anew, from the
+    # stored test-cases, to the same outcome
+    old = copy.deepcopy(outcome)
+    old["schema"] = "scengen/campaign/1"
+    for chain in old["chains"]:
+        for level in chain["levels"]:
+            del level["signature"]
+    store, _ = open_store(folder)
+    try:
+        records = {
+            ident: store.testcase(ident)
+            for ident in {level["testcase"] for chain in old["chains"] for level in chain["levels"]}
+        }
+        assert all(records.values())
+        again = resummarized(old, lambda ident: records[ident].testcase)  # type: ignore[union-attr]
+        assert again == outcome
+    finally:
+        store.close()
 
 
 # the bundled T's program with shorter greens and an offset: the campaign's starts carry it
