@@ -5,7 +5,7 @@ SUMO call in a killable child process) against a SQLite store inside the folder.
 same command again after a crash or Ctrl-C and it goes on where it stopped; a different
 campaign in the same folder is refused. When it ends, the folder holds:
 
-    campaign.json        the outcome (service.core.campaign, schema scengen/campaign/1)
+    campaign.json        the outcome (service.core.campaign, schema scengen/campaign/2)
     junit.xml            one test case per chain, level and controller
     report.html          the self-contained report (the results browser, offline)
     testcases/           every test-case as JSON, named chain by chain, with the network

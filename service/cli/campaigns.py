@@ -38,7 +38,7 @@ from service.core.sim.controllers import controller_names, resolve_driver
         required=True,
     ),
     arg("--depth", type=int, required=True, metavar="K", help="levels (1-10)"),
-    arg("--chains", type=int, required=True, metavar="N", help="chains per ego route (1-20)"),
+    arg("--chains", type=int, required=True, metavar="N", help="chains per ego route (1-100)"),
     arg(
         "--controller",
         action="append",
@@ -88,7 +88,12 @@ from service.core.sim.controllers import controller_names, resolve_driver
 )
 def campaign(args: argparse.Namespace) -> int:
     from service.cli.campaign_folder import elapsed_printer, run_folder_campaign
-    from service.core.campaign import campaign_paper_table, criticality_table, failure_table
+    from service.core.campaign import (
+        campaign_paper_table,
+        criticality_table,
+        diversity_table,
+        failure_table,
+    )
 
     if args.major is not None:
         args.usage.error(
@@ -121,8 +126,16 @@ def campaign(args: argparse.Namespace) -> int:
         print("the paper's table (failed/test-cases and the most common cause):")
         sys.stdout.write(campaign_paper_table(outcome).text())
     else:
-        print("failed test-cases per level (failed/test-cases):")
+        print("failed test-cases per level (failed/distinct test-cases, share (Wilson 95% "
+              "interval)):")  # fmt: skip
         print_table(failure_table(outcome))
+    diversity = diversity_table(outcome)
+    if diversity is not None:
+        print(
+            "diversity per level (distinct test-cases, grown, orders of events, routes, "
+            "rules the certificates break, new cars' arrival and entry: median (min–max)):"
+        )
+        print_table(diversity)
     failed = False
     for controller in outcome["plan"]["controllers"]:
         shares = [level["controllers"][controller] for level in outcome["levels"]]

@@ -11,8 +11,16 @@ Route choice is steered towards rules no complexity certificate has broken yet: 
 whose earlier certificates (for this ego route) broke only rules already covered is tried
 after the others of its group. Chain ``c`` of every ego route has seed ``seed + c``.
 
-``summarize`` turns the chains into the campaign's outcome: per level and controller the
-share of test-cases it fails, the rules it breaks, its collisions and goal misses, and the
+Chains are grown one after the other, each to its depth, and no two hold the same
+test-case at a level: a level grown from a parent avoids the test-cases that earlier chains
+of the ego grew from that same parent at that level (``service.core.generator.variety``;
+children of different parents always differ), so a level that would repeat one takes the
+next distinct test-case.
+
+``summarize`` turns the chains into the campaign's outcome: per level the distinct
+test-cases (by their signature; a campaign stored before levels kept one counts by id)
+and their diversity, and per controller the share of the distinct test-cases it fails
+with its Wilson score interval, the rules it breaks, its collisions and goal misses, and the
 distribution of each criticality measure (``service.core.criticality_by_level``); per
 controller whether criticality grows with the level; per chain the first level each
 controller fails; and the rule coverage of the rule set. ``campaign_paper_table`` is the
@@ -21,9 +29,11 @@ outcome as the seed paper's table (``service.core.paper_table``).
 
 from __future__ import annotations
 
+import math
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from statistics import NormalDist
 from typing import Any, Protocol
 
 from service.core.checker.verdict import JUnitCase, junit_document, overall_properties
@@ -32,13 +42,18 @@ from service.core.criticality_by_level import (
     MEASURES,
     UNITS,
     criticality_trend,
+    distribution,
     level_criticality,
 )
 from service.core.errors import BudgetExceeded, NoMoreComplexTestCase, NoneFound
+from service.core.generator.variety import Signature, is_new, signature
 from service.core.paper_table import PaperTable, failure_cause, paper_table
 from service.core.testcase import TestCase, name_stem, readable_name
 
-CAMPAIGN_SCHEMA = "scengen/campaign/1"
+# 2: distinct test-cases per level (levels keep their signature), shares over them with a
+# Wilson interval, diversity; every field of 1 is still there
+CAMPAIGN_SCHEMA = "scengen/campaign/2"
+CONFIDENCE = 0.95  # of the failure shares' Wilson score intervals
 REAR_END_RULE = "rearEnd"  # a complexity certificate that runs into a new car ahead of it
 REAR_END_LAW = "21703"  # CVC: following too closely
 # What ends a chain before its depth: no more complex test-case exists, none was found
@@ -92,11 +107,18 @@ class CampaignSteps(Protocol):
         ...
 
     def grow(
-        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...], stem: str
+        self,
+        parent: str,
+        testcase: TestCase,
+        seed: int,
+        last: tuple[str, ...],
+        stem: str,
+        avoid: Sequence[tuple[str, TestCase]],
     ) -> tuple[str, TestCase, str]:
         """The next level: id, test-case (named ``STEM level N``) and the route added;
-        routes in ``last`` are tried after the others of their group. A chain ends at one
-        of CHAIN_ENDS."""
+        routes in ``last`` are tried after the others of their group; it differs from every
+        test-case of ``avoid`` (id and test-case: service.core.generator.chain.grow). A
+        chain ends at one of CHAIN_ENDS."""
         ...
 
     def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
@@ -132,6 +154,7 @@ def run_campaign(
 
     for ego in plan.egos:
         root_id, root = steps.root(ego)
+        made = {root_id: root}  # this ego's test-cases by id
         root_verdicts = {}
         for controller in plan.controllers:
             root_verdicts[controller] = _compact(steps.evaluate(root_id, root, controller))
@@ -146,12 +169,15 @@ def run_campaign(
             parent_id, parent = root_id, root
             for level in range(1, plan.depth + 1):
                 last = _covered_routes(chains, ego, rules)
+                avoid = [(i, made[i]) for i in _siblings(chains, ego, level, parent_id)]
                 try:
-                    parent_id, parent, route = steps.grow(parent_id, parent, seed, last, stem)
+                    parent_id, parent, route = steps.grow(parent_id, parent, seed, last, stem,
+                                                          avoid)  # fmt: skip
                 except CHAIN_ENDS as end:
                     record["end"] = f"level {level}: {end.message}"
                     done += (plan.depth - level + 1) * (1 + len(plan.controllers))
                     break
+                made[parent_id] = parent
                 tell(f"{ego} chain {chain + 1}: level {level} grown ({route})")
                 verdicts = {}
                 for controller in plan.controllers:
@@ -174,6 +200,19 @@ def chain_name(root: TestCase, chain: int) -> str:
     return f"{name_stem(root.name or readable_name(root))} chain {chain + 1}"
 
 
+def _siblings(chains: Sequence[dict[str, Any]], ego: str, level: int, parent: str) -> list[str]:
+    """The test-cases that this ego's chains grew from ``parent`` at ``level`` so far: the
+    next chain's level must differ from each (a child of another parent always does)."""
+    found: list[str] = []
+    for chain in chains:
+        levels = chain["levels"]
+        if chain["ego"] != ego or len(levels) <= level or levels[level - 1]["testcase"] != parent:
+            continue
+        if levels[level]["testcase"] not in found:
+            found.append(levels[level]["testcase"])
+    return found
+
+
 def _level(
     level: int, ident: str, testcase: TestCase, route: str | None, verdicts: dict[str, Any]
 ) -> dict[str, Any]:
@@ -188,6 +227,7 @@ def _level(
         "new_cars": list(provenance.get("new_nonegos", [])),
         "breaks": _broken(testcase),
         "rear_end": list(certificate.get("rear_end", [])),
+        "signature": signature(testcase).to_dict(),
         "verdicts": verdicts,
     }
 
@@ -249,18 +289,16 @@ def summarize(
     plan: CampaignPlan, chains: Sequence[dict[str, Any]], rules: Sequence[tuple[str, str]]
 ) -> dict[str, Any]:
     """The campaign's outcome as one JSON document (``CAMPAIGN_SCHEMA``)."""
-    by_level: dict[int, dict[str, dict[str, Any]]] = {}  # level -> test-case id -> level
-    for chain in chains:
-        for level in chain["levels"]:
-            by_level.setdefault(level["level"], {})[level["testcase"]] = level
     levels: list[dict[str, Any]] = []
-    for number in sorted(by_level):
-        found = list(by_level[number].values())
+    for number, grown in _by_level(chains).items():
+        found = distinct_levels(grown)
         levels.append(
             {
                 "level": number,
                 "testcases": len(found),
+                "grown": len({level["testcase"] for level in grown}),
                 "controllers": {c: _share(c, found) for c in plan.controllers},
+                "diversity": diversity(found),
             }
         )
     trend = {
@@ -279,18 +317,117 @@ def summarize(
     }
 
 
+def _by_level(chains: Sequence[Mapping[str, Any]]) -> dict[int, list[dict[str, Any]]]:
+    """Every chain's level records by level number (in order), chain by chain."""
+    found: dict[int, list[dict[str, Any]]] = {}
+    for chain in chains:
+        for level in chain["levels"]:
+            found.setdefault(level["level"], []).append(level)
+    return dict(sorted(found.items()))
+
+
+def distinct_levels(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The records of distinct test-cases among ``records`` (of one level), the first of
+    each in the order given: one test-case id once, and of the others only those whose
+    signature differs from every one kept (``variety.Signature``: a campaign stored before
+    levels kept their signature tells its test-cases apart by id alone)."""
+    kept: list[dict[str, Any]] = []
+    marks: list[Signature] = []
+    ids: set[str] = set()
+    for record in records:
+        if record["testcase"] in ids:
+            continue
+        ids.add(record["testcase"])
+        if record.get("signature") is not None:
+            mark = Signature.from_dict(record["signature"])
+            if not is_new(mark, marks):
+                continue
+            marks.append(mark)
+        kept.append(record)
+    return kept
+
+
+def diversity(found: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """How much of the space the distinct test-cases ``found`` of a level cover: how many
+    orders of events (the signature's order among the test-case's cars, which leaves out
+    the ego's certificates, and which new cars stop), how many combinations of routes the
+    new cars take, the rules their complexity certificates break, and the distribution
+    (``criticality_by_level.distribution``) of their new cars' arrival times at the stop
+    line and entry times into the junction (s)."""
+    marks = [Signature.from_dict(r["signature"]) for r in found if r.get("signature")]
+    orders = {(mark.order, tuple((car.car, car.stops) for car in mark.cars)) for mark in marks}
+    return {
+        "orders": len(orders),
+        "routes": len({tuple(car.route for car in mark.cars) for mark in marks}),
+        "rules": sorted({rule for record in found for rule in record["breaks"]}),
+        "arrival": distribution([car.arrival for mark in marks for car in mark.cars]),
+        "entry": distribution([car.entry for mark in marks for car in mark.cars]),
+    }
+
+
+def wilson_interval(
+    successes: int, trials: int, confidence: float = CONFIDENCE
+) -> tuple[float, float] | None:
+    """The Wilson score interval of the share ``successes / trials`` (None for no trial):
+    the shares whose normal test at ``confidence`` does not reject the observation. Unlike
+    the share plus or minus z standard errors it stays within 0 and 1 and is not empty at
+    0/n or n/n, which small levels often are (Wilson, JASA 22, 1927)."""
+    if trials == 0:
+        return None
+    z = NormalDist().inv_cdf(0.5 + confidence / 2)
+    share, z2 = successes / trials, z * z
+    centre = (share + z2 / (2 * trials)) / (1 + z2 / trials)
+    half = z * math.sqrt(share * (1 - share) / trials + z2 / (4 * trials * trials))
+    half /= 1 + z2 / trials
+    # at 0/n and n/n the interval ends at 0 and 1 exactly (centre and half agree there)
+    lower = 0.0 if successes == 0 else max(0.0, centre - half)
+    upper = 1.0 if successes == trials else min(1.0, centre + half)
+    return lower, upper
+
+
 def _share(controller: str, found: Sequence[dict[str, Any]]) -> dict[str, Any]:
     verdicts = [level["verdicts"][controller] for level in found]
     failed = [v for v in verdicts if not v["passed"]]
+    interval = wilson_interval(len(failed), len(verdicts))
     return {
         "evaluated": len(verdicts),
         "failed": len(failed),
         "share": round(len(failed) / len(verdicts), 4) if verdicts else None,
+        "interval": None
+        if interval is None
+        else {"lower": round(interval[0], 4), "upper": round(interval[1], 4)},
         "rules": dict(sorted(Counter(r for v in failed for r in v["rules"]).items())),
         "collisions": sum(1 for v in failed if v["collisions"]),
         "goal_misses": sum(1 for v in failed if not v["goal_reached"]),
         "criticality": level_criticality(verdicts),
     }
+
+
+def resummarized(
+    outcome: dict[str, Any], testcase_of: Callable[[str], TestCase | None]
+) -> dict[str, Any]:
+    """An outcome stored before levels kept their signature (schema 1) summarized anew, its
+    levels given the signatures of their test-cases (``testcase_of``: by id, None when one
+    is gone, whose level then counts by its id), so that its shares count distinct
+    test-cases too; an outcome whose levels have them, as it is."""
+    if all("signature" in lv for chain in outcome["chains"] for lv in chain["levels"]):
+        return outcome
+    marks: dict[str, dict[str, Any] | None] = {}
+
+    def signed(level: dict[str, Any]) -> dict[str, Any]:
+        ident = level["testcase"]
+        if ident not in marks:
+            found = testcase_of(ident)
+            marks[ident] = None if found is None else signature(found).to_dict()
+        return {**level, "signature": level.get("signature", marks[ident])}
+
+    chains = [{**chain, "levels": [signed(lv) for lv in chain["levels"]]}
+              for chain in outcome["chains"]]  # fmt: skip
+    stored = outcome["plan"]
+    plan = CampaignPlan(**{**stored, "egos": tuple(stored["egos"]),
+                           "controllers": tuple(stored["controllers"])})  # fmt: skip
+    rules = [(c["rule"], c["law"]) for c in outcome["coverage"] if c["rule"] != REAR_END_RULE]
+    return summarize(plan, chains, rules)
 
 
 def _chain_outcome(plan: CampaignPlan, chain: dict[str, Any]) -> dict[str, Any]:
@@ -369,29 +506,66 @@ def campaign_cases(
 def campaign_paper_table(outcome: dict[str, Any]) -> PaperTable:
     """The outcome as the paper's table: controllers against levels, a cell per level
     with the share of its test-cases each controller fails and their most common cause."""
-    by_level: dict[int, dict[str, dict[str, Any]]] = {}  # level -> test-case id -> verdicts
-    for chain in outcome["chains"]:
-        for level in chain["levels"]:
-            by_level.setdefault(level["level"], {})[level["testcase"]] = level["verdicts"]
     controllers = outcome["plan"]["controllers"]
     levels = {
-        number: {c: [found[c] for found in cases.values()] for c in controllers}
-        for number, cases in by_level.items()
-    }
+        number: {c: [found["verdicts"][c] for found in distinct_levels(grown)]
+                 for c in controllers}
+        for number, grown in _by_level(outcome["chains"]).items()
+    }  # fmt: skip
     return paper_table(levels, controllers)
 
 
 def failure_table(outcome: dict[str, Any]) -> list[list[str]]:
-    """Rows of failure shares: level, test-cases, then one column per controller."""
+    """Rows of failure shares: level, distinct test-cases, then one column per controller
+    (``share_text``)."""
     controllers = outcome["plan"]["controllers"]
     rows = [["level", "test-cases", *controllers]]
     for level in outcome["levels"]:
-        cells = []
-        for controller in controllers:
-            share = level["controllers"][controller]
-            cells.append(f"{share['failed']}/{share['evaluated']}")
+        cells = [share_text(level["controllers"][controller]) for controller in controllers]
         rows.append([str(level["level"]), str(level["testcases"]), *cells])
     return rows
+
+
+def share_text(share: Mapping[str, Any]) -> str:
+    """A failure share with its Wilson interval, ``1/9 11% (2–44%)`` (an outcome stored
+    before shares had one: ``1/9``)."""
+    counted = f"{share['failed']}/{share['evaluated']}"
+    interval = share.get("interval")
+    if interval is None:
+        return counted
+    return (f"{counted} {_percent(share['share'])}% "
+            f"({_percent(interval['lower'])}–{_percent(interval['upper'])}%)")  # fmt: skip
+
+
+def _percent(share: float) -> str:
+    return f"{100 * share:.0f}"
+
+
+def diversity_table(outcome: dict[str, Any]) -> list[list[str]] | None:
+    """Rows of each level's diversity: distinct test-cases, test-cases grown, orders of
+    events, combinations of the new cars' routes, the rules the certificates break, and the
+    new cars' arrival and entry times (median (min–max)); None for an outcome stored
+    before levels had a diversity."""
+    if any("diversity" not in level for level in outcome["levels"]):
+        return None
+    rows = [["level", "test-cases", "grown", "orders", "routes", "rules broken",
+             "arrival (s)", "entry (s)"]]  # fmt: skip
+    for level in outcome["levels"]:
+        found = level["diversity"]
+        rules = found["rules"]
+        rows.append([
+            str(level["level"]), str(level["testcases"]), str(level["grown"]),
+            str(found["orders"]), str(found["routes"]),
+            f"{len(rules)}: {', '.join(rules)}" if rules else "0",
+            _spread(found["arrival"]), _spread(found["entry"]),
+        ])  # fmt: skip
+    return rows
+
+
+def _spread(spread: Mapping[str, Any] | None) -> str:
+    if spread is None:
+        return "—"
+    return f"{spread['median']:g} ({spread['min']:g}–{spread['max']:g})"
 
 
 def criticality_table(outcome: dict[str, Any], controller: str) -> list[list[str]] | None:

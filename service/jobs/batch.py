@@ -125,7 +125,7 @@ class CampaignItem(_Item):
     egos: list[str] | None = Field(None, min_length=1, max_length=20, description="routes")
     all_egos: bool = Field(False, description="a chain set for every route of the junction")
     depth: int = Field(ge=1, le=10)
-    chains: int = Field(ge=1, le=20, description="chains per ego route")
+    chains: int = Field(ge=1, le=100, description="chains per ego route")
     controllers: list[str] = Field(min_length=1, max_length=20)
     seed: int = Field(0, ge=0, le=MAX_SEED)
     duration: float = Field(20.0, gt=0, le=120, description="seconds each test-case lasts")

@@ -9,10 +9,10 @@ again and every step done before answers from memory, so it goes on where it sto
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
-from service.core.campaign import CHAIN_ENDS, CampaignPlan, run_campaign
+from service.core.campaign import CHAIN_ENDS, CampaignPlan, resummarized, run_campaign
 from service.core.errors import InvalidInput, ScengenError, UnknownNetwork, choices
 from service.core.network.signals import program_from_document
 from service.core.testcase import NetworkRef, Signals, TestCase, dump_testcase, parse_testcase
@@ -153,13 +153,20 @@ class JobCampaign:
         return ident, self._testcase(ident)
 
     def grow(
-        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...], stem: str
+        self,
+        parent: str,
+        testcase: TestCase,
+        seed: int,
+        last: tuple[str, ...],
+        stem: str,
+        avoid: Sequence[tuple[str, TestCase]],
     ) -> tuple[str, TestCase, str]:
         self.recalled = False
 
         def compute() -> dict[str, str]:
+            avoided = tuple(dump_testcase(other) for _, other in avoid)
             args = (dump_testcase(testcase), self.network_file, self.work.settings.cache_dir,
-                    seed, self.budget_per_level, last, stem)  # fmt: skip
+                    seed, self.budget_per_level, last, stem, avoided)  # fmt: skip
             try:
                 result = self.work.call(tasks.extend_any, args, self.budget_per_level + 5.0,
                                         f"growing a level on {parent}")  # fmt: skip
@@ -169,8 +176,8 @@ class JobCampaign:
             record = self.work.store.add_testcase(parse_testcase(result["document"]), parent)
             return {"testcase": record.id, "route": result["route"]}
 
-        held_back = hashlib.sha256(",".join(last).encode()).hexdigest()[:16]
-        found = self._remembered(f"grow/{parent}/{seed}/{held_back}", compute)
+        found = self._remembered(grow_key(parent, seed, last, [ident for ident, _ in avoid]),
+                                 compute)  # fmt: skip
         if "end" in found:
             raise _ENDS[found["end"]](found["message"])
         self._made(found["testcase"])
@@ -237,8 +244,23 @@ class JobCampaign:
         self._remember(OUTCOME, outcome)
 
 
+def grow_key(parent: str, seed: int, last: Sequence[str], avoid: Sequence[str]) -> str:
+    """The memo key of a level grown from ``parent``: its seed, the routes held back and the
+    test-cases it must differ from (a resumed campaign asks the same, so it reads back
+    what it grew). A level that avoids nothing keeps the key campaigns had before they
+    avoided, so that their first chains are read back too."""
+    key = f"grow/{parent}/{seed}/{_digest(last)}"
+    return f"{key}/avoid-{_digest(avoid)}" if avoid else key
+
+
+def _digest(names: Sequence[str]) -> str:
+    return hashlib.sha256(",".join(names).encode()).hexdigest()[:16]
+
+
 def outcome_of(store: Store, job: str) -> dict[str, Any]:
-    """The campaign outcome (so far) of ``job``'s first campaign item."""
+    """The campaign outcome (so far) of ``job``'s first campaign item; one stored before
+    levels kept their signature, summarized anew over its distinct test-cases
+    (service.core.campaign.resummarized)."""
     jobs = JobStore(store)
     record = jobs.job(job)
     if record is None:
@@ -247,5 +269,10 @@ def outcome_of(store: Store, job: str) -> dict[str, Any]:
         if item.kind == "campaign":
             found = jobs.memo(job, item.position, OUTCOME)
             if found is not None:
-                return dict(found)
+                return resummarized(dict(found), lambda ident: _stored(store, ident))
     raise KeyError(f"job {job} has no campaign outcome yet")
+
+
+def _stored(store: Store, ident: str) -> TestCase | None:
+    record = store.testcase(ident)
+    return None if record is None else record.testcase

@@ -337,17 +337,20 @@ def extend_any(
     budget: float,
     last: tuple[str, ...] = (),
     stem: str | None = None,
+    avoid: tuple[str, ...] = (),
 ) -> dict[str, Any]:
     """An extension by one car on a route the service chooses (service.core.generator.chain.grow):
     the routes that conflict with the ego's or start ahead of it, from forks no car uses
     first, then from forks in use (the new car joins the queue), in an order drawn from
-    ``seed`` (routes in ``last`` after the others); the budget only stops the call. The new
-    test-case is named ``STEM level N`` (default: as ``named_extension`` says)."""
+    ``seed`` (routes in ``last`` after the others), that differs from every test-case of
+    ``avoid`` (documents); the budget only stops the call. The new test-case is named
+    ``STEM level N`` (default: as ``named_extension`` says)."""
     from service.core.generator.chain import grow
 
     old = parse_testcase(document)
     intersection = load_testcase_intersection(old, cache_dir, network_file)
-    growth = grow(old, seed, budget, intersection, last=last)
+    others = [parse_testcase(other) for other in avoid]
+    growth = grow(old, seed, budget, intersection, last=last, avoid=others)
     extension = growth.extension
     return {
         "document": named_extension(extension.testcase, old, network_file, stem),

@@ -231,7 +231,7 @@ def test_submit_gives_a_campaign_its_own_junit_and_report(server: Server, tmp_pa
                    "--out", "results", cwd=tmp_path)  # fmt: skip
     assert done.returncode == 0, done.stderr
     outcome = json.loads((tmp_path / "results" / "campaign.json").read_text())
-    assert outcome["schema"] == "scengen/campaign/1" and outcome["finished"]
+    assert outcome["schema"] == "scengen/campaign/2" and outcome["finished"]
     levels = outcome["chains"][0]["levels"]
     suite = ET.parse(tmp_path / "report.xml").getroot().find("testsuite")
     assert suite is not None

@@ -15,6 +15,7 @@ Screenshots go to build/screenshots/ui-*.png (look at them)."""
 from __future__ import annotations
 
 import itertools
+import json
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -363,12 +364,13 @@ def test_the_campaign_plots_each_criticality_measure_by_level_beside_the_failure
     page.wait_for_selector("#criticality")
     weak = page.locator(".criticality-card[data-controller='weak']")
     assert weak.locator(".failure-rate").inner_text() == (
-        "failed: level 0 0/1 · level 1 0/1 · level 2 2/2 · level 3 2/2"
+        "failed: level 0 0/1 0% (0–79%) · level 1 0/1 0% (0–79%) · level 2 2/2 100% (34–100%)"
+        " · level 3 2/2 100% (34–100%)"
     )
     assert (
         weak.locator(".trend")
         .inner_text()
-        .startswith("criticality grows: median TTC 3.5 → 2.25 → 1.25 s (levels 1–3)")
+        .startswith("criticality grows: median TTC 3 → 2.25 → 1.25 s (levels 1–3)")
     )
     ttc = weak.locator(".criticality-plot[data-measure='ttc']")
     assert ttc.locator(".level-tick").all_text_contents() == ["0", "1", "2", "3"]
@@ -377,7 +379,7 @@ def test_the_campaign_plots_each_criticality_measure_by_level_beside_the_failure
         level: ttc.locator(f"g.level[data-level='{level}'] circle").evaluate_all(values)
         for level in (0, 1, 2, 3)
     }
-    assert dots == {0: [], 1: ["3.5"], 2: ["2", "2.5"], 3: ["1", "1.5"]}
+    assert dots == {0: [], 1: ["3"], 2: ["2", "2.5"], 3: ["1", "1.5"]}
     # the median of a more critical level is drawn lower: TTC falls from level to level
     heights = [
         float(ttc.locator(f"g.level[data-level='{level}'] .median").get_attribute("y1") or 0)
@@ -387,6 +389,45 @@ def test_the_campaign_plots_each_criticality_measure_by_level_beside_the_failure
     strong = page.locator(".criticality-plot[data-controller='strong'][data-measure='ttc']")
     assert "never arose" in (strong.text_content() or "")  # strong never was on a collision course
     page.locator("#criticality").screenshot(path=str(SCREENSHOTS / "ui-criticality.png"))
+
+
+def test_the_campaign_shows_each_share_with_its_interval_and_each_levels_diversity(
+    browser_page: tuple[Page, list[str]], tmp_path: Path
+) -> None:
+    """Over hand-made verdicts (tests/core/test_campaign.py's fake): the level table and
+    the plot carry each share's Wilson interval, the diversity table each level's
+    measures, and an outcome stored before campaigns kept them still shows its shares."""
+    page, _ = browser_page
+    outcome = run_campaign(plan(), FakeSteps(), RULES)
+    job = "d" * 32
+    record = {"id": job, "name": "fake", "state": "succeeded", "done": 1, "total": 1,
+              "items": [{"position": 0, "kind": "campaign", "state": "succeeded",
+                         "progress": "", "error": None}]}  # fmt: skip
+    old = json.loads(json.dumps(outcome))
+    for level in old["levels"]:
+        del level["diversity"], level["grown"]
+        for share in level["controllers"].values():
+            del share["interval"]
+    for name, shown in (("new", outcome), ("old", old)):
+        report = tmp_path / f"{name}.html"
+        answers = {f"/jobs/{job}": record, f"/jobs/{job}/campaign": shown}
+        report.write_text(report_html(job, answers, "diversity"))
+        page.goto(report.as_uri())
+        page.wait_for_selector("#failure-shares")
+        level_two = page.locator("#failure-shares tbody tr").nth(2)
+        cells = level_two.locator("td").all_inner_texts()
+        if name == "old":
+            assert cells[3].startswith("2/2") and "%" not in cells[3]
+            assert page.locator("#failure-plot line.interval").count() == 0
+            assert page.locator("#diversity-none").count() == 1
+            continue
+        assert cells[:2] == ["2", "2"] and cells[3].startswith("2/2 100% (34–100%)")
+        bars = page.locator("#failure-plot line.interval[data-controller='weak']")
+        assert bars.count() == 4  # one per level
+        assert bars.nth(2).locator("title").text_content() == "weak, level 2: 2/2 100% (34–100%)"
+        rows = page.locator("#diversity tbody tr").all_inner_texts()
+        assert rows[3].split("\t") == ["3", "2", "2", "1", "2: yieldToInside, yieldToRight",
+                                       "—", "—"]  # fmt: skip
 
 
 # t-signal's own program with an offset: at t = 0 the light is 31 s into its 38 s cycle

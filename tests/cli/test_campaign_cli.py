@@ -5,6 +5,7 @@ same folder is refused; bad input is a one-line error."""
 
 from __future__ import annotations
 
+import copy
 import itertools
 import json
 import os
@@ -68,7 +69,7 @@ def test_a_killed_campaign_resumes_and_ends_as_an_uninterrupted_one(tmp_path: Pa
     uninterrupted = scengen(*COMMAND, "-o", str(fresh))
     assert uninterrupted.returncode == 1, uninterrupted.stderr
     assert without_evaluation_ids(resumed) == without_evaluation_ids(fresh)
-    assert "level  test-cases  sumo  sumo-rolling-stop" in again.stdout
+    assert re.search(r"^level +test-cases +sumo +sumo-rolling-stop$", again.stdout, re.M)
     assert "FAIL sumo-rolling-stop: failed 3 of 3 test-cases; first at level 0" in again.stdout
 
     outcome = without_evaluation_ids(fresh)
@@ -133,14 +134,86 @@ def test_the_summary_prints_the_papers_table_and_criticality_by_level(
                "--controller", "strong", "--controller", "weak", "-o", str(tmp_path)]  # fmt: skip
     assert main([*command, "--table", "paper"]) == 1
     out = capsys.readouterr().out
-    assert "weak        pass     pass (TTC 3.5 s)  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n" in out
+    assert "weak        pass     pass (TTC 3.0 s)  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n" in out
     assert "criticality of weak by level (median (min–max) n=test-cases that have it):" in out
     assert re.search(r"^2 +2/2 +2\.25 \(2–2\.5\) n=2 +— +— +4\.5 \(4–5\) n=2$", out, re.M), out
-    assert "criticality of weak grows: median TTC 3.5 → 2.25 → 1.25 s (levels 1–3)" in out
+    assert "criticality of weak grows: median TTC 3 → 2.25 → 1.25 s (levels 1–3)" in out
     assert "criticality of strong does not grow: median distance 5 → 5 → 5 m" in out
     assert main([*command, "--markdown"]) == 1
-    row = "| weak | pass | pass (TTC 3.5 s) | 2/2 FAIL 21800(a) | 2/2 FAIL 21800(a) |"
+    row = "| weak | pass | pass (TTC 3.0 s) | 2/2 FAIL 21800(a) | 2/2 FAIL 21800(a) |"
     assert row in capsys.readouterr().out
+
+
+# (failed, test-cases): the Wilson score interval at 95 %, the roots of
+# (1 + z²/n) p² - (2 k/n + z²/n) p + (k/n)² = 0 with z = 1.959964, worked out by hand
+WILSON_95 = {(0, 1): (0.0, 0.7935), (1, 1): (0.2065, 1.0), (0, 4): (0.0, 0.4899),
+             (1, 4): (0.0456, 0.6994), (2, 4): (0.15, 0.85), (3, 4): (0.3006, 0.9544),
+             (4, 4): (0.5101, 1.0)}  # fmt: skip
+
+
+def test_a_campaign_holds_no_repeated_test_case_at_any_level(tmp_path: Path) -> None:
+    """Four chains of two levels on the bundled four-way stop: at each level the stored
+    test-cases differ pairwise (variety's signature, read from the files the campaign
+    wrote, and the documents themselves), the campaign counts them all as distinct, the
+    shares carry the Wilson interval, and the diversity is that of the files."""
+    from service.cli.campaign_folder import open_store, testcase_file_name
+    from service.core.campaign import resummarized
+    from service.core.generator.variety import Signature, distinct_count, signature
+    from service.core.testcase import dump_testcase, read_testcase
+
+    folder = tmp_path / "four"
+    done = scengen("campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "2", "--chains",
+                   "4", "--controller", "sumo", "-o", str(folder))  # fmt: skip
+    assert done.returncode in (0, 1), done.stderr
+    outcome = json.loads((folder / "campaign.json").read_text())
+    assert outcome["schema"] == "scengen/campaign/2"
+    assert [c["reached"] for c in outcome["chains"]] == [2, 2, 2, 2], outcome["chains"]
+    for number in (1, 2):
+        paths = [folder / "testcases" / testcase_file_name("S2C_0:C2N_0", chain, number)
+                 for chain in (1, 2, 3, 4)]  # fmt: skip
+        stored = [read_testcase(path) for path in paths]
+        marks = [signature(testcase) for testcase in stored]
+        assert not any(a.same_as(b) for a, b in itertools.combinations(marks, 2)), marks
+        assert distinct_count(stored) == 4
+        unnamed = {dump_testcase(t.model_copy(update={"name": ""})) for t in stored}
+        assert len(unnamed) == 4  # the documents differ beyond their names
+        kept = [Signature.from_dict(c["levels"][number]["signature"]) for c in outcome["chains"]]
+        assert kept == marks  # the campaign's signatures are the files'
+        level = outcome["levels"][number]
+        assert level["testcases"] == level["grown"] == 4
+        arrivals = sorted(car.arrival for mark in marks for car in mark.cars)
+        assert level["diversity"]["arrival"]["values"] == arrivals
+        broken = {rule for c in outcome["chains"] for rule in c["levels"][number]["breaks"]}
+        assert level["diversity"]["rules"] == sorted(broken)
+        assert 1 <= level["diversity"]["orders"] <= 4
+    assert outcome["levels"][0]["testcases"] == 1  # the root, shared by every chain
+    for level in outcome["levels"]:
+        share = level["controllers"]["sumo"]
+        lower, upper = WILSON_95[(share["failed"], share["evaluated"])]
+        assert share["interval"] == {"lower": lower, "upper": upper}
+        row = (rf"^{level['level']} +{level['testcases']} +{share['failed']}/"
+               rf"{share['evaluated']} {round(100 * share['share'])}% "
+               rf"\({round(100 * lower)}–{round(100 * upper)}%\)$")  # fmt: skip
+        assert re.search(row, done.stdout, re.M), done.stdout
+    assert "diversity per level" in done.stdout
+    # the outcome as a campaign stored before schema 2 kept it is counted anew, from the
+    # stored test-cases, to the same outcome
+    old = copy.deepcopy(outcome)
+    old["schema"] = "scengen/campaign/1"
+    for chain in old["chains"]:
+        for level in chain["levels"]:
+            del level["signature"]
+    store, _ = open_store(folder)
+    try:
+        records = {
+            ident: store.testcase(ident)
+            for ident in {level["testcase"] for chain in old["chains"] for level in chain["levels"]}
+        }
+        assert all(records.values())
+        again = resummarized(old, lambda ident: records[ident].testcase)  # type: ignore[union-attr]
+        assert again == outcome
+    finally:
+        store.close()
 
 
 # the bundled T's program with shorter greens and an offset: the campaign's starts carry it

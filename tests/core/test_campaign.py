@@ -4,10 +4,14 @@ what it reports. One test grows a real level to check that held-back routes come
 
 from __future__ import annotations
 
+import json
 import re
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
+
+import pytest
 
 from service.core.campaign import (
     EGO_ONLY_RULES,
@@ -15,8 +19,13 @@ from service.core.campaign import (
     campaign_junit,
     campaign_paper_table,
     criticality_table,
+    distinct_levels,
+    diversity,
+    diversity_table,
     failure_table,
+    resummarized,
     run_campaign,
+    wilson_interval,
 )
 from service.core.errors import NoMoreComplexTestCase
 from service.core.generator.chain import candidate_routes, grow
@@ -29,13 +38,19 @@ BREAKS = {"r1": "yieldToInside", "r2": "yieldToInside", "r3": "yieldToRight"}
 
 class FakeSteps:
     """Routes r1, r2, r3 in that order unless held back; r1 and r2 break yieldToInside, r3
-    yieldToRight. The controller 'weak' fails from level 2 on, 'strong' never. With
+    yieldToRight; a level's signature is its parent and its route. Test-cases to avoid are
+    passed over only ``avoiding`` (else the fake repeats them, as a campaign did before it
+    avoided). The controller 'weak' fails from level 2 on, 'strong' never. With
     ``measured``, verdicts beyond level 0 carry criticality: weak's TTC falls with the level
     (a chain of seed s 0.5 (s - 7) s above another) and so does its distance (2 m per
     second of TTC); strong has no TTC and keeps 5 m from every car."""
 
-    def __init__(self, end_at: int | None = None, measured: bool = False) -> None:
-        self.measured = measured
+    def __init__(
+        self, end_at: int | None = None, measured: bool = False, avoiding: bool = False
+    ) -> None:
+        self.measured, self.avoiding = measured, avoiding
+        self.avoided: list[list[str]] = []
+        self.made: dict[str, TestCase] = {}
         self.base = new_testcase("4way-stop", "S2C_0:C2N_0")
         self.grown: list[tuple[str, int, tuple[str, ...]]] = []
         self.evaluated: list[tuple[str, str]] = []
@@ -43,20 +58,33 @@ class FakeSteps:
         self.end_at = end_at
 
     def root(self, ego: str) -> tuple[str, TestCase]:
+        self.made[f"root-{ego}"] = self.base
         return f"root-{ego}", self.base
 
     def grow(
-        self, parent: str, testcase: TestCase, seed: int, last: tuple[str, ...], stem: str
+        self,
+        parent: str,
+        testcase: TestCase,
+        seed: int,
+        last: tuple[str, ...],
+        stem: str,
+        avoid: Sequence[tuple[str, TestCase]],
     ) -> tuple[str, TestCase, str]:
         self.grown.append((parent, seed, last))
+        self.avoided.append([ident for ident, _ in avoid])
         self.stems.append(stem)
         level = (testcase.provenance or {}).get("level", 0) + 1
         if self.end_at is not None and level >= self.end_at:
             raise NoMoreComplexTestCase("no new car makes this test-case more complex")
-        route = sorted(BREAKS, key=lambda r: r in last)[0]
+        routes = sorted(BREAKS, key=lambda r: r in last)
+        if self.avoiding:
+            routes = [r for r in routes if f"{parent}/{r}" not in self.avoided[-1]]
+        route = routes[0]
         provenance = {
             "level": level,
             "seed": seed,
+            "parent": parent,
+            "order": [f"before({route}, ego)"],
             "new_nonegos": [f"car{level}"],
             "complexity_certificate_violates": [{"car": f"car{level}", "rule": BREAKS[route]}],
             "complexity_certificate": {"rear_end": []},
@@ -64,6 +92,7 @@ class FakeSteps:
         grown = testcase.model_copy(
             update={"provenance": provenance, "name": f"{stem} level {level}"}
         )
+        self.made[f"{parent}/{route}"] = grown
         return f"{parent}/{route}", grown, route
 
     def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
@@ -116,7 +145,8 @@ def test_every_level_is_judged_by_every_controller_and_summarised() -> None:
     assert [c["first_failure"] for c in outcome["chains"]] == [{"strong": None, "weak": 2}] * 2
     assert outcome["finished"]
     rows = failure_table(outcome)
-    assert rows[0] == ["level", "test-cases", "strong", "weak"] and rows[3][3] == "2/2"
+    assert rows[0] == ["level", "test-cases", "strong", "weak"]
+    assert rows[3][3] == "2/2 100% (34–100%)"  # the share and its Wilson interval
 
 
 def test_criticality_by_level_and_the_papers_table_in_the_outcome() -> None:
@@ -129,8 +159,8 @@ def test_criticality_by_level_and_the_papers_table_in_the_outcome() -> None:
     }  # fmt: skip
     trend = outcome["criticality_trend"]
     assert trend["weak"]["grows"] is True  # TTC and distance fall, the others never arose
-    # level 1 is one test-case (both chains add r1 first): chain 2's, with seed 8
-    assert trend["weak"]["measures"]["ttc"]["medians"] == [[1, 3.5], [2, 2.25], [3, 1.25]]
+    # level 1 is one test-case (both chains add r1 first): chain 1's, with seed 7
+    assert trend["weak"]["measures"]["ttc"]["medians"] == [[1, 3.0], [2, 2.25], [3, 1.25]]
     assert trend["strong"]["grows"] is False  # 5 m at every level: no closer call
     assert trend["strong"]["measures"]["distance"]["flat"] == [[1, 2], [2, 3]]
     assert trend["strong"]["measures"]["distance"]["breaks"] == []
@@ -141,7 +171,7 @@ def test_criticality_by_level_and_the_papers_table_in_the_outcome() -> None:
     assert campaign_paper_table(outcome).text() == (
         "controller  level 0  level 1           level 2            level 3\n"
         "strong      pass     pass              pass 2/2           pass 2/2\n"
-        "weak        pass     pass (TTC 3.5 s)  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n"
+        "weak        pass     pass (TTC 3.0 s)  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n"
     )
     rows = criticality_table(outcome, "weak")
     assert rows is not None and rows[0][:3] == ["level", "failed", "TTC (s)"]
@@ -260,3 +290,95 @@ def test_held_back_routes_are_tried_after_the_others(four_way: Intersection) -> 
     free = grow(old, 0, 60.0, four_way).route
     held = grow(old, 0, 60.0, four_way, last=[free]).route
     assert held != free and held in candidates
+
+
+def test_a_level_avoids_what_earlier_chains_grew_from_the_same_parent() -> None:
+    steps = FakeSteps()  # repeats what it should avoid: the summary counts it once
+    outcome = run_campaign(plan(), steps, RULES)
+    # chain 2 grows from the root (chain 1's level 1 is avoided) and from root/r1 (so is
+    # chain 1's level 2); its level 3 grows from root/r1/r1, a parent no chain had before
+    assert steps.avoided == [[], [], [], ["root-S2C_0:C2N_0/r1"],
+                             ["root-S2C_0:C2N_0/r1/r2"], []]  # fmt: skip
+    assert [lv["grown"] for lv in outcome["levels"]] == [1, 1, 2, 2]
+    avoiding = FakeSteps(avoiding=True)
+    apart = run_campaign(plan(chains=3, depth=2), avoiding, RULES)
+    assert avoiding.avoided[2:] == [
+        ["root-S2C_0:C2N_0/r1"], [],  # chain 2 took r3: a parent of its own at level 2
+        ["root-S2C_0:C2N_0/r1", "root-S2C_0:C2N_0/r3"], [],
+    ]  # fmt: skip
+    firsts = [chain["levels"][1]["testcase"] for chain in apart["chains"]]
+    assert len(set(firsts)) == 3 and [lv["testcases"] for lv in apart["levels"]] == [1, 3, 3]
+
+
+def test_wilson_score_intervals_match_known_values() -> None:
+    # Wilson's formula worked by hand: centre (p + z²/2n) / (1 + z²/n), half-width
+    # z √(p(1-p)/n + z²/4n²) / (1 + z²/n), z = 1.959964 (95 %) or 1.644854 (90 %)
+    assert wilson_interval(5, 10) == pytest.approx((0.236593, 0.763407), abs=1e-6)
+    assert wilson_interval(1, 9) == pytest.approx((0.019891, 0.435000), abs=1e-6)
+    assert wilson_interval(0, 10) == (0.0, pytest.approx(0.277533, abs=1e-6))
+    assert wilson_interval(10, 10) == (pytest.approx(0.722467, abs=1e-6), 1.0)
+    assert wilson_interval(0, 1) == (0.0, pytest.approx(0.793451, abs=1e-6))
+    assert wilson_interval(3, 4, confidence=0.9) == pytest.approx((0.3562, 0.9421), abs=1e-4)
+    assert wilson_interval(0, 0) is None
+
+
+def _record(ident: str, arrival: float, order: str, breaks: list[str]) -> dict[str, Any]:
+    car = {"car": "n2", "route": "E2C_0:C2W_0", "stops": True, "arrival": arrival,
+           "entry": arrival + 2.0}  # fmt: skip
+    mark = {"parent": "p", "level": 2, "cars": [car], "order": [order]}
+    return {"testcase": ident, "breaks": breaks, "signature": mark}
+
+
+def test_distinct_test_cases_and_their_diversity() -> None:
+    records = [
+        _record("a", 3.0, "n2 before ego", ["yieldToInside"]),
+        _record("b", 3.6, "n2 before ego", ["yieldToInside"]),  # a, half a second later
+        _record("a", 3.0, "n2 before ego", ["yieldToInside"]),  # a again
+        _record("c", 5.0, "n2 before ego", ["yieldToRight"]),
+        _record("d", 3.0, "ego before n2", ["rearEnd"]),
+    ]
+    found = distinct_levels(records)
+    assert [r["testcase"] for r in found] == ["a", "c", "d"]
+    assert diversity(found) == {
+        "orders": 2,
+        "routes": 1,
+        "rules": ["rearEnd", "yieldToInside", "yieldToRight"],
+        "arrival": {"count": 3, "min": 3.0, "q1": 3.0, "median": 3.0, "q3": 4.0, "max": 5.0,
+                    "values": [3.0, 3.0, 5.0]},
+        "entry": {"count": 3, "min": 5.0, "q1": 5.0, "median": 5.0, "q3": 6.0, "max": 7.0,
+                  "values": [5.0, 5.0, 7.0]},
+    }  # fmt: skip
+    unsigned = [{k: v for k, v in r.items() if k != "signature"} for r in records]
+    assert [r["testcase"] for r in distinct_levels(unsigned)] == ["a", "b", "c", "d"]
+    assert diversity([]) == {"orders": 0, "routes": 0, "rules": [], "arrival": None,
+                             "entry": None}  # fmt: skip
+
+
+def test_shares_count_distinct_test_cases_with_their_interval() -> None:
+    steps = FakeSteps()
+    outcome = run_campaign(plan(), steps, RULES)
+    assert outcome["schema"] == "scengen/campaign/2"
+    level_one = outcome["levels"][1]
+    assert level_one["controllers"]["weak"]["interval"] == {"lower": 0.0, "upper": 0.7935}
+    assert outcome["levels"][2]["controllers"]["weak"]["interval"] == {"lower": 0.3424,
+                                                                        "upper": 1.0}  # fmt: skip
+    assert level_one["diversity"] == {"orders": 1, "routes": 1, "rules": ["yieldToInside"],
+                                      "arrival": None, "entry": None}  # fmt: skip
+    rows = diversity_table(outcome)
+    assert rows is not None and rows[0][:6] == ["level", "test-cases", "grown", "orders",
+                                                "routes", "rules broken"]  # fmt: skip
+    assert rows[3][5] == "1: yieldToInside"  # r2 and r1
+    assert rows[4] == ["3", "2", "2", "2", "1", "2: yieldToInside, yieldToRight", "—", "—"]
+    # an outcome stored before levels kept their signature is counted anew from the
+    # test-cases (by id where one is gone), and so are its intervals and its diversity
+    stored = json.loads(json.dumps(outcome))
+    for chain in stored["chains"]:
+        for level in chain["levels"]:
+            del level["signature"]
+    for level in stored["levels"]:
+        del level["diversity"], level["grown"]
+    assert diversity_table(stored) is None
+    assert resummarized(stored, steps.made.get) == outcome
+    assert resummarized(outcome, steps.made.get) is outcome
+    by_id = resummarized(stored, lambda _: None)
+    assert [lv["testcases"] for lv in by_id["levels"]] == [1, 1, 2, 2]

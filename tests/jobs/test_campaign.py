@@ -5,6 +5,7 @@ answers every step it took from memory and goes on."""
 from __future__ import annotations
 
 import copy
+from hashlib import sha256
 from pathlib import Path
 from typing import Any
 
@@ -106,3 +107,25 @@ def test_all_egos_at_a_light_leaves_out_the_routes_that_stay_red(tmp_path: Path)
     red = Signals.model_validate({"tls": "1126", "phases": [{"duration": 60, "state": "r" * 16}]})
     with pytest.raises(InvalidInput, match="no route of junction '1126' gets a colour to go"):
         routes_that_can_go(described, red, 45.0)
+
+
+def test_a_campaigns_level_differs_from_what_it_avoids(tmp_path: Path) -> None:
+    """extend_any, as a campaign's step calls it in a child process: with the same seed
+    and parent, a level told to avoid another chain's level is another test-case, and
+    its memo key names what it avoided (a level that avoids nothing keeps the key it had
+    before campaigns avoided)."""
+    from service.core.generator.variety import signature
+    from service.core.network import resolve_network
+    from service.core.testcase import dump_testcase, new_testcase, parse_testcase
+    from service.jobs.campaign_steps import grow_key
+    from service.jobs.tasks import extend_any
+
+    root = dump_testcase(new_testcase("4way-stop", "S2C_0:C2N_0"))
+    network = resolve_network("4way-stop")
+    first = extend_any(root, network, tmp_path, 0, 120.0)
+    second = extend_any(root, network, tmp_path, 0, 120.0, avoid=(first["document"],))
+    a, b = parse_testcase(first["document"]), parse_testcase(second["document"])
+    assert not signature(b).same_as(signature(a))
+    assert grow_key("p", 3, ("r1",), []) == "grow/p/3/" + sha256(b"r1").hexdigest()[:16]
+    keys = {grow_key("p", 3, ("r1",), avoid) for avoid in ([], ["a"], ["b"], ["a", "b"])}
+    assert len(keys) == 4

@@ -181,11 +181,13 @@ def _campaign_or_404(state: AppState, job: str) -> dict[str, Any]:
 
 @router.get("/{job}/campaign", operation_id="get_job_campaign")
 async def get_job_campaign(state: State, job: str) -> dict[str, Any]:
-    """The campaign's outcome so far (schema scengen/campaign/1).
+    """The campaign's outcome so far (schema scengen/campaign/2).
 
-    Failure shares and the distribution of each criticality measure per level and
-    controller, whether criticality grows with the level per controller, chains with
-    their first failing levels, rule coverage."""
+    Per level its distinct test-cases and their diversity (orders of events, rules the
+    certificates break, the new cars' arrival and entry times); per level and controller
+    the failure share over the distinct test-cases with its Wilson 95 % interval and the
+    distribution of each criticality measure; whether criticality grows with the level
+    per controller, chains with their first failing levels, rule coverage."""
     return await asyncio.to_thread(_campaign_or_404, state, job)
 
 

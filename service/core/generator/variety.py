@@ -20,7 +20,8 @@ picks a point of ``seed_aim``'s sequence, so that seeds 1, 2, 3, ... land on poi
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+import dataclasses
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -51,6 +52,21 @@ class Signature:
             abs(a.arrival - b.arrival) < gap and abs(a.entry - b.entry) < gap
             for a, b in zip(self.cars, other.cars, strict=True)
         )
+
+    def to_dict(self) -> dict[str, Any]:
+        """The signature as JSON (a campaign keeps it beside each level)."""
+        return {
+            "parent": self.parent,
+            "level": self.level,
+            "cars": [dataclasses.asdict(car) for car in self.cars],
+            "order": list(self.order),
+        }
+
+    @classmethod
+    def from_dict(cls, document: Mapping[str, Any]) -> Signature:
+        """The signature ``to_dict`` wrote."""
+        cars = tuple(NewCar(**car) for car in document["cars"])
+        return cls(document["parent"], document["level"], cars, tuple(document["order"]))
 
 
 @dataclass(frozen=True)

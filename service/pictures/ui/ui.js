@@ -754,9 +754,9 @@ function campaignView(outcome) {
   const plan = outcome.plan;
   const controllers = plan.controllers;
   controllers.forEach((c) => colourOf(c, controllers));
-  const levelRows = outcome.levels.map((level) => [String(level.level), String(level.testcases),
+  const levelRows = outcome.levels.map((level) => [String(level.level), testcasesOf(level),
     ...controllers.map((c) => { const s = level.controllers[c]; const rules = Object.entries(s.rules).map(([r, n]) => `${r} ${n}`).join(", ");
-      return h("td", { class: s.failed ? "fail" : "pass" }, `${s.failed}/${s.evaluated}`, rules ? h("div", { class: "muted" }, rules) : null,
+      return h("td", { class: s.failed ? "fail" : "pass" }, shareText(s), rules ? h("div", { class: "muted" }, rules) : null,
         s.collisions ? h("div", { class: "muted" }, `${s.collisions} collisions`) : null, s.goal_misses ? h("div", { class: "muted" }, `${s.goal_misses} goal misses`) : null); })]);
   const chainRows = outcome.chains.map((c) => [c.ego, String(c.chain + 1), String(c.reached), ...controllers.map((k) => (c.first_failure[k] === null ? "—" : `level ${c.first_failure[k]}`)),
     c.end ? h("span", { title: c.end }, c.end.length > 140 ? `${c.end.slice(0, 140)}…` : c.end) : `reached depth ${plan.depth}`]);
@@ -768,8 +768,11 @@ function campaignView(outcome) {
   return [
     h("p", { class: "muted" }, `ego routes ${plan.egos.join(", ")} · depth ${plan.depth} · ${plan.chains} chains each · seed ${plan.seed} · ${outcome.finished ? "finished" : "in progress"}`),
     h("h2", {}, "Share of test-cases each controller fails, by level"),
+    h("p", { class: "muted" }, "Over the level's distinct test-cases (chains that repeat another's test-case count once), with the Wilson score 95% interval of each share (in brackets; bars in the plot)."),
     h("div", { class: "card" }, failurePlot(outcome)),
-    table(["level", "test-cases", ...controllers], levelRows),
+    Object.assign(table(["level", "test-cases", ...controllers], levelRows), { id: "failure-shares" }),
+    h("h2", {}, "Diversity by level"),
+    diversityView(outcome),
     h("h2", {}, "Criticality by level"),
     criticalityView(outcome),
     h("h2", {}, "Rule coverage"),
@@ -803,10 +806,43 @@ function failurePlot(outcome) {
     const points = outcome.levels.map((l) => [x(l.level), y(l.controllers[c].share || 0)]);
     plot.append(svg("polyline", { points: points.map((p) => p.join(",")).join(" "), fill: "none", stroke: colour, "stroke-width": 2.2 }));
     points.forEach(([px, py]) => plot.append(svg("circle", { cx: px, cy: py, r: 3.5, fill: colour })));
+    outcome.levels.forEach((l) => { // the share's interval, a bar beside its point
+      const interval = l.controllers[c].interval;
+      if (!interval) return;
+      const bx = x(l.level) + (i - (controllers.length - 1) / 2) * 4;
+      plot.append(svg("line", { x1: bx, y1: y(interval.lower), x2: bx, y2: y(interval.upper), stroke: colour, "stroke-width": 1.2, opacity: 0.6, class: "interval", "data-controller": c, "data-level": l.level },
+        svg("title", {}, `${c}, level ${l.level}: ${shareText(l.controllers[c])}`)));
+    });
     plot.append(svg("rect", { x: width - right + 14, y: 20 + i * 20, width: 12, height: 12, fill: colour }),
       svg("text", { x: width - right + 32, y: 30 + i * 20, "font-size": 12 }, c));
   });
   return plot;
+}
+
+// a failure share with its Wilson interval, "1/9 11% (2–44%)" (a campaign stored before
+// shares had one: "1/9")
+function shareText(share) {
+  const counted = `${share.failed}/${share.evaluated}`;
+  if (!share.interval) return counted;
+  const percent = (v) => Math.round(v * 100);
+  return `${counted} ${percent(share.share)}% (${percent(share.interval.lower)}–${percent(share.interval.upper)}%)`;
+}
+
+// the level's distinct test-cases, and how many were grown when that is more
+function testcasesOf(level) {
+  return level.grown !== undefined && level.grown !== level.testcases ? `${level.testcases} (of ${level.grown} grown)` : String(level.testcases);
+}
+
+// per level: distinct test-cases, orders of events, routes, rules broken and the spread of
+// the new cars' arrival and entry times
+function diversityView(outcome) {
+  if (outcome.levels.some((l) => !l.diversity)) return h("p", { class: "muted", id: "diversity-none" }, "This campaign was stored before levels kept their diversity.");
+  const spread = (s) => (s ? `${round3(s.median)} (${round3(s.min)}–${round3(s.max)})` : "—");
+  const rows = outcome.levels.map((l) => [String(l.level), testcasesOf(l), String(l.diversity.orders), String(l.diversity.routes),
+    l.diversity.rules.length ? `${l.diversity.rules.length}: ${l.diversity.rules.join(", ")}` : "0", spread(l.diversity.arrival), spread(l.diversity.entry)]);
+  return h("div", { id: "diversity" },
+    h("p", { class: "muted" }, "How much of the space each level's distinct test-cases cover: the orders of events among their cars (and which new cars stop), the combinations of routes their new cars take, the rules their complexity certificates break, and when the new cars arrive at their stop line and enter the junction (median, min–max, seconds)."),
+    table(["level", "test-cases", "orders of events", "routes", "rules broken", "arrival (s)", "entry (s)"], rows));
 }
 
 // ---------- criticality by level ----------
@@ -828,7 +864,7 @@ function criticalityView(outcome) {
     controllers.map((c) => h("div", { class: "card criticality-card", "data-controller": c },
       h("h3", {}, h("span", { class: "swatch", style: `background:${colourOf(c, controllers)}` }), c),
       h("p", { class: "failure-rate" }, "failed: ", outcome.levels.map((l, i) => [i ? " · " : "", `level ${l.level} `,
-        h("span", { class: l.controllers[c].failed ? "fail" : "pass" }, `${l.controllers[c].failed}/${l.controllers[c].evaluated}`)])),
+        h("span", { class: l.controllers[c].failed ? "fail" : "pass" }, shareText(l.controllers[c]))])),
       trends[c] ? h("p", { class: "trend" }, `criticality ${trends[c].summary}`) : null,
       h("div", { class: "row" }, MEASURES.map(([key, label, unit]) => criticalityPlot(outcome, c, key, `${label} (${unit})`))))));
 }
