@@ -11,9 +11,11 @@ test data, Town05 1126, Town07 68). The ego takes the route that meets the most 
 forks (the deepest chain the rules allow; at a light, of the routes whose light lets them
 go first, a permissive one), its start 30 m before the line at 8 m/s, duration 45 s.
 
-Run with `make bench` (or `python -m bench.bench_chains`). Prints a markdown table: the
-depth each seed reached and why it stopped, the median seconds of each level over the
-seeds, and whether every free fork was used.
+Run with `make bench` (or `python -m bench.bench_chains`; `--only LABEL ...` for some of
+the junctions: `make bench-variety` grows them on the bundled junctions and Town05 396, as
+issue 34's target names them). Prints a markdown table: the depth each seed reached and
+why it stopped, the median seconds of each level over the seeds, and whether every free
+fork was used.
 """
 
 from __future__ import annotations
@@ -114,6 +116,9 @@ def grow_chain(start: TestCase, intersection: Intersection, seed: int) -> Chain:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=3)
+    labels = [label for label, *_ in JUNCTIONS]
+    parser.add_argument("--only", nargs="+", metavar="LABEL", choices=labels,
+                        help="only these junctions (labels of the table)")  # fmt: skip
     args = parser.parse_args()
     seeds = range(args.seeds)
     machine = f"{platform.node()}, Python {platform.python_version()}"
@@ -124,6 +129,8 @@ def main() -> None:
           "slowest level (median) | every free fork used |")  # fmt: skip
     print("|---|---|---|---|---|---|---|")
     for label, network, junction, control in JUNCTIONS:
+        if args.only and label not in args.only:
+            continue
         intersection = load_intersection(network, junction, control)
         ego = deepest_ego(intersection)
         start = new_testcase(network, ego, junction=junction, control=control, duration=DURATION)
