@@ -51,7 +51,7 @@ DURATION = 25.0
 RANDOM_TASKS = [  # (name, network, ego, duration, level 1 route, level 2 route)
     ("4way-stop", "4way-stop", "E2C_1:C2S_1", 20.0, "S2C_1:C2N_1", "W2C_1:C2E_1"),
     ("t-stop", "t-stop", "E2C_0:C2S_0", 25.0, "W2C_0:C2E_0", "S2C_0:C2W_0"),
-    ("y-uncontrolled", "y-uncontrolled", "N2C_0:C2SE_0", 25.0, "SW2C_0:C2N_0", "SE2C_0:C2N_0"),
+    ("y-uncontrolled", "y-uncontrolled", "N2C_0:C2SE_0", 25.0, "SW2C_0:C2N_0", "SE2C_0:C2SW_0"),
 ]  # fmt: skip
 
 Result = TypeVar("Result")

@@ -33,6 +33,9 @@ and nothing more:
   whose last sample is still short of the junction's exit cannot reach its goal, and the
   judge's own collision test (``first_collision``, on the very samples it will see)
   between a certificate and any non-ego, or between the new car and an old non-ego.
+  A verified find gets its new car's lane events written in (``compute_events``, as the
+  generator writes them) after the verdict, so that its arrival and entry can be read
+  (issue 34 counts distinct finds by variety.signature).
 
 Everything random comes from ``random.Random(seed)``; no decision depends on the clock.
 CPU time is this process's plus that of its finished children (Step 1 runs SUMO in a
@@ -325,7 +328,29 @@ class _Sampler:
         candidate = parse_testcase(document)
         if verify_extension(old, candidate, self.junction, [self.new_id]) is not None:
             return None
-        return candidate
+        return self._with_events(document, motions["new"], rows["new"])
+
+    def _with_events(
+        self, document: dict[str, Any], motion: Motion, rows: list[dict[str, float]]
+    ) -> TestCase:
+        """A verified find with its new car's lane events written in, as the generator
+        writes them (variety.signature reads a test-case's arrivals and entries from them);
+        only finds pay for this, after the verdict."""
+        events = compute_events(
+            [PoseSample(**r) for r in rows],
+            motion.length,
+            motion.width,
+            self.junction,
+            self.route.fork,
+            self.old.params.arrival_distance,
+            self.old.params.v_stop,
+        )
+        document["nonegos"][-1]["events"] = [
+            {"kind": e.kind.value, "lane": e.lane, "t": round(e.time, 6),
+             "distance": round(e.distance, 6)}
+            for e in events
+        ]  # fmt: skip
+        return parse_testcase(document)
 
 
 def random_extension(

@@ -29,6 +29,8 @@ def test_random_search_finds_a_verified_extension_deterministically() -> None:
 
     # bench_variety counts the sampler's finds as the generator's: by their signature,
     # read from the test-case (its new car's route, stop, arrival and entry)
+    assert {e.kind for e in new.nonegos[0].events} >= {"arrived", "entered", "exited"}
     mark = signature(new)
     assert [(c.car, c.route) for c in mark.cars] == [("car1", ROUTE)]
+    assert 0 < mark.cars[0].arrival < mark.cars[0].entry
     assert distinct_count([new, again.testcase]) == 1
