@@ -8,7 +8,7 @@ QC_STAMP := $(QC_VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled 4way-signal t-signal
 
 .PHONY: help install system-tools test lint format nets run demo openapi bench bench-api bench-jobs \
-	bench-generator bench-reliability campaign-curve \
+	bench-generator bench-variety bench-reliability campaign-curve \
 	coverage clean
 
 help:
@@ -18,7 +18,8 @@ help:
 	@echo "make lint     ruff and mypy --strict"
 	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
 	@echo "make bench    time the checker, the RSS guard, the generator, the API and batch jobs (docs/benchmarks.md)"
-	@echo "make bench-generator   only the generator: targets, chain growth, Step 2 theories"
+	@echo "make bench-generator   only the generator: targets, variety, chain growth, Step 2 theories"
+	@echo "make bench-variety     distinct extensions, count 10, against random search, issue 34's chains"
 	@echo "make bench-api / bench-jobs   one of those benchmarks"
 	@echo "make bench-reliability   hostile requests and 30 MB documents against a server (docs/reliability.md)"
 	@echo "make demo     describe the 4-way stop, write a test-case, drive and judge an ego"
@@ -84,6 +85,7 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.bench_check
 	$(BIN)/python -m bench.bench_rss
 	$(BIN)/python -m bench.bench_generate
+	$(BIN)/python -m bench.bench_variety
 	$(BIN)/python -m bench.bench_chains
 	$(BIN)/python -m bench.bench_ordering
 	$(BIN)/python -m bench.bench_api
@@ -94,8 +96,17 @@ bench: $(STAMP)
 bench-generator: $(STAMP)
 	$(BIN)/pip install --quiet -e '.[test,bench]'
 	$(BIN)/python -m bench.bench_generate
+	$(BIN)/python -m bench.bench_variety
 	$(BIN)/python -m bench.bench_chains
 	$(BIN)/python -m bench.bench_ordering
+
+# Issue 34's measurements: variety, count 10 against one, distinct extensions per
+# CPU-second against random search, and chain growth where its target names junctions.
+ISSUE34_CHAINS := 4way-stop t-stop y-uncontrolled 4way-signal t-signal "Town05 396 as allway_stop"
+bench-variety: $(STAMP)
+	$(BIN)/pip install --quiet -e '.[test,bench]'
+	$(BIN)/python -m bench.bench_variety
+	$(BIN)/python -m bench.bench_chains --only $(ISSUE34_CHAINS)
 
 campaign-curve: $(STAMP)
 	$(BIN)/python -m bench.campaign_curve

@@ -11,9 +11,12 @@ test data, Town05 1126, Town07 68). The ego takes the route that meets the most 
 forks (the deepest chain the rules allow; at a light, of the routes whose light lets them
 go first, a permissive one), its start 30 m before the line at 8 m/s, duration 45 s.
 
-Run with `make bench` (or `python -m bench.bench_chains`). Prints a markdown table: the
-depth each seed reached and why it stopped, the median seconds of each level over the
-seeds, and whether every free fork was used.
+Run with `make bench` (or `python -m bench.bench_chains`; `--only LABEL ...` for some of
+the junctions: `make bench-variety` grows them on the bundled junctions and Town05 396, as
+issue 34's target names them). Prints a markdown table: the depth each seed reached and
+why it stopped, the median seconds of each level over the seeds (wall clock, and CPU
+seconds as bench.cpu counts them, which a busy machine changes less), and whether every
+free fork was used.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from dataclasses import dataclass
 from datetime import date
 from pathlib import Path
 
+from bench.cpu import cpu_seconds
 from service.core.errors import NoMoreComplexTestCase, ScengenError
 from service.core.generator.chain import candidate_routes, grow
 from service.core.network import Intersection, load_intersection
@@ -83,17 +87,19 @@ def deepest_ego(intersection: Intersection) -> str:
 
 @dataclass
 class Chain:
-    seconds: list[float]
+    seconds: list[float]  # wall clock per level
+    cpu: list[float]  # CPU seconds per level (bench.cpu's count: the warm SUMO worker too)
     stopped: str  # why it stopped
     free_forks_left: int  # forks a new car could still start from when it stopped
 
 
 def grow_chain(start: TestCase, intersection: Intersection, seed: int) -> Chain:
     seconds: list[float] = []
+    cpu: list[float] = []
     current = start
     stopped = f"{MAX_LEVELS} levels"
     for _ in range(MAX_LEVELS):
-        clock = time.perf_counter()
+        clock, cpu_clock = time.perf_counter(), cpu_seconds()
         try:
             growth = grow(current, seed, BUDGET, intersection)
         except NoMoreComplexTestCase as error:
@@ -105,15 +111,19 @@ def grow_chain(start: TestCase, intersection: Intersection, seed: int) -> Chain:
             )
             break
         seconds.append(time.perf_counter() - clock)
+        cpu.append(cpu_seconds() - cpu_clock)
         current = growth.extension.testcase
     used = {current.ego.route.fork, *(n.route.fork for n in current.nonegos)}
     free = {intersection.routes[r].fork for r in candidate_routes(current, intersection)}
-    return Chain(seconds, stopped, len(free - used))
+    return Chain(seconds, cpu, stopped, len(free - used))
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=3)
+    labels = [label for label, *_ in JUNCTIONS]
+    parser.add_argument("--only", nargs="+", metavar="LABEL", choices=labels,
+                        help="only these junctions (labels of the table)")  # fmt: skip
     args = parser.parse_args()
     seeds = range(args.seeds)
     machine = f"{platform.node()}, Python {platform.python_version()}"
@@ -121,9 +131,11 @@ def main() -> None:
           f"duration {DURATION:g} s")  # fmt: skip
     print()
     print("| junction | ego | depth per seed | stopped because | median s per level | "
-          "slowest level (median) | every free fork used |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|")
+          "slowest level (median) | median CPU s per level | every free fork used |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
     for label, network, junction, control in JUNCTIONS:
+        if args.only and label not in args.only:
+            continue
         intersection = load_intersection(network, junction, control)
         ego = deepest_ego(intersection)
         start = new_testcase(network, ego, junction=junction, control=control, duration=DURATION)
@@ -134,12 +146,14 @@ def main() -> None:
             statistics.median(c.seconds[k] for c in chains if len(c.seconds) > k)
             for k in range(levels)
         ]
+        cpu = [statistics.median(c.cpu[k] for c in chains if len(c.cpu) > k) for k in range(levels)]
         per_level = ", ".join(f"{m:.1f}" for m in medians) or "-"
+        cpu_per_level = ", ".join(f"{m:.1f}" for m in cpu) or "-"
         slowest = f"{max(medians):.1f}" if medians else "-"
         every = "yes" if all(c.free_forks_left == 0 for c in chains) else "no"
         reasons = ", ".join(sorted({c.stopped for c in chains}))
         print(f"| {label} | {ego} | {' / '.join(map(str, depths))} | {reasons} | "
-              f"{per_level} | {slowest} | {every} |", flush=True)  # fmt: skip
+              f"{per_level} | {slowest} | {cpu_per_level} | {every} |", flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -5,42 +5,36 @@
    sets tried. Step 1 runs in the warm SUMO worker, as it does in a CLI chain, a job
    worker or the bench itself; the very first call pays its start (about 0.5 s).
 2. The four-way example (three levels) for seeds 0, 1 and 2, as `scengen example` runs it.
-3. Against random search: verified extensions per CPU-second of the generator (seeds 0,
-   1, 2, ... until its CPU budget is spent) and of bench/random_search.py's sampler
-   (judged by the same checker), at level 1 and at level 2, with the ratio per task.
-4. Variety: distinct extensions over 5 seeds per single-car case.
-6. Queues: two and three new cars in line on one fork in one extension (issue 16's target:
+3. Queues: two and three new cars in line on one fork in one extension (issue 16's target:
    three at one stop sign in under 5 s), seeds 0 and 1.
-7. Signals: one new car at signalized junctions (the bundled four-way and T, two test
+4. Signals: one new car at signalized junctions (the bundled four-way and T, two test
    junctions no constant was tuned on, three real junctions of Town05 and Town07 under
    their own programs; duration 45 s, seeds 0 and 1): success rate, p50 and p95 (issue
    32's targets: 100 %, 0.5 s, 2 s).
 5. Step 3 against the paper's single nonlinear formulation (bench/paper_timing.py) on the
    Step 3 problems that the generator solved: the ratio of medians.
 
-Run with `make bench` (or `python -m bench.bench_generate`); the markdown it prints goes
-to docs/benchmarks.md with the date and the machine.
+Variety and the comparison with random search (distinct verified extensions per
+CPU-second) are bench/bench_variety.py's. Run with `make bench` (or `python -m
+bench.bench_generate`); the markdown it prints goes to docs/benchmarks.md with the date
+and the machine.
 """
 
 from __future__ import annotations
 
 import argparse
-import hashlib
-import json
 import platform
 import statistics
 import time
 from datetime import date
 from pathlib import Path
 
-from bench.cpu import cpu_seconds
 from bench.paper_timing import solve_paper
-from bench.random_search import extensions_per_cpu_second
 from service.cli.examples import EXAMPLES, run_example
 from service.core.errors import ScengenError
-from service.core.generator.extension import Extension, extend_testcase
+from service.core.generator.extension import extend_testcase
 from service.core.generator.timing import TimingProblem, solve_timing
-from service.core.testcase import TestCase, new_testcase
+from service.core.testcase import new_testcase
 
 BUDGET = 20.0
 PAPER_BUDGET = 10.0
@@ -182,63 +176,6 @@ def example_chain() -> None:
     print()
 
 
-def generator_rate(old: TestCase, route: str, cpu_budget: float) -> tuple[int, float, int]:
-    """(verified extensions, CPU seconds, seeds tried) of the generator on one task."""
-    found, spent, seed = 0, 0.0, 0
-    while spent < cpu_budget:
-        clock = cpu_seconds()
-        try:
-            extend_testcase(old, [route], seed=seed, budget=BUDGET)
-            found += 1
-        except ScengenError:
-            pass
-        spent += cpu_seconds() - clock
-        seed += 1
-    return found, spent, seed
-
-
-def against_random(cpu_budget: float) -> None:
-    print("## Against random search\n")
-    four_way = new_testcase("4way-stop", "E2C_1:C2S_1", duration=20.0)
-    level1 = extend_testcase(four_way, ["S2C_1:C2N_1"], seed=0).testcase
-    tasks = [
-        ("4way-stop level 1: + S2C_1:C2N_1", four_way, "S2C_1:C2N_1"),
-        ("4way-stop level 2: + W2C_1:C2E_1", level1, "W2C_1:C2E_1"),
-        ("y-uncontrolled level 1: + SW2C_0:C2N_0",
-         new_testcase("y-uncontrolled", "N2C_0:C2SE_0", duration=25.0), "SW2C_0:C2N_0"),
-    ]  # fmt: skip
-    print("| task | generator: found / CPU s (seeds) | per CPU-s | random: found / CPU s | "
-          "per CPU-s | ratio |")  # fmt: skip
-    print("|---|---|---|---|---|---|")
-    for name, old, route in tasks:
-        ours, ours_cpu, seeds = generator_rate(old, route, cpu_budget / 4)
-        theirs, theirs_cpu = extensions_per_cpu_second(old, route, 0, cpu_budget)
-        rate, baseline = ours / ours_cpu, theirs / theirs_cpu
-        ratio = f"{rate / baseline:.0f}x" if theirs else f"> {rate * theirs_cpu:.0f}x"
-        shown = f"{baseline:.3f}" if theirs else f"< {1 / theirs_cpu:.3f} (none found)"
-        print(f"| {name} | {ours} / {ours_cpu:.1f} ({seeds}) | {rate:.2f} | "
-              f"{theirs} / {theirs_cpu:.1f} | {shown} | {ratio} |", flush=True)  # fmt: skip
-    print()
-
-
-def variety() -> None:
-    print("## Variety: distinct extensions over 5 seeds\n")
-    for network, ego, routes in CASES:
-        if len(routes) != 1:
-            continue
-        start = new_testcase(network, ego, duration=25.0)
-        made = set()
-        for seed in range(5):
-            try:
-                extension: Extension = extend_testcase(start, list(routes), seed=seed)
-            except ScengenError:
-                continue
-            cars = [n.model_dump(mode="json") for n in extension.testcase.nonegos]
-            made.add(hashlib.sha256(json.dumps(cars).encode()).hexdigest())
-        print(f"- {network} {ego} + {routes[0]}: {len(made)} of 5", flush=True)
-    print()
-
-
 def queues() -> None:
     print("## Queues: new cars in line on one fork, in one extension\n")
     print("| case | seed | result | total s | answer sets |")
@@ -279,10 +216,7 @@ def against_paper(problems: list[TimingProblem]) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--random-cpu", type=float, default=60.0,
-                        help="CPU seconds of random search per task (default 60)")  # fmt: skip
-    args = parser.parse_args()
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
     print(f"# generator benchmark, {date.today()}, {platform.node()}, Python "
           f"{platform.python_version()}, {platform.machine()}\n")  # fmt: skip
     problems: list[TimingProblem] = []
@@ -290,8 +224,6 @@ def main() -> None:
     signals()
     queues()
     example_chain()
-    against_random(args.random_cpu)
-    variety()
     against_paper(problems)
 
 

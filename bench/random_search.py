@@ -33,6 +33,9 @@ and nothing more:
   whose last sample is still short of the junction's exit cannot reach its goal, and the
   judge's own collision test (``first_collision``, on the very samples it will see)
   between a certificate and any non-ego, or between the new car and an old non-ego.
+  A verified find gets its new car's lane events written in (``compute_events``, as the
+  generator writes them) after the verdict, so that its arrival and entry can be read
+  (issue 34 counts distinct finds by variety.signature).
 
 Everything random comes from ``random.Random(seed)``; no decision depends on the clock.
 CPU time is this process's plus that of its finished children (Step 1 runs SUMO in a
@@ -325,7 +328,29 @@ class _Sampler:
         candidate = parse_testcase(document)
         if verify_extension(old, candidate, self.junction, [self.new_id]) is not None:
             return None
-        return candidate
+        return self._with_events(document, motions["new"], rows["new"])
+
+    def _with_events(
+        self, document: dict[str, Any], motion: Motion, rows: list[dict[str, float]]
+    ) -> TestCase:
+        """A verified find with its new car's lane events written in, as the generator
+        writes them (variety.signature reads a test-case's arrivals and entries from them);
+        only finds pay for this, after the verdict."""
+        events = compute_events(
+            [PoseSample(**r) for r in rows],
+            motion.length,
+            motion.width,
+            self.junction,
+            self.route.fork,
+            self.old.params.arrival_distance,
+            self.old.params.v_stop,
+        )
+        document["nonegos"][-1]["events"] = [
+            {"kind": e.kind.value, "lane": e.lane, "t": round(e.time, 6),
+             "distance": round(e.distance, 6)}
+            for e in events
+        ]  # fmt: skip
+        return parse_testcase(document)
 
 
 def random_extension(
@@ -344,13 +369,16 @@ def random_extension(
 
 @dataclass(frozen=True)
 class BudgetRun:
-    """Sampling until a CPU budget is spent: trials, successes, the first success."""
+    """Sampling until a CPU budget is spent: trials and every verified extension found."""
 
     trials: int
-    successes: int
+    found: list[TestCase]  # in the order found (the same ones may repeat a test-case)
     cpu_seconds: float
     wall_seconds: float
-    first: TestCase | None
+
+    @property
+    def successes(self) -> int:
+        return len(self.found)
 
 
 def budgeted_search(
@@ -360,24 +388,13 @@ def budgeted_search(
     spent, counting every verified extension."""
     cpu, wall = cpu_seconds(), time.perf_counter()
     sampler = _Sampler(old, route, seed, symmetric)
-    successes, first = 0, None
+    found: list[TestCase] = []
     while cpu_seconds() - cpu < cpu_budget:
         for _ in range(CHUNK):
-            found = sampler.trial()
-            if found is not None:
-                successes += 1
-                first = first or found
-    return BudgetRun(
-        sampler.trials, successes, cpu_seconds() - cpu, time.perf_counter() - wall, first
-    )
-
-
-def extensions_per_cpu_second(
-    old: TestCase, route: str, seed: int, cpu_budget: float, *, symmetric: bool = True
-) -> tuple[int, float]:
-    """(verified extensions, CPU-seconds used) of random search under ``cpu_budget``."""
-    run = budgeted_search(old, route, seed, cpu_budget, symmetric=symmetric)
-    return run.successes, run.cpu_seconds
+            candidate = sampler.trial()
+            if candidate is not None:
+                found.append(candidate)
+    return BudgetRun(sampler.trials, found, cpu_seconds() - cpu, time.perf_counter() - wall)
 
 
 def _report(name: str, run: BudgetRun) -> None:
@@ -415,10 +432,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     level1 = run(four_way, "S2C_1:C2N_1")
     _report("4way-stop E2C_1:C2S_1 + S2C_1:C2N_1 (level 1)", level1)
     name = "4way-stop level 1 + W2C_1:C2E_1 (level 2)"
-    if level1.first is None:
+    if not level1.found:
         print(f"{name:44s} skipped: level 1 found no extension to extend", flush=True)
     else:
-        _report(name, run(level1.first, "W2C_1:C2E_1"))
+        _report(name, run(level1.found[0], "W2C_1:C2E_1"))
     y = new_testcase("y-uncontrolled", "N2C_0:C2SE_0", duration=25.0)
     _report("y-uncontrolled N2C_0:C2SE_0 + SW2C_0:C2N_0", run(y, "SW2C_0:C2N_0"))
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from bench.random_search import random_extension
 from service.core.generator.extension import verify_extension
+from service.core.generator.variety import distinct_count, signature
 from service.core.testcase import dump_testcase, load_testcase_intersection, new_testcase
 
 ROUTE = "SW2C_0:C2N_0"
@@ -25,3 +26,11 @@ def test_random_search_finds_a_verified_extension_deterministically() -> None:
     assert again.trials == first.trials
     assert again.testcase is not None
     assert dump_testcase(again.testcase) == dump_testcase(new)
+
+    # bench_variety counts the sampler's finds as the generator's: by their signature,
+    # read from the test-case (its new car's route, stop, arrival and entry)
+    assert {e.kind for e in new.nonegos[0].events} >= {"arrived", "entered", "exited"}
+    mark = signature(new)
+    assert [(c.car, c.route) for c in mark.cars] == [("car1", ROUTE)]
+    assert 0 < mark.cars[0].arrival < mark.cars[0].entry
+    assert distinct_count([new, again.testcase]) == 1
