@@ -868,6 +868,22 @@ def _grid_plan(
     return plan_times(problem, share, grid) if grid and smoothed else grid
 
 
+AIM_REACH = 0.25  # seconds a grid plan may miss an aim by (a speed grid has no objective)
+
+
+def _within_aims(problem: TimingProblem) -> TimingProblem | None:
+    """The problem with every aimed event held within AIM_REACH of its aim (None without
+    aims): a speed-grid plan is any solution, so it keeps an aim only as a condition. Only
+    for plans, never for proofs or cores: the aim is no part of the order."""
+    if not problem.aims:
+        return None
+    return dataclasses.replace(
+        problem,
+        earliest=problem.earliest + tuple((s, t - AIM_REACH) for s, t in problem.aims),
+        latest=problem.latest + tuple((s, t + AIM_REACH) for s, t in problem.aims),
+    )
+
+
 def _passes(curve: Curve, distance: float, timestep: float) -> float:
     """The first time step at which ``curve`` has covered ``distance`` (its end if never)."""
     steps = round(curve.times[-1] / timestep)
@@ -883,7 +899,8 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     largest share (checked first: most orders that fail, fail here), the smooth plan with
     its followers planned behind the cars ahead, the smooth plan again with continuous
     speeds around the grid plan, then speed-grid plans (smoothed and as they are), the
-    comfortable share first. When no grid plan
+    comfortable share first; with aims, grid plans that keep them where there are any.
+    When no grid plan
     exists: the relations that cannot hold together, a proof when even the necessary
     conditions rule them out, else those that no grid plan within the largest share keeps
     (orders at the very edge of the bounds are left alone: no curve with room to spare
@@ -909,8 +926,11 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     curves = fitter.fit_all(smooth and plan_times(problem, comfortable, smooth))
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
+    aimed = _within_aims(problem)
     for share in SHARES:
-        grid = edge if share == largest else plan_on_speed_grid(problem, share)[0]
+        grid = plan_on_speed_grid(aimed, share)[0] if aimed is not None else None
+        if grid is None:
+            grid = edge if share == largest else plan_on_speed_grid(problem, share)[0]
         for smoothed in (True, False):
             planned = plan_times(problem, share, grid) if grid and smoothed else grid
             method = f"speed grid, {round(share * 100)} % of the bounds"
