@@ -19,7 +19,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 from service.core.checker.check import Car, Judge, check_testcase
@@ -1087,7 +1087,7 @@ def _candidate(
                 "route": {"fork": route.fork, "exit": route.exit},
                 "length": old.ego.length,
                 "width": old.ego.width,
-                "trajectory": [asdict(s) for s in trajectory],
+                "trajectory": [_row(s) for s in trajectory],
                 "events": [
                     {
                         "kind": e.kind.value,
@@ -1101,8 +1101,8 @@ def _candidate(
             }
         )
     document["certificates"] = {
-        "complexity": [asdict(s) for s in samples["illegal"]],
-        "solvability": [asdict(s) for s in samples["ego"]],
+        "complexity": [_row(s) for s in samples["illegal"]],
+        "solvability": [_row(s) for s in samples["ego"]],
     }
     document["provenance"] = {
         "parent": document_sha256(old),
@@ -1122,9 +1122,21 @@ def _candidate(
 
 def _rounded(sample: PoseSample) -> PoseSample:
     """The sample as it is stored: six decimals (a micrometre), heading in [0, 360)."""
-    data = {key: round(value, 6) + 0.0 for key, value in asdict(sample).items()}  # no -0.0
-    data["heading"] = data["heading"] % 360.0
-    return PoseSample(**data)
+    t, x, y, heading, speed, distance = (round(v, 6) + 0.0 for v in _fields_of(sample))  # no -0.0
+    return PoseSample(t, x, y, heading % 360.0, speed, distance)
+
+
+def _fields_of(sample: PoseSample) -> tuple[float, float, float, float, float, float]:
+    """The sample's fields in their order (dataclasses.astuple deep-copies: slow here)."""
+    return sample.t, sample.x, sample.y, sample.heading, sample.speed, sample.distance
+
+
+def _row(sample: PoseSample) -> dict[str, float]:
+    """The sample as a document's row (dataclasses.asdict, without its deep copies)."""
+    return dict(zip(_SAMPLE_FIELDS, _fields_of(sample), strict=True))
+
+
+_SAMPLE_FIELDS = tuple(f.name for f in dataclasses.fields(PoseSample))
 
 
 def verify_extension(
