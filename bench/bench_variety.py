@@ -20,6 +20,10 @@ within DISTINCT_GAP (1 s) of its counterpart (``distinct_count``), not byte equa
    level 2 on the bundled four-way stop, the T and the uncontrolled Y. Level 2 extends
    the generator's level 1 (seed 0) for both. The target: 100 times the sampler.
 
+4. The command line as a user runs it: the wall clock of a fresh ``scengen extend`` and of
+   ``scengen extend --count 10`` (each a new process: Python, the network, SUMO's start),
+   alternated REPEATS times on the level-1 tasks of part 3, the ratio of the medians.
+
 CPU time is bench.cpu's: this process, its finished children and the warm SUMO worker
 (both searches are charged alike). Run with `make bench` (or `python -m
 bench.bench_variety`); the markdown it prints goes to docs/benchmarks.md.
@@ -31,8 +35,13 @@ import argparse
 import os
 import platform
 import statistics
+import subprocess
+import sys
+import tempfile
+import time
 from collections.abc import Callable, Sequence
 from datetime import date
+from pathlib import Path
 from typing import TypeVar
 
 from bench.bench_generate import CASES
@@ -127,21 +136,48 @@ def against_random(cpu_budget: float) -> None:
     print()
 
 
+def command_line() -> None:
+    print(f"## The command line: a fresh `scengen extend` against `--count {COUNT}`\n")
+    print(f"Wall clock of each process, alternated {REPEATS} times, medians.\n")
+    print(f"| task | one: s | count {COUNT}: s | ratio |")
+    print("|---|---|---|---|")
+    scengen = [sys.executable, "-m", "service"]
+    for name, network, ego, duration, first, _ in RANDOM_TASKS:
+        with tempfile.TemporaryDirectory() as folder:
+            old = Path(folder) / "old.json"
+            new = [*scengen, "new", network, "--ego", ego, "--duration", str(duration)]
+            subprocess.run([*new, "-o", str(old)], check=True, capture_output=True)
+            extend = [*scengen, "extend", str(old), "--add", first]
+            ones, tens = [], []
+            for _ in range(REPEATS):
+                for extra, times in (([], ones), (["--count", str(COUNT)], tens)):
+                    clock = time.perf_counter()
+                    subprocess.run([*extend, *extra, "-o", str(Path(folder) / "new.json")],
+                                   check=True, capture_output=True)  # fmt: skip
+                    times.append(time.perf_counter() - clock)
+        one, ten = statistics.median(ones), statistics.median(tens)
+        print(f"| {name} level 1: + {first} | {one:.2f} | {ten:.2f} | {ten / one:.1f}x |",
+              flush=True)  # fmt: skip
+    print()
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--random-cpu", type=float, default=60.0,
                         help="CPU seconds of random search per task (default 60)")  # fmt: skip
-    parser.add_argument("--only", choices=("variety", "random"),
-                        help="run one of the two parts")  # fmt: skip
+    parser.add_argument("--only", choices=("variety", "random", "command-line"),
+                        help="run one of the parts")  # fmt: skip
     args = parser.parse_args()
     load = ", ".join(f"{v:.1f}" for v in os.getloadavg())
     print(f"# variety benchmark, {date.today()}, {platform.node()}, Python "
           f"{platform.python_version()}, {platform.machine()}, {os.cpu_count()} CPUs, "
           f"load at the start {load}\n")  # fmt: skip
-    if args.only != "random":
+    if args.only in (None, "variety"):
         variety()
-    if args.only != "variety":
+    if args.only in (None, "random"):
         against_random(args.random_cpu)
+    if args.only in (None, "command-line"):
+        command_line()
     print(f"load at the end: {', '.join(f'{v:.1f}' for v in os.getloadavg())}")
 
 
