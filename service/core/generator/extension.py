@@ -48,6 +48,7 @@ from service.core.generator.ordering import (
     timed_events,
 )
 from service.core.generator.timing import (
+    SHARES,
     TICK,
     CarPlan,
     Following,
@@ -56,6 +57,7 @@ from service.core.generator.timing import (
     TimingProblem,
     TimingSolution,
     entry_window,
+    plan_times,
     solve_timing,
 )
 from service.core.generator.variety import (
@@ -337,7 +339,7 @@ class _Search:
         self.problem: TimingProblem | None = None  # of the last verified candidate
         self.variants: list[tuple[int, float]] = []  # (answer set, aim) of every timing tried
         self.keys: dict[tuple[tuple[str, ...], frozenset[str]], int] = {}  # verified: number
-        self.windows: dict[int, list[tuple[str, tuple[float, float]]]] = {}  # by order
+        self.windows: dict[int, list[tuple[str, tuple[float, float], float | None]]] = {}
         for stage in ("ordering", "timing", "verification"):
             seconds[stage] = 0.0
 
@@ -378,7 +380,7 @@ class _Search:
                 if same is not None:  # nothing new for the test-case, only for a certificate
                     attempts.append(Attempt(number, f"the same test-case order as #{same}"))
                     continue
-                outcome, candidate, core = self.attempt(ordering, aim, number + 1)
+                outcome, candidate, core = self.attempt(ordering, aim, number + 1, apart=True)
                 if candidate is None and aim is not None and not outcome.startswith(TIMING):
                     # curves at the aim, but not verified (or nothing to aim at): the
                     # smoothest plan may still be; an order Step 3 cannot time at its aim
@@ -427,31 +429,46 @@ class _Search:
                 given += 1
                 yield ordering, candidate
 
-    def _aims(self, ordering: Ordering, aim: float) -> tuple[tuple[str, float], ...]:
+    def _aims(
+        self, ordering: Ordering, aim: float, apart: bool = False
+    ) -> tuple[tuple[str, float], ...]:
         """Each new car's junction entry aimed at ``aim`` of its window of entry times
-        (timing.entry_window, worked out once an order); empty when a car has none."""
+        (timing.entry_window, worked out once an order); empty when a car has none. With
+        ``apart`` (a seed's aim), an aim within DISTINCT_GAP of where the smoothest plan
+        enters (seed 0's test-case) moves DISTINCT_GAP away from it, to the side nearer
+        the aim that stays in the window."""
         if ordering.index not in self.windows:
-            problem = _timing_problem(
-                self.old, self.junction, self.cars, ordering, self.tracks, self.queue
-            )
-            windows: list[tuple[str, tuple[float, float]]] = []
-            for plan in problem.cars:
-                if plan.car not in self.added[1]:
-                    continue
-                symbol = _entry_symbol(plan)
-                window = entry_window(problem, symbol) if symbol is not None else None
-                if symbol is None or window is None:
-                    windows = []
-                    break
-                windows.append((symbol, window))
-            self.windows[ordering.index] = windows
-        return tuple(
-            (symbol, round(lo + aim * (hi - lo), 4))
-            for symbol, (lo, hi) in self.windows[ordering.index]
-        )
+            self.windows[ordering.index] = self._windows(ordering)
+        aims = []
+        for symbol, (lo, hi), smoothest in self.windows[ordering.index]:
+            target = lo + aim * (hi - lo)
+            if apart and smoothest is not None and abs(target - smoothest) < DISTINCT_GAP:
+                sides = [t for t in (smoothest - DISTINCT_GAP, smoothest + DISTINCT_GAP)
+                         if lo <= t <= hi]  # fmt: skip
+                target = min(sides, key=lambda t: abs(t - target), default=target)
+            aims.append((symbol, round(target, 4)))
+        return tuple(aims)
+
+    def _windows(self, ordering: Ordering) -> list[tuple[str, tuple[float, float], float | None]]:
+        """Each new car's entry symbol, its window of entry times, and its entry in the
+        smoothest plan (None when there is none); empty when a car has no window."""
+        problem = _timing_problem(self.old, self.junction, self.cars, ordering, self.tracks,
+                                  self.queue)  # fmt: skip
+        smooth = plan_times(problem, SHARES[0])
+        windows = []
+        for plan in problem.cars:
+            if plan.car not in self.added[1]:
+                continue
+            symbol = _entry_symbol(plan)
+            window = entry_window(problem, symbol) if symbol is not None else None
+            if symbol is None or window is None:
+                return []
+            index = next(k for k, knot in enumerate(plan.knots) if knot.symbol == symbol)
+            windows.append((symbol, window, smooth[plan.car][index] if smooth else None))
+        return windows
 
     def attempt(
-        self, ordering: Ordering, aim: float | None, number: int
+        self, ordering: Ordering, aim: float | None, number: int, apart: bool = False
     ) -> tuple[str, TestCase | None, list[tuple[str, Any, Any]] | None]:
         """The outcome of timing and judging one order, aimed at ``aim`` of the new cars'
         entry windows (None: the smoothest plan): what happened, the verified candidate
@@ -459,7 +476,7 @@ class _Search:
         old, seconds = self.old, self.seconds
         self.deadline.check(self.attempts, "Step 3")
         clock = time.monotonic()
-        aims = self._aims(ordering, aim) if aim is not None else ()
+        aims = self._aims(ordering, aim, apart) if aim is not None else ()
         if aim is not None and not aims:
             seconds["timing"] += time.monotonic() - clock
             return "no window of entry times to aim in", None, None
