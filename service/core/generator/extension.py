@@ -105,6 +105,7 @@ MAX_ORDERS = 60  # answer sets one extension tries at most: a count, the same on
 # Step 2 first proposes orders that 70 % of the bounds can time (they leave the curves room),
 # then, when those are exhausted, every order the full bounds allow.
 SEARCH_SHARES = (0.7, 1.0)
+TIMINGS_PER_WANTED = 2  # other timings extend_testcases tries per extension still wanted
 
 Progress = Callable[[str], None]
 TIMING = "timing: "  # what an attempt's outcome starts with when Step 3 found no curves
@@ -408,20 +409,22 @@ class _Search:
     def timings(
         self, verified: Sequence[Ordering], taken: list[Signature], wanted: int
     ) -> Iterator[tuple[Ordering, TestCase]]:
-        """Up to ``wanted`` more candidates from the verified orders, each aimed at the
-        points of variety.AIMS in turn, those that differ from ``taken`` (which the caller
-        extends with every one it keeps). A point whose entry times are close to those of
-        one taken is passed over without solving."""
-        given = 0
-        for ordering in verified:
-            number = self.keys[self._key(ordering)]
-            for aim in AIMS:
-                if given >= wanted:
+        """Up to ``wanted`` more candidates from the verified orders, aimed at the points
+        of variety.AIMS in turn (each point in every order before the next point), those
+        that differ from ``taken`` (which the caller extends with every one it keeps); at
+        most TIMINGS_PER_WANTED x ``wanted`` timings are tried (a count). A point whose
+        entry times are close to those of one taken is passed over without solving."""
+        given, tried = 0, 0
+        for aim in AIMS:
+            for ordering in verified:
+                if given >= wanted or tried >= TIMINGS_PER_WANTED * wanted:
                     return
                 aims = self._aims(ordering, aim)
                 if not aims or _near(aims, taken):
                     continue
+                number = self.keys[self._key(ordering)]
                 self.variants.append((number, aim))
+                tried += 1
                 outcome, candidate, _ = self.attempt(ordering, aim, number)
                 self.say(f"step 3 answer set {number} at {aim:g} of its timings: {outcome}")
                 if candidate is None or not is_new(signature(candidate), taken):
