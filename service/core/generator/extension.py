@@ -105,7 +105,7 @@ MAX_ORDERS = 60  # answer sets one extension tries at most: a count, the same on
 # Step 2 first proposes orders that 70 % of the bounds can time (they leave the curves room),
 # then, when those are exhausted, every order the full bounds allow.
 SEARCH_SHARES = (0.7, 1.0)
-TIMINGS_PER_WANTED = 2  # other timings extend_testcases tries per extension still wanted
+TIMINGS_PER_WANTED = 3  # other timings extend_testcases tries per extension still wanted
 
 Progress = Callable[[str], None]
 TIMING = "timing: "  # what an attempt's outcome starts with when Step 3 found no curves
