@@ -383,9 +383,9 @@ class _Search:
                     continue
                 outcome, candidate, core = self.attempt(ordering, aim, number + 1, apart=True)
                 if candidate is None and aim is not None and not outcome.startswith(TIMING):
-                    # curves at the aim, but not verified (or nothing to aim at): the
-                    # smoothest plan may still be; an order Step 3 cannot time at its aim
-                    # is rarely timed at all, and trying costs the most, so it is not
+                    # not verified (or nothing to aim at): the smoothest plan may still be
+                    # (an order Step 3 cannot time at its aim it times without: its
+                    # failure is the order's)
                     self.say(f"step 2/3 answer set {number + 1}, aimed: {outcome}")
                     outcome, candidate, core = self.attempt(ordering, None, number + 1)
                 if core is not None:  # given the phases chosen: their bounds are part of it
@@ -497,7 +497,7 @@ class _Search:
         seconds["verification"] += time.monotonic() - clock
         if candidate is None:
             return outcome, None, None
-        if aims:
+        if aims and result.aimed:
             assert candidate.provenance is not None
             candidate.provenance["timing_aim"] = {
                 "share": aim, "entries": {s: round(t, 3) for s, t in aims}

@@ -158,6 +158,7 @@ class Curve:
 class TimingSolution:
     curves: dict[str, Curve]
     method: str  # how the plan was made: "linear, 70 % of the bounds" and the like
+    aimed: bool = False  # the plan keeps the problem's aims
 
 
 @dataclass(frozen=True)
@@ -871,12 +872,32 @@ def _grid_plan(
 AIM_REACH = 0.25  # seconds a grid plan may miss an aim by (a speed grid has no objective)
 
 
-def _within_aims(problem: TimingProblem) -> TimingProblem | None:
-    """The problem with every aimed event held within AIM_REACH of its aim (None without
-    aims): a speed-grid plan is any solution, so it keeps an aim only as a condition. Only
-    for plans, never for proofs or cores: the aim is no part of the order."""
-    if not problem.aims:
-        return None
+def _solve_aimed(problem: TimingProblem) -> TimingSolution | None:
+    """Curves that keep the problem's aims, or None: the smooth plan with the aims in its
+    cost, then speed-grid plans that hold every aimed event within AIM_REACH of its aim (a
+    grid plan is any solution, so it keeps an aim only as a condition), smoothed and as
+    they are, the comfortable share first. No proofs and no cores here: an aim is no part
+    of the order, and solve_timing times an order it cannot keep the aims of without them."""
+    fitter = _Fitter(problem)
+    share = SHARES[0]
+    curves = fitter.fit_all(plan_times(problem, share))
+    if curves:
+        return TimingSolution(curves, f"linear, {round(share * 100)} % of the bounds", True)
+    held = _within_aims(problem)
+    for share in SHARES:
+        grid = plan_on_speed_grid(held, share)[0]
+        if grid is None:
+            continue
+        for planned in (plan_times(problem, share, grid), grid):
+            curves = fitter.fit_all(planned)
+            if curves:
+                method = f"speed grid, {round(share * 100)} % of the bounds"
+                return TimingSolution(curves, method, True)
+    return None
+
+
+def _within_aims(problem: TimingProblem) -> TimingProblem:
+    """The problem with every aimed event held within AIM_REACH of its aim."""
     return dataclasses.replace(
         problem,
         earliest=problem.earliest + tuple((s, t - AIM_REACH) for s, t in problem.aims),
@@ -899,12 +920,17 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     largest share (checked first: most orders that fail, fail here), the smooth plan with
     its followers planned behind the cars ahead, the smooth plan again with continuous
     speeds around the grid plan, then speed-grid plans (smoothed and as they are), the
-    comfortable share first; with aims, grid plans that keep them where there are any.
-    When no grid plan
+    comfortable share first. With aims, first plans that keep them (``_solve_aimed``); only
+    when none has curves, the order is timed as without them. When no grid plan
     exists: the relations that cannot hold together, a proof when even the necessary
     conditions rule them out, else those that no grid plan within the largest share keeps
     (orders at the very edge of the bounds are left alone: no curve with room to spare
     realises them)."""
+    if problem.aims:
+        aimed = _solve_aimed(problem)
+        if aimed is not None:
+            return aimed
+        problem = dataclasses.replace(problem, aims=())
     comfortable, largest = SHARES[0], SHARES[-1]
     fitter = _Fitter(problem)
     smooth = plan_times(problem, comfortable)
@@ -926,11 +952,8 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     curves = fitter.fit_all(smooth and plan_times(problem, comfortable, smooth))
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
-    aimed = _within_aims(problem)
     for share in SHARES:
-        grid = plan_on_speed_grid(aimed, share)[0] if aimed is not None else None
-        if grid is None:
-            grid = edge if share == largest else plan_on_speed_grid(problem, share)[0]
+        grid = edge if share == largest else plan_on_speed_grid(problem, share)[0]
         for smoothed in (True, False):
             planned = plan_times(problem, share, grid) if grid and smoothed else grid
             method = f"speed grid, {round(share * 100)} % of the bounds"
