@@ -757,7 +757,7 @@ function campaignView(outcome) {
   const levelRows = outcome.levels.map((level) => [String(level.level), testcasesOf(level),
     ...controllers.map((c) => { const s = level.controllers[c]; const rules = Object.entries(s.rules).map(([r, n]) => `${r} ${n}`).join(", ");
       return h("td", { class: s.failed ? "fail" : "pass" }, shareText(s), rules ? h("div", { class: "muted" }, rules) : null,
-        s.collisions ? h("div", { class: "muted" }, `${s.collisions} collisions`) : null, s.goal_misses ? h("div", { class: "muted" }, `${s.goal_misses} goal misses`) : null); })]);
+        s.collisions ? h("div", { class: "muted" }, `${s.collisions} collision${s.collisions === 1 ? "" : "s"}`) : null, s.goal_misses ? h("div", { class: "muted" }, `${s.goal_misses} goal miss${s.goal_misses === 1 ? "" : "es"}`) : null); })]);
   const chainRows = outcome.chains.map((c) => [c.ego, String(c.chain + 1), String(c.reached), ...controllers.map((k) => (c.first_failure[k] === null ? "—" : `level ${c.first_failure[k]}`)),
     c.end ? h("span", { title: c.end }, c.end.length > 140 ? `${c.end.slice(0, 140)}…` : c.end) : `reached depth ${plan.depth}`]);
   const cases = [];
