@@ -108,7 +108,6 @@ SEARCH_SHARES = (0.7, 1.0)
 TIMINGS_PER_WANTED = 3  # other timings extend_testcases tries per extension still wanted
 
 Progress = Callable[[str], None]
-TIMING = "timing: "  # what an attempt's outcome starts with when Step 3 found no curves
 StartDistances = float | Sequence[float | None] | None
 
 
@@ -341,6 +340,7 @@ class _Search:
         self.variants: list[tuple[int, float]] = []  # (answer set, aim) of every timing tried
         self.keys: dict[tuple[tuple[str, ...], frozenset[str]], int] = {}  # verified: number
         self.windows: dict[int, list[tuple[str, tuple[float, float], float | None]]] = {}
+        self.problems: dict[int, TimingProblem] = {}  # by order
         for stage in ("ordering", "timing", "verification"):
             seconds[stage] = 0.0
 
@@ -382,10 +382,7 @@ class _Search:
                     attempts.append(Attempt(number, f"the same test-case order as #{same}"))
                     continue
                 outcome, candidate, core = self.attempt(ordering, aim, number + 1, apart=True)
-                if candidate is None and aim is not None and not outcome.startswith(TIMING):
-                    # not verified (or nothing to aim at): the smoothest plan may still be
-                    # (an order Step 3 cannot time at its aim it times without: its
-                    # failure is the order's)
+                if candidate is None and aim is not None:  # the order's own plan may still
                     self.say(f"step 2/3 answer set {number + 1}, aimed: {outcome}")
                     outcome, candidate, core = self.attempt(ordering, None, number + 1)
                 if core is not None:  # given the phases chosen: their bounds are part of it
@@ -452,11 +449,18 @@ class _Search:
             aims.append((symbol, round(target, 4)))
         return tuple(aims)
 
+    def _problem(self, ordering: Ordering) -> TimingProblem:
+        """Step 3's problem of an order (made once: the windows and every timing use it)."""
+        if ordering.index not in self.problems:
+            self.problems[ordering.index] = _timing_problem(
+                self.old, self.junction, self.cars, ordering, self.tracks, self.queue
+            )
+        return self.problems[ordering.index]
+
     def _windows(self, ordering: Ordering) -> list[tuple[str, tuple[float, float], float | None]]:
         """Each new car's entry symbol, its window of entry times, and its entry in the
         smoothest plan (None when there is none); empty when a car has no window."""
-        problem = _timing_problem(self.old, self.junction, self.cars, ordering, self.tracks,
-                                  self.queue)  # fmt: skip
+        problem = self._problem(ordering)
         smooth = plan_times(problem, SHARES[0])
         windows = []
         for plan in problem.cars:
@@ -483,12 +487,12 @@ class _Search:
         if aim is not None and not aims:
             seconds["timing"] += time.monotonic() - clock
             return "no window of entry times to aim in", None, None
-        problem = _timing_problem(old, self.junction, self.cars, ordering, self.tracks, self.queue)
+        problem = self._problem(ordering)
         result = solve_timing(dataclasses.replace(problem, aims=aims))
         seconds["timing"] += time.monotonic() - clock
         if isinstance(result, TimingFailure):
             core = [ordering.relations[i] for i in result.core] if result.core else None
-            return f"{TIMING}{result.reason}", None, core
+            return f"timing: {result.reason}", None, core
         clock = time.monotonic()
         outcome, candidate = _judge(
             old, ordering, result, self.tracks, self.junction, self.added, self.seed,
@@ -497,7 +501,7 @@ class _Search:
         seconds["verification"] += time.monotonic() - clock
         if candidate is None:
             return outcome, None, None
-        if aims and result.aimed:
+        if aims:
             assert candidate.provenance is not None
             candidate.provenance["timing_aim"] = {
                 "share": aim, "entries": {s: round(t, 3) for s, t in aims}

@@ -158,7 +158,6 @@ class Curve:
 class TimingSolution:
     curves: dict[str, Curve]
     method: str  # how the plan was made: "linear, 70 % of the bounds" and the like
-    aimed: bool = False  # the plan keeps the problem's aims
 
 
 @dataclass(frozen=True)
@@ -877,12 +876,12 @@ def _solve_aimed(problem: TimingProblem) -> TimingSolution | None:
     cost, then speed-grid plans that hold every aimed event within AIM_REACH of its aim (a
     grid plan is any solution, so it keeps an aim only as a condition), smoothed and as
     they are, the comfortable share first. No proofs and no cores here: an aim is no part
-    of the order, and solve_timing times an order it cannot keep the aims of without them."""
+    of the order (the caller times the order without aims for those)."""
     fitter = _Fitter(problem)
     share = SHARES[0]
     curves = fitter.fit_all(plan_times(problem, share))
     if curves:
-        return TimingSolution(curves, f"linear, {round(share * 100)} % of the bounds", True)
+        return TimingSolution(curves, f"linear, {round(share * 100)} % of the bounds")
     held = _within_aims(problem)
     for share in SHARES:
         grid = plan_on_speed_grid(held, share)[0]
@@ -892,7 +891,7 @@ def _solve_aimed(problem: TimingProblem) -> TimingSolution | None:
             curves = fitter.fit_all(planned)
             if curves:
                 method = f"speed grid, {round(share * 100)} % of the bounds"
-                return TimingSolution(curves, method, True)
+                return TimingSolution(curves, method)
     return None
 
 
@@ -920,17 +919,14 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     largest share (checked first: most orders that fail, fail here), the smooth plan with
     its followers planned behind the cars ahead, the smooth plan again with continuous
     speeds around the grid plan, then speed-grid plans (smoothed and as they are), the
-    comfortable share first. With aims, first plans that keep them (``_solve_aimed``); only
-    when none has curves, the order is timed as without them. When no grid plan
+    comfortable share first. With aims, only plans that keep them (``_solve_aimed``; a
+    failure then has no core: the aims are no part of the order). When no grid plan
     exists: the relations that cannot hold together, a proof when even the necessary
     conditions rule them out, else those that no grid plan within the largest share keeps
     (orders at the very edge of the bounds are left alone: no curve with room to spare
     realises them)."""
     if problem.aims:
-        aimed = _solve_aimed(problem)
-        if aimed is not None:
-            return aimed
-        problem = dataclasses.replace(problem, aims=())
+        return _solve_aimed(problem) or TimingFailure("no curves keep the aims")
     comfortable, largest = SHARES[0], SHARES[-1]
     fitter = _Fitter(problem)
     smooth = plan_times(problem, comfortable)
