@@ -46,7 +46,7 @@ from service.core.criticality_by_level import (
     level_criticality,
 )
 from service.core.errors import BudgetExceeded, NoMoreComplexTestCase, NoneFound
-from service.core.generator.variety import Signature, is_new, signature
+from service.core.generator.variety import Signature, is_new, order_key, signature
 from service.core.paper_table import PaperTable, failure_cause, paper_table
 from service.core.testcase import TestCase, name_stem, readable_name
 
@@ -355,7 +355,7 @@ def diversity(found: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
     (``criticality_by_level.distribution``) of their new cars' arrival times at the stop
     line and entry times into the junction (s)."""
     marks = [Signature.from_dict(r["signature"]) for r in found if r.get("signature")]
-    orders = {(mark.order, tuple((car.car, car.stops) for car in mark.cars)) for mark in marks}
+    orders = {order_key(mark) for mark in marks}
     return {
         "orders": len(orders),
         "routes": len({tuple(car.route for car in mark.cars) for mark in marks}),

@@ -153,11 +153,11 @@ def describe_variants(testcases: Sequence[TestCase]) -> list[str]:
     and enters the junction, the rule its complexity certificate breaks, and where in the
     entry window Step 3 aimed (``smoothest timing`` when it did not)."""
     marks = [signature(t) for t in testcases]
-    orders = list(dict.fromkeys(_order_of(mark) for mark in marks))
+    orders = list(dict.fromkeys(order_key(mark) for mark in marks))
     lines = []
     for testcase, mark in zip(testcases, marks, strict=True):
         provenance = testcase.provenance or {}
-        parts = [f"order {orders.index(_order_of(mark)) + 1} of {len(orders)}"]
+        parts = [f"order {orders.index(order_key(mark)) + 1} of {len(orders)}"]
         parts += [
             f"{c.car} ({c.route}) {'stops' if c.stops else 'does not stop'}, arrives at "
             f"{c.arrival:.2f} s, enters at {c.entry:.2f} s"
@@ -182,8 +182,9 @@ def _aimed(aim: dict[str, Any] | None) -> str:
     return f"timing aimed at {ends.get(share, f'{share * 100:g} % of the entry window')}"
 
 
-def _order_of(mark: Signature) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """An order of events as a test-case keeps it: its relations and which new cars stop."""
+def order_key(mark: Signature) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """An order of events as a test-case keeps it: its relations and which new cars stop
+    (what a campaign's diversity counts and what ``describe_variants`` numbers)."""
     return mark.order, tuple(c.car for c in mark.cars if c.stops)
 
 
