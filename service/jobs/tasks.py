@@ -18,7 +18,7 @@ import time
 import zipfile
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from service.core.errors import NoneFound
 from service.core.network import load_intersection
@@ -37,6 +37,9 @@ from service.core.testcase import (
     readable_name,
     renamed,
 )
+
+if TYPE_CHECKING:
+    from service.core.generator.extension import Extension
 
 T = TypeVar("T")
 
@@ -151,8 +154,21 @@ def named_extension(new: TestCase, old: TestCase, network_file: Path, stem: str 
     """The document of an extension of ``old``, named ``STEM level N``: by default the old
     name without its level (``... level 1`` after ``... level 0``), or for an old test-case
     without a name, the readable default."""
+    return dump_testcase(renamed(new, extension_name(new, old, network_file, stem)))
+
+
+def extension_name(new: TestCase, old: TestCase, network_file: Path, stem: str | None) -> str:
+    """The name ``named_extension`` gives ``new``."""
     chosen = name_stem(old.name) if stem is None else stem
-    return dump_testcase(renamed(new, readable_name(new, chosen, network=network_file.name)))
+    return readable_name(new, chosen, network=network_file.name)
+
+
+def _search_record(extension: Extension) -> dict[str, Any]:
+    """What an extension's search did: its answer sets (numbered from 1) and step timings."""
+    return {
+        "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],
+        "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
+    }
 
 
 def extend(
@@ -182,8 +198,7 @@ def extend(
     )
     return {
         "document": named_extension(extension.testcase, old, network_file, None),
-        "attempts": [{"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts],
-        "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
+        **_search_record(extension),
     }
 
 
@@ -218,17 +233,12 @@ def extend_variants(
     differences = describe_variants([e.testcase for e in found])
     variants = []
     for number, (extension, difference) in enumerate(zip(found, differences, strict=True), 1):
-        named = parse_testcase(named_extension(extension.testcase, old, network_file, None))
+        name = extension_name(extension.testcase, old, network_file, None)
+        variant = renamed(extension.testcase, variant_name(name, number))
         variants.append(
-            {
-                "document": dump_testcase(renamed(named, variant_name(named.name, number))),
-                "attempts": [
-                    {"index": a.index + 1, "outcome": a.outcome} for a in extension.attempts
-                ],
-                "seconds": {step: round(value, 3) for step, value in extension.seconds.items()},
-                "difference": difference,
-            }
-        )
+            {"document": dump_testcase(variant), **_search_record(extension),
+             "difference": difference}
+        )  # fmt: skip
     return {"extensions": variants, "shortfall": extensions.shortfall(count)}
 
 
