@@ -339,8 +339,10 @@ class _Search:
         self.problem: TimingProblem | None = None  # of the last verified candidate
         self.variants: list[tuple[int, float]] = []  # (answer set, aim) of every timing tried
         self.keys: dict[tuple[tuple[str, ...], frozenset[str]], int] = {}  # verified: number
-        self.windows: dict[int, list[tuple[str, tuple[float, float], float | None]]] = {}
-        self.problems: dict[int, TimingProblem] = {}  # by order
+        # by order (not by its number: each round of SEARCH_SHARES numbers its answer sets
+        # from 0 again, so a number names different orders in the two rounds)
+        self.windows: dict[Ordering, list[tuple[str, tuple[float, float], float | None]]] = {}
+        self.problems: dict[Ordering, TimingProblem] = {}
         for stage in ("ordering", "timing", "verification"):
             seconds[stage] = 0.0
 
@@ -437,10 +439,10 @@ class _Search:
         ``apart`` (a seed's aim), an aim within DISTINCT_GAP of where the smoothest plan
         enters (seed 0's test-case) moves DISTINCT_GAP away from it, to the side nearer
         the aim that stays in the window."""
-        if ordering.index not in self.windows:
-            self.windows[ordering.index] = self._windows(ordering)
+        if ordering not in self.windows:
+            self.windows[ordering] = self._windows(ordering)
         aims = []
-        for symbol, (lo, hi), smoothest in self.windows[ordering.index]:
+        for symbol, (lo, hi), smoothest in self.windows[ordering]:
             target = lo + aim * (hi - lo)
             if apart and smoothest is not None and abs(target - smoothest) < DISTINCT_GAP:
                 sides = [t for t in (smoothest - DISTINCT_GAP, smoothest + DISTINCT_GAP)
@@ -451,11 +453,11 @@ class _Search:
 
     def _problem(self, ordering: Ordering) -> TimingProblem:
         """Step 3's problem of an order (made once: the windows and every timing use it)."""
-        if ordering.index not in self.problems:
-            self.problems[ordering.index] = _timing_problem(
+        if ordering not in self.problems:
+            self.problems[ordering] = _timing_problem(
                 self.old, self.junction, self.cars, ordering, self.tracks, self.queue
             )
-        return self.problems[ordering.index]
+        return self.problems[ordering]
 
     def _windows(self, ordering: Ordering) -> list[tuple[str, tuple[float, float], float | None]]:
         """Each new car's entry symbol, its window of entry times, and its entry in the
