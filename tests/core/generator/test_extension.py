@@ -8,6 +8,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -19,7 +20,10 @@ from service.core.errors import (
     NoneFound,
     UnknownRoute,
 )
+from service.core.generator import extension
 from service.core.generator.extension import Extension, extend_testcase
+from service.core.generator.ordering import Ordering, OrderingSearch
+from service.core.generator.timing import TimingProblem
 from service.core.motion.invariants import motion_fault
 from service.core.motion.poses import PoseSample
 from service.core.testcase import (
@@ -234,3 +238,49 @@ def test_an_automatic_start_is_fitted_to_the_road_before_the_fork(cache_dir: Pat
                        "automatic start is 17.91 m before the line, not 30 m")  # fmt: skip
     with pytest.raises(InvalidInput, match=r"start distance 30 m is longer than the road"):
         extend_testcase(old, ["-26#1_0:14_0"], start_distance=30.0, intersection=junction)
+
+
+def test_each_order_of_both_search_rounds_is_timed_by_its_own_problem(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Issue 43's crash: the search runs a round at 70 % of the bounds, then one at all of
+    them, and each round numbers its answer sets from 0. Step 3's problems were kept by that
+    number, so the second round timed an order with another order's problem and indexed
+    its core into the wrong relations (an IndexError on Town03, silently wrong cores
+    elsewhere). Here the new car must come 50 m in a 14.4 s test-case: the first round
+    draws orders that fail, the second draws more. Step 3 and the order search run for
+    real; the spies only record what they were given."""
+    drawn: list[tuple[int, Ordering]] = []
+    rounds: list[OrderingSearch] = []
+    timing: list[tuple[Ordering, TimingProblem]] = []
+    current: list[Ordering] = []
+    next_ordering, attempt = OrderingSearch.next_ordering, extension._Search.attempt
+    solve = extension.solve_timing
+
+    def drawing(search: OrderingSearch) -> Ordering | None:
+        if search not in rounds:
+            rounds.append(search)
+        found = next_ordering(search)
+        if found is not None:
+            drawn.append((rounds.index(search), found))
+        return found
+
+    def attempting(search: Any, ordering: Ordering, *args: Any, **kwargs: Any) -> Any:
+        current[:] = [ordering]
+        return attempt(search, ordering, *args, **kwargs)
+
+    def solving(problem: TimingProblem) -> Any:
+        timing.append((current[0], problem))
+        return solve(problem)
+
+    monkeypatch.setattr(OrderingSearch, "next_ordering", drawing)
+    monkeypatch.setattr(extension._Search, "attempt", attempting)
+    monkeypatch.setattr(extension, "solve_timing", solving)
+    old = new_testcase("4way-stop", "S2C_1:C2W_1", duration=14.4)
+    new = extend_testcase(old, ["W2C_1:C2E_1"], start_distance=50.0).testcase
+    assert {number for number, _ in drawn} == {0, 1}, "both rounds draw answer sets"
+    second = [ordering for number, ordering in drawn if number == 1]
+    assert any(ordering in second for ordering, _ in timing), "the second round is timed"
+    for ordering, problem in timing:
+        assert problem.relations == ordering.named
+    assert_strictly_more_complex(old, new)

@@ -14,6 +14,7 @@ So a speed profile exists for every problem, and the checks are:
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -26,12 +27,15 @@ from hypothesis import strategies as st
 
 from service.core.generator.linear import Linear, LinearProgram, total, value_of
 from service.core.generator.timing import (
+    SHARES,
     CarPlan,
     Curve,
     Knot,
     TimingFailure,
     TimingProblem,
     TimingSolution,
+    order_core,
+    plan_on_speed_grid,
     solve_timing,
 )
 from service.core.motion.invariants import motion_fault
@@ -271,3 +275,42 @@ def test_solve_reports_no_solution_and_takes_booleans_to_z3() -> None:
     choosing.minimize(x)
     with pytest.raises(ValueError, match="Boolean"):
         choosing.solve()
+
+
+@st.composite
+def conflicting_problems(draw: st.DrawFn) -> TimingProblem:
+    """A solvable problem with some of its relations turned around or tightened: often
+    no speed profile can keep them all, and then Step 3 names the ones that clash."""
+    problem, _ = draw(problems())
+    relations = list(problem.relations)
+    for index in draw(st.lists(st.integers(0, max(len(relations) - 1, 0)), max_size=3)):
+        if index < len(relations):
+            kind, a, b = relations[index]
+            relations[index] = ("lessThan", b, a) if kind == "lessThan" else ("lessThan", a, b)
+    return dataclasses.replace(problem, relations=tuple(relations))
+
+
+@settings(
+    max_examples=25,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+@given(conflicting_problems())
+def test_step3_cores_name_only_the_problems_own_relations_and_clash_alone(
+    problem: TimingProblem,
+) -> None:
+    """A core is a set of indices into the problem's own relations (Step 2 forbids exactly
+    those: issue 43's crash indexed a core into another order's relations), and those
+    relations clash by themselves: the problem with only them has no plan either (a
+    proved core: not even the necessary conditions; else no speed-grid plan)."""
+    result = solve_timing(problem)
+    if not isinstance(result, TimingFailure) or not result.core:
+        return
+    assert all(0 <= i < len(problem.relations) for i in result.core), result.core
+    assert len(set(result.core)) == len(result.core)
+    alone = dataclasses.replace(problem, relations=tuple(problem.relations[i] for i in result.core))
+    if result.proved:
+        assert order_core(alone) is not None
+    else:
+        assert plan_on_speed_grid(alone, SHARES[-1])[0] is None
