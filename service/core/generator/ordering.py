@@ -122,7 +122,7 @@ class Ordering:
     """One answer set: the chosen relations, the chosen stops, and event times (seconds,
     from clingo-dl) that meet every difference constraint."""
 
-    index: int
+    index: int  # its number in the OrderingSearch that drew it (each search counts from 0)
     relations: tuple[tuple[str, clingo.Symbol, clingo.Symbol], ...]  # ("lessThan"|"equal", s, t)
     stops: frozenset[str]
     violated: tuple[tuple[str, str], ...] = field(default=())  # (new car, rule) by "illegal"
