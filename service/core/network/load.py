@@ -11,7 +11,7 @@ from typing import Any
 
 import sumolib
 from shapely.geometry import LineString, Polygon
-from shapely.ops import substring, unary_union
+from shapely.ops import unary_union
 
 from service.core.errors import (
     InvalidInput,
@@ -21,11 +21,9 @@ from service.core.errors import (
     choices,
 )
 from service.core.network.convert import convert_network, source_format
+from service.core.network.forks import Limit, build_exit, build_fork, fork_limit
 from service.core.network.lanes import (
-    approach_polyline,
     dedupe,
-    departure_polyline,
-    heading_of,
     is_internal,
     roads_in,
     shape_2d,
@@ -44,7 +42,6 @@ from service.core.network.model import (
 )
 from service.core.network.override import rebuild_with_control
 from service.core.network.relations import (
-    APPROACH_WINDOW,
     SLIVER_RADIUS,
     conflicting_routes,
     fork_relations,
@@ -53,8 +50,6 @@ from service.core.network.signals import SignalProgram, network_program
 
 SUPPORTED = tuple(c.value for c in ControlType)
 TURNS = {"s": Turn.STRAIGHT, "l": Turn.LEFT, "L": Turn.LEFT, "r": Turn.RIGHT, "R": Turn.RIGHT}
-STOP_STATES = {"s", "w"}
-DRAWN_LENGTH = 30.0  # metres of approach and departure kept for pictures
 
 
 def bundled_networks_dir() -> Path:
@@ -302,6 +297,7 @@ def _build(
     lanes: dict[str, ConnectingLane] = {}
     routes: dict[str, Route] = {}
     lights: set[str] = set()
+    limits: dict[str, tuple[Any, Limit]] = {}  # fork lane id -> (lane, its limit line)
     for edge in node.getIncoming():
         if edge.getFunction() == "internal":
             continue
@@ -324,22 +320,27 @@ def _build(
                 tls = connection.getTLSID() if control.signalized else ""
                 if tls:
                     lights.add(str(tls))
+                if lane.getID() not in limits:
+                    limits[lane.getID()] = (lane, fork_limit(net, lane, junction, tls))
+                limit = limits[lane.getID()][1]
+                own = int(connection.getTLLinkIndex()) if tls else -1
                 route = Route(
                     fork=lane.getID(),
                     exit=to_lane.getID(),
                     connecting_lane=chain[0],
                     turn=turn,
                     link_state=connection.getState(),
-                    link_index=int(connection.getTLLinkIndex()) if tls else -1,
+                    link_index=own if limit.link is None else limit.link,
                 )
                 routes[route.id] = route
-                exits.setdefault(to_lane.getID(), _exit(net, to_lane, junction))
-            if any(r.fork == lane.getID() for r in routes.values()):
-                forks[lane.getID()] = _fork(net, lane, junction, routes)
+                exits.setdefault(to_lane.getID(), build_exit(net, to_lane, junction))
     if not routes:
         raise UnsupportedIntersection(
             f"junction {junction!r} has no connections for cars", junction=junction
         )
+    area = _junction_area(node, lanes)
+    for lane_id, (lane, limit) in limits.items():
+        forks[lane_id] = build_fork(net, lane, junction, routes, limit, area)
     right, opposite, same = fork_relations(forks)
     tls, links, program, refused = _traffic_light(net, junction, control, lights)
     return Intersection(
@@ -348,7 +349,7 @@ def _build(
         junction=junction,
         control=control,
         overridden=effective != source,
-        polygon=_junction_area(node, lanes),
+        polygon=area,
         forks=forks,
         exits=exits,
         connecting_lanes=lanes,
@@ -492,61 +493,6 @@ def _box_behind(
             (x - nx - ux * depth, y - ny - uy * depth),
             (x - nx, y - ny),
         ]
-    )
-
-
-def _chord_heading(points: list[tuple[float, float]], at_end: bool) -> float:
-    line = LineString(points)
-    window = min(APPROACH_WINDOW, line.length)
-    if at_end:
-        start = line.interpolate(line.length - window)
-        return heading_of((start.x, start.y), points[-1])
-    end = line.interpolate(window)
-    return heading_of(points[0], (end.x, end.y))
-
-
-def _fork(net: Any, lane: Any, junction: str, routes: dict[str, Route]) -> Fork:
-    polyline = _drawn(approach_polyline(net, lane, junction, DRAWN_LENGTH), lane)
-    states = {r.link_state for r in routes.values() if r.fork == lane.getID()}
-    return Fork(
-        lane=lane.getID(),
-        edge=lane.getEdge().getID(),
-        heading=round(_chord_heading(polyline, at_end=True), 6),
-        stop_line=shape_2d(lane)[-1],
-        stop_sign=bool(states & STOP_STATES),
-        width=lane.getWidth(),
-        approach=_clip(polyline, DRAWN_LENGTH, at_end=True),
-    )
-
-
-def _drawn(points: list[tuple[float, float]], lane: Any) -> list[tuple[float, float]]:
-    """``points``, the road through ``lane``; UnsupportedIntersection when they are one
-    point (a lane of no length, and no road before or after it)."""
-    if len(points) < 2:
-        raise UnsupportedIntersection(
-            f"lane {lane.getID()!r} and the road before and after it have no length (one "
-            f"point, {points[0] if points else 'none'}): no car can drive on it"
-        )
-    return points
-
-
-def _clip(points: list[tuple[float, float]], length: float, at_end: bool) -> LineString:
-    line = LineString(points)
-    if line.length <= length:
-        return line
-    if at_end:
-        return substring(line, line.length - length, line.length)
-    return substring(line, 0.0, length)
-
-
-def _exit(net: Any, lane: Any, junction: str) -> Exit:
-    polyline = _drawn(departure_polyline(net, lane, junction, DRAWN_LENGTH), lane)
-    return Exit(
-        lane=lane.getID(),
-        edge=lane.getEdge().getID(),
-        heading=round(_chord_heading(polyline, at_end=False), 6),
-        width=lane.getWidth(),
-        departure=_clip(polyline, DRAWN_LENGTH, at_end=False),
     )
 
 
