@@ -10,8 +10,6 @@ from pathlib import Path
 from typing import Any
 
 import sumolib
-from shapely.geometry import LineString, Polygon
-from shapely.ops import unary_union
 
 from service.core.errors import (
     InvalidInput,
@@ -23,10 +21,8 @@ from service.core.errors import (
 from service.core.network.convert import convert_network, source_format
 from service.core.network.forks import Limit, build_exit, build_fork, fork_limit
 from service.core.network.lanes import (
-    dedupe,
     is_internal,
     roads_in,
-    shape_2d,
     side_lane_reason,
     via_chain,
 )
@@ -41,6 +37,7 @@ from service.core.network.model import (
     Turn,
 )
 from service.core.network.override import rebuild_with_control
+from service.core.network.paths import connecting_lane, junction_area
 from service.core.network.relations import (
     SLIVER_RADIUS,
     conflicting_routes,
@@ -316,7 +313,7 @@ def _build(
                         "--no-internal-links); rebuild it with internal links",
                         junction=junction,
                     )
-                lanes[chain[0]] = _connecting_lane(net, chain, lane, to_lane)
+                lanes[chain[0]] = connecting_lane(net, chain, lane, to_lane)
                 tls = connection.getTLSID() if control.signalized else ""
                 if tls:
                     lights.add(str(tls))
@@ -338,7 +335,7 @@ def _build(
         raise UnsupportedIntersection(
             f"junction {junction!r} has no connections for cars", junction=junction
         )
-    area = _junction_area(node, lanes)
+    area = junction_area(node, lanes)
     for lane_id, (lane, limit) in limits.items():
         forks[lane_id] = build_fork(net, lane, junction, routes, limit, area)
     right, opposite, same = fork_relations(forks)
@@ -408,92 +405,6 @@ def _side_lanes(net: Any, lanes: Sequence[str], forks: set[str]) -> dict[str, st
     """The forks and exits that are not for driving through, each with the reason."""
     found = {lane: side_lane_reason(net.getLane(lane), lane in forks) for lane in sorted(lanes)}
     return {lane: reason for lane, reason in found.items() if reason is not None}
-
-
-def _junction_area(node: Any, lanes: dict[str, ConnectingLane]) -> Polygon:
-    """The junction's area: its shape, or where its shape has no area (SUMO writes a
-    point for some), the hull of its connecting lanes."""
-    shape = dedupe(shape_2d(node))
-    area = Polygon(shape).buffer(0) if len(shape) >= 3 else Polygon()
-    if area.area > 0:
-        return area
-    hull = unary_union([lane.polygon for lane in lanes.values()]).convex_hull
-    return hull if isinstance(hull, Polygon) else Polygon()
-
-
-def _connecting_lane(net: Any, chain: list[str], fork: Any, exit_lane: Any) -> ConnectingLane:
-    """One centreline and one polygon for a chain of internal lanes.
-
-    The polygon ends square to the fork at the stop line and square to the exit where the
-    exit lane starts; a flat buffer cap would end square to the curve instead and poke out
-    of the junction by a few centimetres on turns. Repeated shape points are dropped; a
-    chain whose shape is one point (the fork runs straight into the exit: SUMO writes a
-    0.1 m lane as two equal points) becomes a straight line as long as SUMO says the
-    chain is, centred on that point, along the direction of travel.
-    """
-    width = net.getLane(chain[0]).getWidth()
-    points = dedupe([p for lane_id in chain for p in shape_2d(net.getLane(lane_id))])
-    fork_shape, exit_shape = dedupe(shape_2d(fork)), dedupe(shape_2d(exit_lane))
-    into = _direction(fork_shape, at_end=True) or _direction(points, at_end=False)
-    out = _direction(exit_shape, at_end=False) or _direction(points, at_end=True) or into
-    into = into or out
-    if into is None or out is None:
-        raise UnsupportedIntersection(
-            f"the connection from {fork.getID()!r} to {exit_lane.getID()!r} has no direction: "
-            "its fork, internal lanes and exit are all single points",
-            route=f"{fork.getID()}:{exit_lane.getID()}",
-        )
-    if len(points) < 2:
-        half = max(sum(net.getLane(lane_id).getLength() for lane_id in chain), MIN_LENGTH) / 2
-        (x, y) = points[0]
-        points = [(x - half * into[0], y - half * into[1]), (x + half * out[0], y + half * out[1])]
-    start, end = points[0], points[-1]
-    extended = [
-        (start[0] - EXTENSION * into[0], start[1] - EXTENSION * into[1]),
-        *points,
-        (end[0] + EXTENSION * out[0], end[1] + EXTENSION * out[1]),
-    ]
-    body = LineString(extended).buffer(width / 2.0, cap_style="flat", join_style="round")
-    behind_stop_line = _box_behind(start, into, width)
-    beyond_exit = _box_behind(end, (-out[0], -out[1]), width)
-    return ConnectingLane(
-        id=chain[0],
-        internal_lanes=tuple(chain),
-        centreline=LineString(points),
-        polygon=body.difference(unary_union([behind_stop_line, beyond_exit])),
-        width=width,
-    )
-
-
-EXTENSION = 3.0  # metres the centreline is extended before cutting its ends square
-MIN_LENGTH = 0.1  # metres: SUMO's shortest lane
-
-
-def _direction(points: Sequence[tuple[float, float]], at_end: bool) -> tuple[float, float] | None:
-    """The unit vector of the last (``at_end``) or first segment of deduplicated
-    ``points``; None for a single point."""
-    if len(points) < 2:
-        return None
-    a, b = (points[-2], points[-1]) if at_end else (points[0], points[1])
-    length = math.dist(a, b)
-    return (b[0] - a[0]) / length, (b[1] - a[1]) / length
-
-
-def _box_behind(
-    point: tuple[float, float], direction: tuple[float, float], width: float
-) -> Polygon:
-    """The strip of road just behind a line through ``point`` square to ``direction``."""
-    (x, y), (ux, uy) = point, direction
-    nx, ny = -uy * width, ux * width
-    depth = EXTENSION + 1.0
-    return Polygon(
-        [
-            (x + nx, y + ny),
-            (x + nx - ux * depth, y + ny - uy * depth),
-            (x - nx - ux * depth, y - ny - uy * depth),
-            (x - nx, y - ny),
-        ]
-    )
 
 
 def with_signals(intersection: Intersection, program: SignalProgram) -> Intersection:
