@@ -315,8 +315,7 @@ def _build(
                     )
                 lanes[chain[0]] = connecting_lane(net, chain, lane, to_lane)
                 tls = connection.getTLSID() if control.signalized else ""
-                if tls:
-                    lights.add(str(tls))
+                lights.add(str(connection.getTLSID() or ""))
                 if lane.getID() not in limits:
                     limits[lane.getID()] = (lane, fork_limit(net, lane, junction, tls))
                 limit = limits[lane.getID()][1]
@@ -335,6 +334,8 @@ def _build(
         raise UnsupportedIntersection(
             f"junction {junction!r} has no connections for cars", junction=junction
         )
+    lights.discard("")
+    _check_unsignalized(net, junction, control, lights)
     area = junction_area(node, lanes)
     for lane_id, (lane, limit) in limits.items():
         forks[lane_id] = build_fork(net, lane, junction, routes, limit, area)
@@ -360,6 +361,30 @@ def _build(
         tls_links=links,
         signals=program,
         signals_refused=refused,
+    )
+
+
+def _check_unsignalized(net: Any, junction: str, control: ControlType, lights: set[str]) -> None:
+    """UnsupportedIntersection for a junction of a type without signals whose links still
+    belong to a traffic light: netconvert keeps them in a light the junction shares with
+    other nodes (a joined cluster's ``joinedS_*``) when its type is changed, so SUMO's
+    drivers would still obey that light while the rules know of none."""
+    if control.signalized or not lights:
+        return
+    shared = sorted(
+        {
+            str(c[0].getEdge().getToNode().getID())
+            for tls in lights
+            for c in net.getTLS(tls).getConnections()
+        }
+        - {junction}
+    )
+    raise UnsupportedIntersection(
+        f"junction {junction!r} is of type {control.value} but its links belong to traffic "
+        f"light {', '.join(sorted(lights))}, which also controls {', '.join(shared) or 'it'}; "
+        "netconvert keeps them there when the type is changed, so SUMO's drivers would obey "
+        "the light: test it as traffic_light",
+        junction=junction,
     )
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from service.core.errors import ScengenError
+from service.core.errors import ScengenError, UnsupportedIntersection
 from service.core.motion.events import overlapping, rectangles
 from service.core.motion.poses import longest_start, plan_drive
 from service.core.network import Fork, Intersection, load_intersection
@@ -275,3 +275,12 @@ def test_sumo_stops_at_the_limit_line_of_the_bundled_junctions(
     intersection = load_intersection(network)
     stops = sumo_stops(intersection.network_file, [intersection], tmp_path)
     assert _check_stops([intersection], stops) >= 1
+
+
+@pytest.mark.parametrize("control", ["allway_stop", "priority_stop", "right_before_left"])
+def test_a_joined_cluster_keeps_its_light_under_another_type(control: str, cache_dir: Path) -> None:
+    """netconvert keeps C's links in the light J it shares with U when C gets another type:
+    SUMO's drivers would still obey J, so the model refuses rather than judge stop signs
+    or right before left that SUMO does not drive by."""
+    with pytest.raises(UnsupportedIntersection, match=r"traffic light J, which also controls U"):
+        load_intersection(JOINED, "C", control, cache_dir)
