@@ -82,8 +82,10 @@ def build_fork(
 ) -> Fork:
     """The fork on ``lane``: its limit line, heading there, drawn approach and entry area
     (``area``: the junction's polygon)."""
-    behind = _drawn(approach_polyline(net, limit.lane, junction, DRAWN_LENGTH), lane)
     drawn = _drawn(approach_polyline(net, lane, junction, DRAWN_LENGTH), lane)
+    behind = drawn  # the road that ends at the limit line
+    if limit.lane is not lane:
+        behind = _drawn(approach_polyline(net, limit.lane, junction, DRAWN_LENGTH), lane)
     states = {r.link_state for r in routes.values() if r.fork == lane.getID()}
     return Fork(
         lane=lane.getID(),
