@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from shapely.geometry import LineString, Point
 
 from service.core.errors import ScengenError, UnsupportedIntersection
 from service.core.motion.events import overlapping, rectangles
@@ -47,13 +48,24 @@ def nuremberg() -> Intersection:
 
 
 def car_at(fork: Fork, before: float) -> np.ndarray:
-    """The rectangle of a car on ``fork``'s approach, its front ``before`` metres before the
-    limit line (negative: past it), heading along the approach."""
-    rad = math.radians(fork.heading)
-    ux, uy = math.sin(rad), math.cos(rad)
-    x = fork.stop_line[0] - ux * (before + LENGTH / 2)
-    y = fork.stop_line[1] - uy * (before + LENGTH / 2)
-    return rectangles(np.array([x]), np.array([y]), np.array([fork.heading]), LENGTH, WIDTH)
+    """The rectangle of a car on ``fork``'s road, its front ``before`` metres before the
+    limit line (negative: past it) and its rear LENGTH behind along the road (straight on
+    beyond the road's end)."""
+    line = fork.approach
+    at = line.project(Point(fork.stop_line)) - before
+    (fx, fy), (rx, ry) = _along(line, at), _along(line, at - LENGTH)
+    heading = math.degrees(math.atan2(fx - rx, fy - ry)) % 360.0
+    centre = np.array([(fx + rx) / 2]), np.array([(fy + ry) / 2])
+    return rectangles(*centre, np.array([heading]), LENGTH, WIDTH)
+
+
+def _along(line: LineString, at: float) -> tuple[float, float]:
+    if at <= line.length:
+        point = line.interpolate(at)
+        return point.x, point.y
+    (ax, ay), (bx, by) = line.coords[-2], line.coords[-1]
+    share = (at - line.length) / math.dist((ax, ay), (bx, by))
+    return bx + (bx - ax) * share, by + (by - ay) * share
 
 
 def entered(fork: Fork, before: float) -> bool:
