@@ -121,6 +121,8 @@ def test_network_public_surface_is_complete() -> None:
         "convert",
         "signals",
         "geometry",
+        "forks",
+        "paths",
     }
     assert set(network.__all__) == public - submodules
 

@@ -12,7 +12,9 @@ import pytest
 import sumolib
 
 from service import cli
+from service.core.network import load_intersection
 from tests.conftest import TOWN05, TOWN07
+from tests.core.network.test_forks import entered
 
 CONTROLS = (None, "allway_stop", "priority_stop", "right_before_left")
 
@@ -128,6 +130,7 @@ def test_every_junction_works_or_is_refused_with_a_reason(
             outcomes[f"intersection {outcome}"] += 1
             routes, longer = [_a_route(net, node)], []
             if outcome == "worked":
+                outcomes["forks at their limit line"] += _limit_lines(town, node, control)
                 described = json.loads(out)
                 routes = [r["id"] for r in described["routes"]]
                 side = sorted(s["lane"] for s in described["side_lanes"])
@@ -149,6 +152,20 @@ def test_every_junction_works_or_is_refused_with_a_reason(
     assert outcomes["intersection worked"] == 3 * junctions + signalized
     assert outcomes["intersection refused"] == 4 * len(nodes) - 3 * junctions - signalized
     assert outcomes["new worked"] > 5 * junctions
+    assert outcomes["forks at their limit line"] >= 3 * outcomes["intersection worked"]
+
+
+def _limit_lines(town: Path, node: str, control: str | None) -> int:
+    """Every fork's limit line is its own end (no light of either town controls the node
+    before a fork), and the model's entry is at it: a car 0.3 m before the line has not
+    entered (where the road bends at the line a corner of the car crosses it a few
+    centimetres first), 0.2 m past it has (tests/core/network/test_forks.py drives SUMO's
+    driver to these lines). The model is the one the command just loaded (cached)."""
+    intersection = load_intersection(town, node, control)
+    for fork in intersection.forks.values():
+        assert (fork.limit_lane, fork.limit_offset) == (fork.lane, 0.0), (node, control)
+        assert not entered(fork, 0.3) and entered(fork, -0.2), (node, control, fork.lane)
+    return len(intersection.forks)
 
 
 def _ends_at(net: object, lane: str, node: str) -> bool:

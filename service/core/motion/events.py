@@ -2,12 +2,15 @@
 
 Events (design section 1), each with a time and a distance travelled:
 
-- ``arrived``: the front bumper comes within the arrival distance of the fork's stop line
+- ``arrived``: the front bumper comes within the arrival distance of the fork's limit line
   (measured along the fork's approach heading), with no car ahead of it on its fork that
   has not entered the junction yet (a car still behind another has not arrived: the
   caller says when the last car ahead entered, service.core.motion.queues);
 - ``stopped``: the speed first falls to ``v_stop`` or below between arriving and entering;
-- ``entered``: the rectangle first overlaps the junction polygon;
+- ``entered``: the rectangle first overlaps the junction beyond the fork's limit line (the
+  fork's entry area, service.core.network.forks: the junction polygon, without the road
+  behind the limit line where the polygon reaches upstream of it, and with the lanes after
+  the line where the limit line lies before a short fork);
 - ``entered_lane`` / ``left_lane``: the rectangle starts / stops overlapping a connecting
   lane, for every connecting lane of the junction it touches, not only its own;
 - ``exited``: the rectangle stops overlapping the junction for good.
@@ -29,7 +32,7 @@ from enum import StrEnum
 
 import numpy as np
 import shapely
-from shapely.geometry import Polygon
+from shapely.geometry import MultiPolygon, Polygon
 
 from service.core.motion.poses import PoseSample, interpolate_heading
 from service.core.network import Fork, Intersection
@@ -80,7 +83,7 @@ def rectangles(
     return shapely.polygons(corners)  # type: ignore[no-any-return]
 
 
-def overlapping(rects: np.ndarray, region: Polygon) -> np.ndarray:
+def overlapping(rects: np.ndarray, region: Polygon | MultiPolygon) -> np.ndarray:
     """Whether each rectangle's interior meets the region's interior."""
     return shapely.intersects(rects, region) & ~shapely.touches(rects, region)  # type: ignore[no-any-return]
 
@@ -137,7 +140,7 @@ class _Track:
 
 
 def _region_events(
-    track: _Track, region: Polygon, lane: str, enter: EventKind, leave: EventKind
+    track: _Track, region: Polygon | MultiPolygon, lane: str, enter: EventKind, leave: EventKind
 ) -> list[LaneEvent]:
     shapely.prepare(region)
     inside = overlapping(track.rects, region)
@@ -201,6 +204,18 @@ def _stop(
     return None
 
 
+def _entry(
+    track: _Track, fork: Fork, intersection: Intersection, entries: list[LaneEvent]
+) -> LaneEvent | None:
+    """When the car first overlaps its fork's entry area (the junction beyond its limit
+    line); ``entries``: its entries into the junction's polygon, the same where the fork's
+    entry area is the polygon."""
+    if fork.entry is intersection.polygon:
+        return entries[0] if entries else None
+    found = _region_events(track, fork.entry, fork.lane, EventKind.ENTERED, EventKind.EXITED)
+    return next((e for e in found if e.kind is EventKind.ENTERED), None)
+
+
 def compute_events(
     samples: Sequence[PoseSample],
     length: float,
@@ -223,16 +238,17 @@ def compute_events(
     )
     entries = [e for e in junction if e.kind is EventKind.ENTERED]
     exits = [e for e in junction if e.kind is EventKind.EXITED]
-    entered = entries[0] if entries else None
+    the_fork = intersection.fork(fork)
+    entered = _entry(track, the_fork, intersection, entries)
     if entered is not None:
         events.append(LaneEvent(EventKind.ENTERED, fork, entered.time, entered.distance))
     if exits and exits[-1].time >= entries[-1].time:
         events.append(exits[-1])
-    arrived = _arrival(track, intersection.fork(fork), arrival_distance, not_before)
+    arrived = _arrival(track, the_fork, arrival_distance, not_before)
     if arrived is not None and (entered is None or arrived.time <= entered.time):
         events.append(arrived)
         limit = entered.time if entered is not None else math.inf
-        stopped = _stop(track, intersection.fork(fork), arrived, limit, v_stop)
+        stopped = _stop(track, the_fork, arrived, limit, v_stop)
         if stopped is not None:
             events.append(stopped)
     for lane in intersection.connecting_lanes.values():

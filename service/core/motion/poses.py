@@ -1,7 +1,9 @@
 """Step 1: drive one car alone along a route with libsumo and record its poses.
 
 The car drives at a constant cruise speed, ignoring every rule (speed mode 0, no lane
-changes), from a start given as the front bumper's distance before the stop line. Poses are
+changes), from a start given as the front bumper's distance before the stop line (the
+fork's limit line, service.core.network.forks: the lane's end, or before a short fork
+between two nodes of one light, the end of the lane before it). Poses are
 rectangle centres: SUMO reports the front-bumper centre and the heading (degrees clockwise
 from north), so the centre lies half a car length behind along the heading. Where the fork
 or the exit lane is short, the drive continues along the straightest upstream and
@@ -143,15 +145,17 @@ def plan_drive(
     junction = intersection.junction
     fork_lane = net.getLane(route.fork)
     connection = next(c for c in fork_lane.getOutgoing() if c.getToLane().getID() == route.exit)
-    lanes, behind, upstream = _walk_upstream(net, fork_lane, junction, start_distance)
-    if behind < start_distance:
+    offset = intersection.forks[route.fork].limit_offset
+    to_end = start_distance + offset  # metres from the front to the fork's end
+    lanes, behind, upstream = _walk_upstream(net, fork_lane, junction, to_end)
+    if behind < to_end:
         raise InvalidInput(
             f"start distance {start_distance:g} m is longer than the road before fork "
-            f"{route.fork!r} ({behind:.1f} m)",
+            f"{route.fork!r} ({behind - offset:.1f} m)",
             route=route.id,
         )
     chain = via_chain(net, connection)
-    to_exit = start_distance + sum(net.getLane(v).getLength() for v in chain)
+    to_exit = to_end + sum(net.getLane(v).getLength() for v in chain)
     ahead = to_exit + connection.getToLane().getLength()
     lanes.append(connection.getToLane())
     leave = to_exit + length + CLEARANCE
@@ -166,7 +170,7 @@ def plan_drive(
         ahead += sum(net.getLane(v).getLength() for v in via_chain(net, outgoing))
         lanes.append(outgoing.getToLane())
         ahead += lanes[-1].getLength()
-    depart_pos = behind - start_distance
+    depart_pos = behind - to_end
     # SUMO cannot insert a car on an internal lane: when the start lies inside a junction
     # upstream, depart just before it and drop the extra metres afterwards.
     skip = max(0.0, depart_pos - (lanes[0].getLength() - 0.01))
@@ -226,10 +230,10 @@ def check_start_speed(intersection: Intersection, plan: DrivePlan, speed: float)
 def _walk_upstream(
     net: Any, fork_lane: Any, junction: str, distance: float
 ) -> tuple[list[Any], float, list[str]]:
-    """The lanes a start ``distance`` before the stop line needs, up to the fork, along the
-    straightest predecessors (as far as the road goes): the lanes, the metres from the
-    first lane's start to the stop line, and the internal lanes between the first lane and
-    the next."""
+    """The lanes a start ``distance`` before the fork's end needs, up to the fork, along
+    the straightest predecessors (as far as the road goes): the lanes, the metres from the
+    first lane's start to the fork's end, and the internal lanes between the first lane
+    and the next."""
     lanes = [fork_lane]
     behind = fork_lane.getLength()
     upstream: list[str] = []
@@ -250,8 +254,10 @@ def longest_start(intersection: Intersection, route: Route, up_to: float) -> flo
     measured as SUMO drives it (lane lengths) and as the start is placed (the shape)."""
     path = intersection.network_file
     net = parsed_network(path)
-    _, behind, _ = _walk_upstream(net, net.getLane(route.fork), intersection.junction, up_to)
-    road = min(behind, _approach_line(intersection, route, up_to + 1.0).length)
+    offset = intersection.forks[route.fork].limit_offset
+    fork_lane = net.getLane(route.fork)
+    _, behind, _ = _walk_upstream(net, fork_lane, intersection.junction, up_to + offset)
+    road = min(behind, _approach_line(intersection, route, up_to + offset + 1.0).length) - offset
     return up_to if road >= up_to else min(math.floor(road * 100.0) / 100.0, road)
 
 
@@ -274,22 +280,25 @@ def _approach_line(intersection: Intersection, route: Route, length: float) -> L
 
 
 def start_front(intersection: Intersection, route: Route, start_distance: float) -> Point:
-    """Where the front bumper stands at the start: ``start_distance`` before the stop line."""
-    line = _approach_line(intersection, route, start_distance + 1.0)
-    if line.length < start_distance:
+    """Where the front bumper stands at the start: ``start_distance`` before the stop line
+    (the fork's limit line)."""
+    offset = intersection.forks[route.fork].limit_offset
+    line = _approach_line(intersection, route, start_distance + offset + 1.0)
+    if line.length < start_distance + offset:
         raise InvalidInput(
             f"start distance {start_distance:g} m is longer than the road before fork "
-            f"{route.fork!r} ({line.length:.1f} m)",
+            f"{route.fork!r} ({line.length - offset:.1f} m)",
             route=route.id,
         )
-    front = line.interpolate(line.length - start_distance)
+    front = line.interpolate(line.length - offset - start_distance)
     return float(front.x), float(front.y)
 
 
 def start_distance_of(intersection: Intersection, route: Route, front: Point) -> float:
     """The inverse of ``start_front``: how far before the stop line ``front`` is."""
     line = _approach_line(intersection, route, 1000.0)
-    return max(0.0, float(line.length - line.project(ShapelyPoint(front))))
+    offset = intersection.forks[route.fork].limit_offset
+    return max(0.0, float(line.length - offset - line.project(ShapelyPoint(front))))
 
 
 def drive(plans: list[DrivePlan]) -> list[list[PoseSample]]:

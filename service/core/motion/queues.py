@@ -1,10 +1,11 @@
 """Cars that share a fork: who is ahead of whom, where their paths part, the gap they keep.
 
-A car's place on its fork is its distance along its own route from the stop line,
-x = distance travelled - ``line``, where ``line`` is the distance at which its front
-reaches the junction (its entered event; from the stop line's position when it never
-enters). Every car from one fork drives the same path up to the stop line, so these places
-compare directly there, and beyond it for as long as the two routes have not parted.
+A car's place on its fork is its distance along its own route from the stop line (the
+fork's limit line), x = distance travelled - ``line``, where ``line`` is the distance at
+which its front reaches the junction (its entered event; from the stop line's position
+when it never enters). Every car from one fork drives the same path up to the stop line,
+so these places compare directly there, and beyond it for as long as the two routes have
+not parted.
 
 Of two cars on one fork, the one with the larger place at the first sample is ahead. The
 one behind follows it: while the leader's rear has not passed the point where their paths
@@ -80,10 +81,11 @@ def line_distance(
 def parting(
     junction: Intersection, lane_a: str, lane_b: str, width_a: float, width_b: float
 ) -> float:
-    """Where (m past the stop line) two routes from one fork part: the first point of
-    ``lane_a``'s centreline from which two cars, one on each, no longer touch. Infinite
-    for one connecting lane; the end of ``lane_a`` when they never part inside the
-    junction (they merge into one exit: the checker's outlines decide beyond it)."""
+    """Where (m past the fork's end, where the connecting lanes start) two routes from one
+    fork part: the first point of ``lane_a``'s centreline from which two cars, one on
+    each, no longer touch. Infinite for one connecting lane; the end of ``lane_a`` when
+    they never part inside the junction (they merge into one exit: the checker's outlines
+    decide beyond it)."""
     if lane_a == lane_b:
         return math.inf
     apart = round((width_a + width_b) / 2 + PARTED, 6)
@@ -116,10 +118,12 @@ def follows(cars: Sequence[QueueCar], junction: Intersection) -> list[Follow]:
         by_fork.setdefault(car.fork, []).append(car)
     for fork, group in by_fork.items():
         ordered = sorted(group, key=lambda c: (c.start, c.id))
+        # places count from the limit line; connecting lanes start at the fork's end
+        offset = junction.forks[fork].limit_offset
         for k, leader in enumerate(ordered):
             for follower in ordered[k + 1 :]:
                 where = parting(junction, leader.lane, follower.lane, leader.width, follower.width)
-                found.append(Follow(leader.id, follower.id, fork, where))
+                found.append(Follow(leader.id, follower.id, fork, where + offset))
     return found
 
 

@@ -10,8 +10,6 @@ from pathlib import Path
 from typing import Any
 
 import sumolib
-from shapely.geometry import LineString, Polygon
-from shapely.ops import substring, unary_union
 
 from service.core.errors import (
     InvalidInput,
@@ -21,14 +19,10 @@ from service.core.errors import (
     choices,
 )
 from service.core.network.convert import convert_network, source_format
+from service.core.network.forks import Limit, build_exit, build_fork, fork_limit
 from service.core.network.lanes import (
-    approach_polyline,
-    dedupe,
-    departure_polyline,
-    heading_of,
     is_internal,
     roads_in,
-    shape_2d,
     side_lane_reason,
     via_chain,
 )
@@ -43,8 +37,8 @@ from service.core.network.model import (
     Turn,
 )
 from service.core.network.override import rebuild_with_control
+from service.core.network.paths import connecting_lane, junction_area
 from service.core.network.relations import (
-    APPROACH_WINDOW,
     SLIVER_RADIUS,
     conflicting_routes,
     fork_relations,
@@ -53,8 +47,6 @@ from service.core.network.signals import SignalProgram, network_program
 
 SUPPORTED = tuple(c.value for c in ControlType)
 TURNS = {"s": Turn.STRAIGHT, "l": Turn.LEFT, "L": Turn.LEFT, "r": Turn.RIGHT, "R": Turn.RIGHT}
-STOP_STATES = {"s", "w"}
-DRAWN_LENGTH = 30.0  # metres of approach and departure kept for pictures
 
 
 def bundled_networks_dir() -> Path:
@@ -302,6 +294,7 @@ def _build(
     lanes: dict[str, ConnectingLane] = {}
     routes: dict[str, Route] = {}
     lights: set[str] = set()
+    limits: dict[str, tuple[Any, Limit]] = {}  # fork lane id -> (lane, its limit line)
     for edge in node.getIncoming():
         if edge.getFunction() == "internal":
             continue
@@ -320,26 +313,32 @@ def _build(
                         "--no-internal-links); rebuild it with internal links",
                         junction=junction,
                     )
-                lanes[chain[0]] = _connecting_lane(net, chain, lane, to_lane)
+                lanes[chain[0]] = connecting_lane(net, chain, lane, to_lane)
                 tls = connection.getTLSID() if control.signalized else ""
-                if tls:
-                    lights.add(str(tls))
+                lights.add(str(connection.getTLSID() or ""))
+                if lane.getID() not in limits:
+                    limits[lane.getID()] = (lane, fork_limit(net, lane, junction, tls))
+                limit = limits[lane.getID()][1]
+                own = int(connection.getTLLinkIndex()) if tls else -1
                 route = Route(
                     fork=lane.getID(),
                     exit=to_lane.getID(),
                     connecting_lane=chain[0],
                     turn=turn,
                     link_state=connection.getState(),
-                    link_index=int(connection.getTLLinkIndex()) if tls else -1,
+                    link_index=own if limit.link is None else limit.link,
                 )
                 routes[route.id] = route
-                exits.setdefault(to_lane.getID(), _exit(net, to_lane, junction))
-            if any(r.fork == lane.getID() for r in routes.values()):
-                forks[lane.getID()] = _fork(net, lane, junction, routes)
+                exits.setdefault(to_lane.getID(), build_exit(net, to_lane, junction))
     if not routes:
         raise UnsupportedIntersection(
             f"junction {junction!r} has no connections for cars", junction=junction
         )
+    lights.discard("")
+    _check_unsignalized(net, junction, control, lights)
+    area = junction_area(node, lanes)
+    for lane_id, (lane, limit) in limits.items():
+        forks[lane_id] = build_fork(net, lane, junction, routes, limit, area)
     right, opposite, same = fork_relations(forks)
     tls, links, program, refused = _traffic_light(net, junction, control, lights)
     return Intersection(
@@ -348,7 +347,7 @@ def _build(
         junction=junction,
         control=control,
         overridden=effective != source,
-        polygon=_junction_area(node, lanes),
+        polygon=area,
         forks=forks,
         exits=exits,
         connecting_lanes=lanes,
@@ -362,6 +361,30 @@ def _build(
         tls_links=links,
         signals=program,
         signals_refused=refused,
+    )
+
+
+def _check_unsignalized(net: Any, junction: str, control: ControlType, lights: set[str]) -> None:
+    """UnsupportedIntersection for a junction of a type without signals whose links still
+    belong to a traffic light: netconvert keeps them in a light the junction shares with
+    other nodes (a joined cluster's ``joinedS_*``) when its type is changed, so SUMO's
+    drivers would still obey that light while the rules know of none."""
+    if control.signalized or not lights:
+        return
+    shared = sorted(
+        {
+            str(c[0].getEdge().getToNode().getID())
+            for tls in lights
+            for c in net.getTLS(tls).getConnections()
+        }
+        - {junction}
+    )
+    raise UnsupportedIntersection(
+        f"junction {junction!r} is of type {control.value} but its links belong to traffic "
+        f"light {', '.join(sorted(lights))}, which also controls {', '.join(shared) or 'it'}; "
+        "netconvert keeps them there when the type is changed, so SUMO's drivers would obey "
+        "the light: test it as traffic_light",
+        junction=junction,
     )
 
 
@@ -407,147 +430,6 @@ def _side_lanes(net: Any, lanes: Sequence[str], forks: set[str]) -> dict[str, st
     """The forks and exits that are not for driving through, each with the reason."""
     found = {lane: side_lane_reason(net.getLane(lane), lane in forks) for lane in sorted(lanes)}
     return {lane: reason for lane, reason in found.items() if reason is not None}
-
-
-def _junction_area(node: Any, lanes: dict[str, ConnectingLane]) -> Polygon:
-    """The junction's area: its shape, or where its shape has no area (SUMO writes a
-    point for some), the hull of its connecting lanes."""
-    shape = dedupe(shape_2d(node))
-    area = Polygon(shape).buffer(0) if len(shape) >= 3 else Polygon()
-    if area.area > 0:
-        return area
-    hull = unary_union([lane.polygon for lane in lanes.values()]).convex_hull
-    return hull if isinstance(hull, Polygon) else Polygon()
-
-
-def _connecting_lane(net: Any, chain: list[str], fork: Any, exit_lane: Any) -> ConnectingLane:
-    """One centreline and one polygon for a chain of internal lanes.
-
-    The polygon ends square to the fork at the stop line and square to the exit where the
-    exit lane starts; a flat buffer cap would end square to the curve instead and poke out
-    of the junction by a few centimetres on turns. Repeated shape points are dropped; a
-    chain whose shape is one point (the fork runs straight into the exit: SUMO writes a
-    0.1 m lane as two equal points) becomes a straight line as long as SUMO says the
-    chain is, centred on that point, along the direction of travel.
-    """
-    width = net.getLane(chain[0]).getWidth()
-    points = dedupe([p for lane_id in chain for p in shape_2d(net.getLane(lane_id))])
-    fork_shape, exit_shape = dedupe(shape_2d(fork)), dedupe(shape_2d(exit_lane))
-    into = _direction(fork_shape, at_end=True) or _direction(points, at_end=False)
-    out = _direction(exit_shape, at_end=False) or _direction(points, at_end=True) or into
-    into = into or out
-    if into is None or out is None:
-        raise UnsupportedIntersection(
-            f"the connection from {fork.getID()!r} to {exit_lane.getID()!r} has no direction: "
-            "its fork, internal lanes and exit are all single points",
-            route=f"{fork.getID()}:{exit_lane.getID()}",
-        )
-    if len(points) < 2:
-        half = max(sum(net.getLane(lane_id).getLength() for lane_id in chain), MIN_LENGTH) / 2
-        (x, y) = points[0]
-        points = [(x - half * into[0], y - half * into[1]), (x + half * out[0], y + half * out[1])]
-    start, end = points[0], points[-1]
-    extended = [
-        (start[0] - EXTENSION * into[0], start[1] - EXTENSION * into[1]),
-        *points,
-        (end[0] + EXTENSION * out[0], end[1] + EXTENSION * out[1]),
-    ]
-    body = LineString(extended).buffer(width / 2.0, cap_style="flat", join_style="round")
-    behind_stop_line = _box_behind(start, into, width)
-    beyond_exit = _box_behind(end, (-out[0], -out[1]), width)
-    return ConnectingLane(
-        id=chain[0],
-        internal_lanes=tuple(chain),
-        centreline=LineString(points),
-        polygon=body.difference(unary_union([behind_stop_line, beyond_exit])),
-        width=width,
-    )
-
-
-EXTENSION = 3.0  # metres the centreline is extended before cutting its ends square
-MIN_LENGTH = 0.1  # metres: SUMO's shortest lane
-
-
-def _direction(points: Sequence[tuple[float, float]], at_end: bool) -> tuple[float, float] | None:
-    """The unit vector of the last (``at_end``) or first segment of deduplicated
-    ``points``; None for a single point."""
-    if len(points) < 2:
-        return None
-    a, b = (points[-2], points[-1]) if at_end else (points[0], points[1])
-    length = math.dist(a, b)
-    return (b[0] - a[0]) / length, (b[1] - a[1]) / length
-
-
-def _box_behind(
-    point: tuple[float, float], direction: tuple[float, float], width: float
-) -> Polygon:
-    """The strip of road just behind a line through ``point`` square to ``direction``."""
-    (x, y), (ux, uy) = point, direction
-    nx, ny = -uy * width, ux * width
-    depth = EXTENSION + 1.0
-    return Polygon(
-        [
-            (x + nx, y + ny),
-            (x + nx - ux * depth, y + ny - uy * depth),
-            (x - nx - ux * depth, y - ny - uy * depth),
-            (x - nx, y - ny),
-        ]
-    )
-
-
-def _chord_heading(points: list[tuple[float, float]], at_end: bool) -> float:
-    line = LineString(points)
-    window = min(APPROACH_WINDOW, line.length)
-    if at_end:
-        start = line.interpolate(line.length - window)
-        return heading_of((start.x, start.y), points[-1])
-    end = line.interpolate(window)
-    return heading_of(points[0], (end.x, end.y))
-
-
-def _fork(net: Any, lane: Any, junction: str, routes: dict[str, Route]) -> Fork:
-    polyline = _drawn(approach_polyline(net, lane, junction, DRAWN_LENGTH), lane)
-    states = {r.link_state for r in routes.values() if r.fork == lane.getID()}
-    return Fork(
-        lane=lane.getID(),
-        edge=lane.getEdge().getID(),
-        heading=round(_chord_heading(polyline, at_end=True), 6),
-        stop_line=shape_2d(lane)[-1],
-        stop_sign=bool(states & STOP_STATES),
-        width=lane.getWidth(),
-        approach=_clip(polyline, DRAWN_LENGTH, at_end=True),
-    )
-
-
-def _drawn(points: list[tuple[float, float]], lane: Any) -> list[tuple[float, float]]:
-    """``points``, the road through ``lane``; UnsupportedIntersection when they are one
-    point (a lane of no length, and no road before or after it)."""
-    if len(points) < 2:
-        raise UnsupportedIntersection(
-            f"lane {lane.getID()!r} and the road before and after it have no length (one "
-            f"point, {points[0] if points else 'none'}): no car can drive on it"
-        )
-    return points
-
-
-def _clip(points: list[tuple[float, float]], length: float, at_end: bool) -> LineString:
-    line = LineString(points)
-    if line.length <= length:
-        return line
-    if at_end:
-        return substring(line, line.length - length, line.length)
-    return substring(line, 0.0, length)
-
-
-def _exit(net: Any, lane: Any, junction: str) -> Exit:
-    polyline = _drawn(departure_polyline(net, lane, junction, DRAWN_LENGTH), lane)
-    return Exit(
-        lane=lane.getID(),
-        edge=lane.getEdge().getID(),
-        heading=round(_chord_heading(polyline, at_end=False), 6),
-        width=lane.getWidth(),
-        departure=_clip(polyline, DRAWN_LENGTH, at_end=False),
-    )
 
 
 def with_signals(intersection: Intersection, program: SignalProgram) -> Intersection:

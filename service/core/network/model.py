@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
 
-from shapely.geometry import LineString, Polygon
+from shapely.geometry import LineString, MultiPolygon, Polygon
 
 from service.core.errors import UnknownLane, UnknownRoute, choices
 from service.core.network.signals import SignalProgram
@@ -49,15 +49,22 @@ class Turn(StrEnum):
 
 @dataclass(frozen=True)
 class Fork:
-    """An incoming lane of the intersection; it ends at the stop line."""
+    """An incoming lane of the intersection; cars stop for it at its limit line (the stop
+    line), where SUMO's driver stops for its link: the lane's end, or before a fork shorter
+    than a car between two nodes of one traffic light, the end of the lane before the
+    upstream node (service.core.network.forks)."""
 
     lane: str
     edge: str
     heading: float  # approach heading over the last metres before the stop line
-    stop_line: Point  # centre of the stop line (end of the lane's centreline)
+    stop_line: Point  # centre of the limit line (the end of ``limit_lane``'s centreline)
     stop_sign: bool
     width: float
-    approach: LineString  # centreline of the last metres before the stop line
+    approach: LineString  # centreline of the last metres before the lane's end (drawn)
+    limit_lane: str  # the lane whose end is the limit line: ``lane`` itself, or upstream
+    limit_offset: float  # metres along the road from the limit line to the lane's end
+    entry: Polygon | MultiPolygon  # what a car of this fork enters by crossing its limit
+    # line: the junction's polygon (with the lanes after the line), not behind the line
 
 
 @dataclass(frozen=True)
@@ -95,7 +102,9 @@ class Route:
     connecting_lane: str
     turn: Turn
     link_state: str  # SUMO's link state: 'w' all-way stop, 's' stop, 'm' minor, 'M' major, ...
-    link_index: int = -1  # the traffic light's index of this connection; -1: no signal
+    link_index: int = -1  # the traffic light's index of the link whose signal the driver
+    # obeys at the fork's limit line: this connection's, or the upstream connection's
+    # where the limit line is before the fork (Fork.limit_lane); -1: no signal
 
     @property
     def id(self) -> str:

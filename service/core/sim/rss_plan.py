@@ -53,8 +53,8 @@ def rss_section(testcase: TestCase, intersection: Intersection) -> dict[str, Any
         }
         if relation in ("crossing", "merge"):
             spec["ego_area"], spec["other_area"] = conflict_area(intersection, ego_route, route)
-            spec["ego_exit"] = intersection.connecting_lane_of(ego_route).length
-            spec["other_exit"] = intersection.connecting_lane_of(route).length
+            spec["ego_exit"] = _exit_place(intersection, ego_route)
+            spec["other_exit"] = _exit_place(intersection, route)
             spec.update(priority(intersection, ego_route, route))
         else:
             spec["priority"] = "same"
@@ -82,19 +82,30 @@ def conflict_area(
     intersection: Intersection, ego: Route, other: Route
 ) -> tuple[list[float], list[float]]:
     """Where the two connecting lanes overlap, as [start, end] metres along each route
-    from its stop line (the overlap's outline projected onto each centreline)."""
+    from its stop line (the overlap's outline projected onto each centreline; a limit line
+    before a short fork adds the metres from it to the fork's end)."""
     ego_lane = intersection.connecting_lane_of(ego)
     other_lane = intersection.connecting_lane_of(other)
     overlap = ego_lane.polygon.intersection(other_lane.polygon)
     points = list(getattr(overlap, "exterior", LineString()).coords)
     if not points:  # several pieces: their hull
         points = list(overlap.convex_hull.exterior.coords)
-    return _along(ego_lane.centreline, points), _along(other_lane.centreline, points)
+    return _along(intersection, ego, points), _along(intersection, other, points)
 
 
-def _along(line: LineString, points: list[tuple[float, ...]]) -> list[float]:
+def _along(
+    intersection: Intersection, route: Route, points: list[tuple[float, ...]]
+) -> list[float]:
+    line = intersection.connecting_lane_of(route).centreline
     places = [float(line.project(Point(p[0], p[1]))) for p in points]
-    return [round(min(places), 3), round(max(places), 3)]
+    offset = intersection.fork(route.fork).limit_offset
+    return [round(min(places) + offset, 3), round(max(places) + offset, 3)]
+
+
+def _exit_place(intersection: Intersection, route: Route) -> float:
+    """Metres from the route's stop line to the end of its connecting lane (the exit)."""
+    length = intersection.connecting_lane_of(route).length
+    return length + intersection.fork(route.fork).limit_offset
 
 
 def priority(intersection: Intersection, ego: Route, other: Route) -> dict[str, str]:

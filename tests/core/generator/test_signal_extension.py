@@ -46,9 +46,11 @@ def _lawful_entries(testcase: TestCase) -> None:
         (str(TOWN05), "1126", "7_1:46_1", ["-6_0:-7_0", "-6_1:-7_1"]),
         (str(TOWN05), "1882", "46_1:-4_2", ["-45_0:-46_0"]),  # a T: its stem on red first
         (str(TOWN07), "68", "0_0:44_0", ["55_0:-0_0"]),
+        # the new car's limit line is U's, before the short fork U2C (joined cluster)
+        (str(JUNCTIONS / "joined-signal.net.xml"), "C", "N2C_0:C2W_0", ["U2C_1:C2W_0"]),
     ],
     ids=["4way-signal", "t-signal", "skewed-signal", "y-signal", "Town05-1126", "Town05-1882",
-         "Town07-68"],
+         "Town07-68", "joined-signal"],
 )  # fmt: skip
 def test_each_level_is_verified_and_breaks_a_signal_rule(
     network: str, junction: str | None, ego: str, routes: list[str]
