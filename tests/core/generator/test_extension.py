@@ -19,7 +19,7 @@ from service.core.errors import (
     NoneFound,
     UnknownRoute,
 )
-from service.core.generator.extension import Extension, extend_testcase
+from service.core.generator.extension import Extension, extend_testcase, verify_extension
 from service.core.motion.invariants import motion_fault
 from service.core.motion.poses import PoseSample
 from service.core.testcase import (
@@ -31,7 +31,7 @@ from service.core.testcase import (
     parse_testcase,
 )
 from tests.conftest import TOWN07
-from tests.helpers import off_road_samples
+from tests.helpers import off_road_samples, with_nonegos
 
 
 def samples(rows: list) -> list[PoseSample]:  # type: ignore[type-arg]
@@ -234,3 +234,31 @@ def test_an_automatic_start_is_fitted_to_the_road_before_the_fork(cache_dir: Pat
                        "automatic start is 17.91 m before the line, not 30 m")  # fmt: skip
     with pytest.raises(InvalidInput, match=r"start distance 30 m is longer than the road"):
         extend_testcase(old, ["-26#1_0:14_0"], start_distance=30.0, intersection=junction)
+
+
+def test_a_certificate_that_collides_after_its_goal_is_not_verified(
+    y_start: TestCase, y_extension: Extension
+) -> None:
+    """The pass-fail criteria end with the goal, but a certificate collides with nobody
+    over its whole trajectory: a car standing on the ego's exit lane, where the
+    solvability certificate gets 4 s after its goal, leaves the certificate passing and
+    the candidate refused."""
+    new = y_extension.testcase
+    junction = load_testcase_intersection(new)
+    ids = [n.id for n in new.nonegos]
+    assert verify_extension(y_start, new, junction, ids) is None
+    assert new.certificates is not None
+    solvability = samples(new.certificates.solvability)
+    goal = check_testcase(new, solvability, "solvability").goal_time
+    assert goal is not None
+    there = next(s for s in solvability if s.t >= goal + 4.0)
+    standing = [PoseSample(round(k * new.timestep, 6), there.x, there.y, there.heading, 0.0, 0.0)
+                for k in range(len(solvability))]  # fmt: skip
+    blocked = with_nonegos(new, [("car9", "SW2C_0:C2SE_0", standing)])
+    verdict = check_testcase(blocked, solvability, "solvability")
+    assert verdict.passed and [c.other for c in verdict.after_goal_collisions] == ["car9"]
+    late = verdict.after_goal_collisions[0]
+    assert verify_extension(y_start, blocked, junction, [*ids, "car9"]) == (
+        f"solvability certificate collides with car9 at {late.t:.2f} s, after its goal "
+        "in the new test-case"
+    )
