@@ -343,6 +343,20 @@ def _collisions(cars: Sequence[Car]) -> list[CollisionRecord]:
     return found
 
 
+def until_goal(
+    testcase: TestCase, samples: Sequence[PoseSample], intersection: Intersection
+) -> list[PoseSample]:
+    """An ego's samples until its goal, where its test ends: up to the first sample at or
+    after it (all of them when it never gets there). Pictures draw a certificate so: it
+    leaves at its goal, as the replay's ego does."""
+    ego = _ego_car(testcase, intersection, samples)
+    goal = _goal_time(testcase, intersection, ego)
+    if goal is None:
+        return list(samples)
+    last = next((k for k, s in enumerate(samples) if s.t >= goal - 1e-9), len(samples) - 1)
+    return list(samples[: last + 1])
+
+
 def _goal_time(testcase: TestCase, junction: Intersection, ego: Car) -> float | None:
     """When the ego is on its exit lane and fully out of the junction, if within the duration."""
     exited = [e for e in ego.events if e.kind is EventKind.EXITED]
