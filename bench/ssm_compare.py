@@ -2,7 +2,11 @@
 
 Each case replays a test-case in SUMO with the ego equipped with SUMO's SSM device
 (``--device.ssm``: TTC, DRAC and PET, every value logged), judges the ego's replayed
-trajectory with the checker, and prints, per other car, SUMO's extreme next to ours.
+trajectory with the checker, and prints, per other car, SUMO's extreme next to ours. Here
+the ego does not leave the simulation at its goal, as it does in ``scengen evaluate``: it
+drives on to the end of its route's last lane, so that SUMO's device, which the ego carries, can
+log a PET whose second car enters the conflict area after the ego's goal (ours measures
+it from the other car's trajectory; every other measure of ours ends at the goal).
 Run with ``python -m bench.ssm_compare`` (part of ``make bench``); tests/bench/
 test_ssm_compare.py checks the agreement within the README's tolerances.
 """
@@ -12,7 +16,7 @@ from __future__ import annotations
 import math
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
@@ -124,6 +128,7 @@ def ssm_replay(testcase: TestCase, controller: str) -> Replay:
     with tempfile.TemporaryDirectory(prefix="scengen-ssm-") as scratch:
         folder = Path(scratch)
         ego, others = departures(testcase, junction)
+        ego = replace(ego, goal=None, arrival=None)  # on to the end of its last lane
         write_run_files(testcase, ego, others, folder, str(junction.network_file.resolve()),
                         junction)  # fmt: skip
         arguments = (str(folder / sumo_run.PLAN_FILE), controller_spec(resolve_driver(controller)),

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from service.core.network import Intersection, load_intersection
+from service.core.testcase import TestCase
 
 DATA = Path(__file__).parent / "data"
 TOWN05 = DATA / "carla" / "Town05.net.xml"
@@ -43,3 +44,12 @@ def town07_y(cache_dir: Path) -> Intersection:
 def town05_allway(cache_dir: Path) -> Intersection:
     """Town05's four-arm junction 396 (plain priority in CARLA) made an all-way stop."""
     return load_intersection(TOWN05, "396", "allway_stop", cache_dir)
+
+
+@pytest.fixture(scope="session")
+def next_junction(tmp_path_factory: pytest.TempPathFactory) -> TestCase:
+    """A chain's level 1 whose car1 drives on through the next junction, where a SUMO
+    driver that did not leave at its goal would stand (tests.helpers)."""
+    from tests.helpers import next_junction_network, past_the_next_junction
+
+    return past_the_next_junction(next_junction_network(tmp_path_factory.mktemp("next")))

@@ -207,3 +207,57 @@ def off_road_samples(
             if not area.contains(Point(x, y)):
                 found.append(f"{name} at {sample.t:g} s: ({x:.1f}, {y:.1f})")  # type: ignore[attr-defined]
     return found
+
+
+NEXT_JUNCTION_NODES = """<nodes>
+    <node id="C" x="0" y="0" type="allway_stop"/>
+    <node id="W" x="-150" y="0" type="dead_end"/>
+    <node id="E" x="150" y="0" type="dead_end"/>
+    <node id="S" x="0" y="-150" type="dead_end"/>
+    <node id="D" x="0" y="80" type="traffic_light"/>
+    <node id="DW" x="-150" y="80" type="dead_end"/>
+    <node id="DE" x="150" y="80" type="dead_end"/>
+    <node id="N" x="0" y="230" type="dead_end"/>
+</nodes>
+"""
+# D's lights stay red: a SUMO driver that drives on to D stands there to the end
+NEXT_JUNCTION_LIGHTS = """<additional>
+    <tlLogic id="D" type="static" programID="0" offset="0">
+        <phase duration="1000" state="rrrrrrrrrrrr"/>
+    </tlLogic>
+</additional>
+"""
+
+
+def next_junction_network(folder: Path) -> Path:
+    """A network with a second junction after the first: the all-way stop C, and 80 m
+    north of it the signalized D, whose lights are always red. Single-lane roads; the
+    ego's route S2C_0:C2D_0 goes straight on from C towards D."""
+    from service.core.network.override import run_netconvert
+
+    pairs = [("S", "C"), ("W", "C"), ("E", "C"), ("C", "D"), ("D", "N"), ("DW", "D"), ("DE", "D")]
+    edges = [
+        f'    <edge id="{a}2{b}" from="{a}" to="{b}" numLanes="1" speed="13.89" priority="1"/>'
+        for one, other in pairs
+        for a, b in ((one, other), (other, one))
+    ]
+    (folder / "next.nod.xml").write_text(NEXT_JUNCTION_NODES)
+    (folder / "next.edg.xml").write_text("<edges>\n" + "\n".join(edges) + "\n</edges>\n")
+    (folder / "next.tll.xml").write_text(NEXT_JUNCTION_LIGHTS)
+    network = folder / "next-junction.net.xml"
+    arguments = ["-n", str(folder / "next.nod.xml"), "-e", str(folder / "next.edg.xml"),
+                 "-i", str(folder / "next.tll.xml"), "--no-turnarounds", "true",
+                 "-o", str(network)]  # fmt: skip
+    failed = run_netconvert(arguments, network, "build the two-junction network")
+    assert failed is None, failed
+    return network
+
+
+def past_the_next_junction(network: Path) -> TestCase:
+    """Level 1 of a chain on ``next_junction_network``: the ego goes straight on from C
+    towards D (30 m out, 45 s); car1, generated (seed 0), turns left from the west into
+    the ego's exit lane after it and drives on through D's red light as its trajectory
+    says. A SUMO driver that drives on to D stands at its light, and car1 runs into it
+    there, 17 s after the ego's goal (issue 43's defect 2, the pattern of the sweep)."""
+    start = new_testcase(network, "S2C_0:C2D_0", junction="C", duration=45.0, name="next")
+    return extend_testcase(start, ["W2C_0:C2D_0"], seed=0, budget=120).testcase

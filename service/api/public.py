@@ -81,12 +81,14 @@ def network_public(record: NetworkRecord) -> NetworkPublic:
 
 
 def evaluation_public(record: EvaluationRecord) -> EvaluationPublic:
+    verdict = Verdict.from_dict(record.verdict)
     return EvaluationPublic(
         id=record.id,
         testcase=record.testcase,
         controller=record.controller,
         passed=record.passed,
-        reasons=Verdict.from_dict(record.verdict).reasons,
+        reasons=verdict.reasons,
+        information=verdict.information,
         verdict=record.verdict,
         seconds=round(record.seconds, 3),
         created_at=record.created_at,

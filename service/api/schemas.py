@@ -267,11 +267,19 @@ class EvaluationPublic(BaseModel):
     id: str
     testcase: str
     controller: str
-    passed: bool
-    reasons: list[str]
+    passed: bool = Field(description="whether the ego passed, judged until its goal")
+    reasons: list[str] = Field(description="why it failed, until its goal (empty: it passed)")
+    information: list[str] = Field(
+        description="what happened after its goal, in words (the verdict's `after_goal`): "
+        "not judged, never a reason"
+    )
     verdict: dict[str, Any] = Field(
-        description="the checker's verdict (scengen/verdict/1), with its criticality: TTC, "
-        "PET, DRAC and distance against each car and overall (README, Criticality)"
+        description="the checker's verdict (scengen/verdict/1): `passed`, `goal`, "
+        "`judged_until` (the judgement ends with the goal, or at the duration when it is "
+        "missed), `collisions` and `violations` until then, `after_goal` {`collisions`, "
+        "`violations`} after it (information), `reasons`, `information`, with its "
+        "criticality until the goal: TTC, PET, DRAC and distance against each car and "
+        "overall (README, Criticality)"
     )
     seconds: float
     created_at: datetime

@@ -126,6 +126,8 @@ def print_verdict(verdict: Verdict) -> None:
         print(f"  reached its exit at {verdict.goal_time:.2f} s")
     for reason in verdict.reasons:
         print(f"  {reason}")
+    for line in verdict.information:  # after the judgement ended: not a reason
+        print(f"  {line}")
     if verdict.guard is not None:
         print(f"  {guard_text(verdict.guard)}")
     if verdict.criticality is not None:

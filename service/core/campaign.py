@@ -243,13 +243,17 @@ def _broken(testcase: TestCase) -> list[str]:
 
 def _compact(verdict: dict[str, Any]) -> dict[str, Any]:
     """What a campaign keeps of a verdict: the cause the paper's table shows, and the
-    criticality measures and the guard's counts as the verdict has them (null if not)."""
+    criticality measures and the guard's counts as the verdict has them (null if not).
+    Its collisions and rules are those until the goal, where the judgement ends;
+    ``after_goal`` counts the records after it (information, never a failure)."""
+    after = verdict.get("after_goal") or {}
     return {
         "evaluation": verdict.get("evaluation"),
         "passed": bool(verdict["passed"]),
         "rules": sorted({v["rule"] for v in verdict["violations"]}),
         "collisions": len(verdict["collisions"]),
         "goal_reached": bool(verdict["goal"]["reached"]),
+        "after_goal": len(after.get("collisions", ())) + len(after.get("violations", ())),
         "errors": list(verdict["errors"]),
         "reasons": list(verdict["reasons"]),
         "cause": failure_cause(verdict),

@@ -19,7 +19,7 @@ from matplotlib.figure import Figure
 from matplotlib.text import Annotation
 from PIL import Image
 
-from service.core.checker.check import EGO
+from service.core.checker.check import EGO, until_goal
 from service.core.motion.events import rectangles
 from service.core.motion.poses import PoseSample
 from service.core.network import Intersection
@@ -52,17 +52,19 @@ Frame = Callable[[int], list[Any]]  # draws sample k of every car; the artists i
 
 
 def _animated_cars(
-    testcase: TestCase, ego: Sequence[PoseSample], ego_label: str
+    testcase: TestCase, intersection: Intersection, ego: Sequence[PoseSample], ego_label: str
 ) -> list[DrawnPath]:
     """What the animation moves: every non-ego, and the ego (an evaluation's trajectory,
-    else the solvability certificate)."""
+    which ends where the replay's ego left, else the solvability certificate until its
+    goal): once its test is over, the ego is gone."""
     cars: list[DrawnPath] = []
     for k, nonego in enumerate(testcase.nonegos):
         samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
         cars.append((nonego.id, nonego.id, CAR_COLOURS[k % len(CAR_COLOURS)], samples,
                      nonego.length, nonego.width))  # fmt: skip
     if not ego and testcase.certificates is not None:
-        ego = [PoseSample(**s.model_dump()) for s in testcase.certificates.solvability]
+        certificate = [PoseSample(**s.model_dump()) for s in testcase.certificates.solvability]
+        ego = until_goal(testcase, certificate, intersection)
         ego_label = ego_label or "ego (solvability certificate)"
     if ego:
         cars.append((EGO, ego_label or "ego", "black", ego, testcase.ego.length,
@@ -83,7 +85,7 @@ def draw_animation(
     head; a car out of view has no id; at a signalized junction each head in its colour at
     the frame's time (over the cars) and the ego's signal beside the clock. The artists
     that change are animated: a frame draws only them."""
-    cars = _animated_cars(testcase, ego, ego_label)
+    cars = _animated_cars(testcase, intersection, ego, ego_label)
     queues = queue_leaders(testcase, intersection)
     figure, axes = plt.subplots(figsize=(7.5, 8.2), dpi=DPI)
     draw_roads(axes, intersection)

@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from matplotlib.text import Annotation
 from shapely.geometry import Polygon
 
-from service.core.checker.check import EGO, Judge
+from service.core.checker.check import EGO, Judge, until_goal
 from service.core.checker.verdict import Verdict
 from service.core.motion.events import rectangles
 from service.core.motion.poses import PoseSample
@@ -229,9 +229,10 @@ def picture_title(testcase: TestCase) -> str:
 
 
 def _testcase_paths(
-    testcase: TestCase, ego: Sequence[PoseSample], ego_label: str
+    testcase: TestCase, intersection: Intersection, ego: Sequence[PoseSample], ego_label: str
 ) -> list[DrawnPath]:
-    """What plot_testcase draws: every non-ego, then the evaluated ego or the certificates."""
+    """What plot_testcase draws: every non-ego, then the evaluated ego or the certificates,
+    each until its goal (where its test ends: the replay's ego leaves there too)."""
     paths: list[DrawnPath] = []
     for k, nonego in enumerate(testcase.nonegos):
         samples = [PoseSample(**s.model_dump()) for s in nonego.trajectory]
@@ -243,9 +244,11 @@ def _testcase_paths(
                       testcase.ego.width))  # fmt: skip
     elif testcase.certificates is not None:
         for kind, colour in CERTIFICATE_COLOURS.items():
-            certificate = [
-                PoseSample(**s.model_dump()) for s in getattr(testcase.certificates, kind)
-            ]
+            certificate = until_goal(
+                testcase,
+                [PoseSample(**s.model_dump()) for s in getattr(testcase.certificates, kind)],
+                intersection,
+            )
             paths.append((EGO, f"ego: {kind} certificate", colour, certificate,
                           testcase.ego.length, testcase.ego.width))  # fmt: skip
     return paths
@@ -390,7 +393,7 @@ def draw_testcase(
     titled by the test-case's name; at a signalized junction the signal strip under the
     panel (the third axes). ``progress`` hears of each stage."""
     say = progress or (lambda message: None)
-    paths = _testcase_paths(testcase, ego, ego_label)
+    paths = _testcase_paths(testcase, intersection, ego, ego_label)
     rows = signal_rows(
         testcase, intersection, [(drawn[2], drawn[3]) for drawn in paths if drawn[0] == EGO],
         [CAR_COLOURS[k % len(CAR_COLOURS)] for k in range(len(testcase.nonegos))],
@@ -483,12 +486,14 @@ def _draw_events(
 
 
 def verdict_lines(verdict: Verdict, columns: int) -> list[str]:
-    """The verdict over the panel: the controller and PASS or FAIL, then each reason wrapped
-    to ``columns`` characters (the first VERDICT_REASONS of them, and how many more)."""
+    """The verdict over the panel: the controller and PASS or FAIL, then each reason and
+    then what happened after the goal (information) wrapped to ``columns`` characters (the
+    first VERDICT_REASONS of them, and how many more)."""
     lines = [f"{verdict.controller}: {'PASS' if verdict.passed else 'FAIL'}"]
-    for reason in verdict.reasons[:VERDICT_REASONS]:
+    said = [*verdict.reasons, *verdict.information]
+    for reason in said[:VERDICT_REASONS]:
         lines += textwrap.wrap(reason, columns, subsequent_indent="  ", break_long_words=True)
-    more = len(verdict.reasons) - VERDICT_REASONS
+    more = len(said) - VERDICT_REASONS
     if more > 0:
         lines.append(f"and {more} more (scengen check prints every reason)")
     return lines

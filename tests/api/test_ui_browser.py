@@ -27,7 +27,9 @@ from matplotlib.colors import to_rgb
 from playwright.sync_api import Page
 
 from service.core.campaign import run_campaign
-from service.core.testcase import Signals
+from service.core.checker.check import until_goal
+from service.core.motion.poses import PoseSample
+from service.core.testcase import Signals, load_testcase_intersection, parse_testcase
 from service.pictures.report import report_html
 from service.pictures.signals import SIGNAL_COLOURS
 from tests.api.test_docs_browser import SCREENSHOTS, external, opened_page
@@ -213,6 +215,49 @@ def test_the_animation_moves_the_cars(
         assert href and server.client.get(href).status_code == 200
     page.screenshot(path=str(SCREENSHOTS / "ui-testcase.png"), full_page=True)
     assert external(server, requested) == []
+
+
+def test_the_certificates_leave_the_animation_at_their_goal(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    """The test ends with the goal: a test-case's page draws each certificate until its
+    goal, found in the browser from the junction's area as the checker finds it (the same
+    sample: the first at or after the goal), and not after it, as the replay's ego leaves
+    the simulation there."""
+    server, _, outcome = served
+    page, _ = browser_page
+    level2 = outcome["chains"][0]["levels"][2]["testcase"]
+    testcase = parse_testcase(server.client.get(f"/testcases/{level2}").json()["testcase"])
+    assert testcase.certificates is not None
+    intersection = load_testcase_intersection(testcase)
+    area = server.client.get(
+        f"/networks/{testcase.network.ref}/junctions/{testcase.junction}/geometry",
+        params={"control": testcase.control},
+    ).json()["area"]  # fmt: skip
+    page.goto(f"{server.url}/ui/#/testcases/{level2}")
+    page.wait_for_selector("#animation")
+    ends = []
+    for kind in ("solvability", "complexity"):
+        samples = [PoseSample(**s.model_dump()) for s in getattr(testcase.certificates, kind)]
+        kept = until_goal(testcase, samples, intersection)
+        assert len(kept) < len(samples)  # both reach their goal before the duration
+        rows = [[s.t, s.x, s.y, s.heading, s.speed, s.distance] for s in samples]
+        drawn = page.evaluate(
+            "([rows, area, length, width]) => untilOut(rows, area, length, width).length",
+            [rows, area, testcase.ego.length, testcase.ego.width],
+        )  # fmt: skip
+        assert drawn == len(kept), kind
+        ends.append(kept[-1].t)
+    page.locator("#scrub").fill(f"{max(ends) + 0.5:g}")  # both gone: no certificate drawn
+    with_them = canvas_frame(page)
+    page.locator("#certificates").uncheck()
+    assert canvas_frame(page) == with_them
+    page.locator("#certificates").check()
+    page.locator("#scrub").fill(f"{min(ends) - 0.5:g}")  # both still there
+    with_them = canvas_frame(page)
+    page.locator("#certificates").uncheck()
+    assert canvas_frame(page) != with_them
+    page.locator("#certificates").check()
 
 
 TEXT_BOXES = """() => {

@@ -9,7 +9,8 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
-from service.core.checker.verdict import Verdict
+from service.api.public import evaluation_public
+from service.core.checker.verdict import CollisionRecord, Verdict
 from service.core.testcase import new_testcase, readable_name, renamed
 from service.jobs.batch import parse_batch
 from service.jobs.junit import job_junit
@@ -91,3 +92,30 @@ def test_a_job_whose_items_all_failed_reports_each(store: Store) -> None:
     suite, found = cases(store, job.id)
     assert (suite.get("tests"), suite.get("errors"), suite.get("failures")) == ("2", "2", "0")
     assert [c.find("error").get("message") for c in found] == ["reason 0", "reason 1"]  # type: ignore[union-attr]
+
+
+def test_what_happened_after_the_goal_is_no_failure_and_shown_as_information(
+    store: Store,
+) -> None:
+    """A stored verdict that passed with a collision after its goal: the job's JUnit case
+    passed, and the API's evaluation lists the collision as information, not a reason."""
+    record = store.add_testcase(new_testcase("4way-stop", "E2C_1:C2S_1"))
+    late = CollisionRecord("car5", 40.525, 15.79, 117.01)
+    verdict = Verdict(record.testcase.name, "sumo", True, 23.45, duration=45.0,
+                      after_goal_collisions=(late,))  # fmt: skip
+    jobs = JobStore(store)
+    batch = parse_batch({"items": [
+        {"kind": "evaluate", "testcase_id": record.id, "controllers": ["sumo"]}
+    ]})  # fmt: skip
+    job, _ = jobs.create(batch)
+    ident = job.items[0].evaluation_id(record.id, "sumo")
+    stored = store.add_evaluation(record.id, "sumo", verdict.to_dict(), 1.0, ident)
+    assert jobs.claim(job.id, 0, "w", 30)
+    jobs.record(job.id, 0, "w", "done", None, [stored.id])
+    jobs.finish(job.id, 0, "w", "succeeded")
+    _, found = cases(store, job.id)
+    assert [[e.tag for e in case] for case in found] == [[]]  # passed: no failure
+    public = evaluation_public(stored)
+    assert public.passed and public.reasons == []
+    assert public.information == [f"after its goal (not judged): {late.describe()}"]
+    assert public.verdict["after_goal"]["collisions"][0]["other"] == "car5"

@@ -19,7 +19,8 @@ from matplotlib.lines import Line2D
 from matplotlib.text import Annotation, Text
 from matplotlib.transforms import Bbox
 
-from service.core.checker.verdict import Verdict
+from service.core.checker.check import check_testcase
+from service.core.checker.verdict import CollisionRecord, Verdict
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import PoseSample, generate_poses
 from service.core.network import Intersection, load_intersection
@@ -40,6 +41,7 @@ from service.pictures.plot import (
     queue_leaders,
     start_label,
     time_labels,
+    verdict_lines,
 )
 from tests.conftest import TOWN05
 from tests.helpers import car_ahead_of_ego, retime, with_nonegos
@@ -296,3 +298,43 @@ def test_the_animation_draws_stop_lines_and_ids_inside_the_map(
 
     with Image.open(gif) as image:
         assert image.n_frames == 10  # t = 0, 5, ..., 45 s
+
+
+def test_the_ego_leaves_the_pictures_at_its_goal(
+    level6: tuple[TestCase, Intersection], figures: list[Figure]
+) -> None:
+    """The test ends with the goal: the picture draws each certificate until its goal (the
+    first sample at or after it), and the animation's ego, the solvability certificate,
+    is gone after it, as the replay's ego leaves the simulation there."""
+    testcase, intersection = level6
+    assert testcase.certificates is not None
+    figure = draw_testcase(testcase, intersection)
+    figures.append(figure)
+    panel = figure.axes[1]
+    goals = {}
+    for kind in ("solvability", "complexity"):
+        certificate = [PoseSample(**s.model_dump()) for s in getattr(testcase.certificates, kind)]
+        goal = check_testcase(testcase, certificate, kind, intersection, False).goal_time
+        assert goal is not None
+        goals[kind] = goal
+        (curve,) = [line for line in panel.get_lines()
+                    if line.get_label() == f"ego: {kind} certificate"]  # fmt: skip
+        times = [float(t) for t in curve.get_xdata()]
+        assert times[-2] < goal <= times[-1] < testcase.duration
+    animated, draw = draw_animation(testcase, intersection)
+    figures.append(animated)
+    ego = 1 + 2 * len(testcase.nonegos)  # the clock, then each car's outline and id
+    last = math.ceil(goals["solvability"] / testcase.timestep - 1e-9)  # its goal's sample
+    assert len(draw(last)[ego].get_xy()) > 0
+    assert len(draw(last + 1)[ego].get_xy()) == 0
+
+
+def test_what_happened_after_the_goal_is_shown_as_information() -> None:
+    late = CollisionRecord("car5", 40.525, 15.79, 117.01)
+    verdict = Verdict("level 5", "sumo", True, 23.45, duration=45.0,
+                      after_goal_collisions=(late,))  # fmt: skip
+    lines = verdict_lines(verdict, 140)
+    assert lines == [
+        "sumo: PASS",
+        "after its goal (not judged): collided with car5 at 40.52 s at (15.8, 117.0)",
+    ]

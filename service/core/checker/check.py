@@ -2,10 +2,16 @@
 
 The ego passes when it reaches its exit lane, fully out of the junction, within the
 duration; collides with no non-ego; and violates no traffic rule and no non-ego's
-right-of-way under the rule set of the junction's control type. Events of every car are
-computed from its trajectory (service.core.motion.events), their perceptible order from the numbers
-with one m (service.core.checker.rules), and the rules decide. With all orders given, the rule
-program is stratified, so the check is bounded: it runs in the caller's process.
+right-of-way under the rule set of the junction's control type. The judgement ends with
+the goal: at the moment the ego is on its exit lane and its rectangle has left the
+junction for good (its rear is out: every event of the ego at the junction comes before),
+or at the duration when it never gets there. A collision that starts later, and a
+violation whose ego events all come later, are kept in the verdict as information (its
+``after_goal_*``); they do not fail the ego. The criticality measures end there too.
+Events of every car are computed from its trajectory (service.core.motion.events), their
+perceptible order from the numbers with one m (service.core.checker.rules), and the
+rules decide. With all orders given, the rule program is stratified, so the check is
+bounded: it runs in the caller's process.
 """
 
 from __future__ import annotations
@@ -40,7 +46,12 @@ from service.core.errors import InvalidTrajectory
 from service.core.motion.collisions import Motion, first_collision
 from service.core.motion.criticality import Criticality, Mover, measure_criticality
 from service.core.motion.events import EventKind, LaneEvent, compute_events
-from service.core.motion.poses import PoseSample, centre_to_front, start_front
+from service.core.motion.poses import (
+    PoseSample,
+    centre_to_front,
+    interpolate_heading,
+    start_front,
+)
 from service.core.motion.queues import QueueCar, follows, line_distance
 from service.core.network import Intersection
 from service.core.testcase import NonEgo, TestCase, load_testcase_intersection, readable_name
@@ -149,29 +160,35 @@ class Judge:
         cars = self._in_queues([car, *self.nonegos])
         car = cars[0]
         goal_time = _goal_time(self.testcase, self.junction, car)
-        measures = self.criticality(cars) if criticality else None
+        end = goal_time if goal_time is not None else self.testcase.duration
+        collisions = _collisions(cars)
+        violations = _violations(self.junction, cars, self.testcase.params.m,
+                                 self.testcase.duration)  # fmt: skip
+        measures = self.criticality(cars, end) if criticality else None
         return Verdict(
             testcase=testcase_label(self.testcase),
             controller=controller,
             goal_reached=goal_time is not None,
             goal_time=goal_time,
-            collisions=tuple(_collisions(cars)),
-            violations=tuple(
-                _violations(self.junction, cars, self.testcase.params.m, self.testcase.duration)
-            ),
+            collisions=tuple(c for c in collisions if c.t <= end),
+            violations=tuple(v for v in violations if _ego_time(v) <= end),
             ego_events=tuple(_refs(car)),
             duration=self.testcase.duration,
             criticality=measures,
+            after_goal_collisions=tuple(c for c in collisions if c.t > end),
+            after_goal_violations=tuple(v for v in violations if _ego_time(v) > end),
         )
 
-    def criticality(self, cars: Sequence[Car]) -> Criticality:
-        """The criticality of the ego (``cars[0]``) against each other car."""
+    def criticality(self, cars: Sequence[Car], end: float = math.inf) -> Criticality:
+        """The criticality of the ego (``cars[0]``) against each other car, the ego's drive
+        measured until ``end`` (the judgement's end: its goal)."""
         routes = {EGO: self.testcase.ego.route.id}
         routes.update((n.id, n.route.id) for n in self.testcase.nonegos)
         movers = [
-            Mover(car.id, self.junction.route(routes[car.id]), car.length, car.width, car.samples)
+            Mover(car.id, self.junction.route(routes[car.id]), car.length, car.width,
+                  judged_samples(car.samples, end) if car.id == EGO else car.samples)
             for car in cars
-        ]
+        ]  # fmt: skip
         return measure_criticality(self.junction, movers[0], movers[1:])
 
     def rules_broken_by(self, car_id: str) -> list[Violation]:
@@ -274,6 +291,31 @@ def _violations(
     return sorted(found.values(), key=lambda v: (v.events[0].t, v.rule, v.other or ""))
 
 
+def _ego_time(violation: Violation) -> float:
+    """When the ego did what ``violation`` judges: its first event in it (the first event of
+    any car if none is the ego's)."""
+    times = [e.t for e in violation.events if e.car == EGO] or [e.t for e in violation.events]
+    return min(times, default=-math.inf)
+
+
+def judged_samples(samples: Sequence[PoseSample], end: float) -> list[PoseSample]:
+    """The samples until ``end``, the last one at ``end`` itself (interpolated between the
+    samples around it) when no sample falls on it."""
+    kept = [s for s in samples if s.t <= end]
+    if len(kept) == len(samples) or not kept or kept[-1].t >= end:
+        return kept
+    a, b = kept[-1], samples[len(kept)]
+    share = (end - a.t) / (b.t - a.t)
+    kept.append(
+        PoseSample(
+            end, a.x + share * (b.x - a.x), a.y + share * (b.y - a.y),
+            interpolate_heading(a.heading, b.heading, share),
+            a.speed + share * (b.speed - a.speed), a.distance + share * (b.distance - a.distance),
+        )
+    )  # fmt: skip
+    return kept
+
+
 def _earlier(first: Violation, second: Violation) -> bool:
     return [e.t for e in first.events] < [e.t for e in second.events]
 
@@ -299,6 +341,20 @@ def _collisions(cars: Sequence[Car]) -> list[CollisionRecord]:
             kind = REAR_END if other.fork == ego.fork else CROSSING
             found.append(CollisionRecord(other.id, round(hit.time, 6), hit.x, hit.y, kind))
     return found
+
+
+def until_goal(
+    testcase: TestCase, samples: Sequence[PoseSample], intersection: Intersection
+) -> list[PoseSample]:
+    """An ego's samples until its goal, where its test ends: up to the first sample at or
+    after it (all of them when it never gets there). Pictures draw a certificate so: it
+    leaves at its goal, as the replay's ego does."""
+    ego = _ego_car(testcase, intersection, samples)
+    goal = _goal_time(testcase, intersection, ego)
+    if goal is None:
+        return list(samples)
+    last = next((k for k, s in enumerate(samples) if s.t >= goal - 1e-9), len(samples) - 1)
+    return list(samples[: last + 1])
 
 
 def _goal_time(testcase: TestCase, junction: Intersection, ego: Car) -> float | None:

@@ -1,4 +1,11 @@
-"""The checker's verdict as data: JSON, and JUnit XML test cases and reports."""
+"""The checker's verdict as data: JSON, and JUnit XML test cases and reports.
+
+A test-case's judgement ends when the ego has reached its goal (on its exit lane, its whole
+rectangle out of the junction), or at the duration when it never does: ``judged_until``.
+Collisions and rule violations after that moment are kept apart (``after_goal_*``, in the
+JSON ``after_goal``), as information: they are not reasons, never fail the ego, and JUnit
+reports them nowhere as failures.
+"""
 
 from __future__ import annotations
 
@@ -57,7 +64,8 @@ class CollisionRecord:
 
 @dataclass(frozen=True)
 class Verdict:
-    """Pass or fail, and every reason: goal, collisions, violations."""
+    """Pass or fail, and every reason: goal, collisions, violations until the judgement
+    ends (``judged_until``); and, apart, the collisions and violations after the goal."""
 
     testcase: str
     controller: str
@@ -73,9 +81,28 @@ class Verdict:
     # interventions, braking, by_car, fallback, first, spans); None: no guard (not hashed)
     guard: dict[str, Any] | None = field(default=None, hash=False)
 
+    # after the judgement ended (the goal): information, not failures (module docstring)
+    after_goal_collisions: tuple[CollisionRecord, ...] = ()
+    after_goal_violations: tuple[Violation, ...] = ()
+
     @property
     def passed(self) -> bool:
+        """Whether the ego passed: only what happened until ``judged_until`` counts."""
         return self.goal_reached and not self.collisions and not self.violations and not self.errors
+
+    @property
+    def judged_until(self) -> float:
+        """When the judgement ends: the goal's time, or the duration when it was missed."""
+        return self.goal_time if self.goal_time is not None else self.duration
+
+    @property
+    def information(self) -> list[str]:
+        """What happened after the judgement ended, in words: not judged, shown for
+        information."""
+        records = [c.describe() for c in self.after_goal_collisions]
+        records += [v.describe() for v in self.after_goal_violations]
+        when = "after its goal" if self.goal_reached else "after the duration"
+        return [f"{when} (not judged): {record}" for record in records]
 
     @property
     def reasons(self) -> list[str]:
@@ -92,7 +119,13 @@ class Verdict:
         data = asdict(self)
         data = {"schema": VERDICT_SCHEMA, "passed": self.passed, **data}
         data["goal"] = {"reached": data.pop("goal_reached"), "time": data.pop("goal_time")}
+        data["judged_until"] = self.judged_until
+        data["after_goal"] = {
+            "collisions": data.pop("after_goal_collisions"),
+            "violations": data.pop("after_goal_violations"),
+        }
         data["reasons"] = self.reasons
+        data["information"] = self.information
         data["criticality"] = None if self.criticality is None else self.criticality.to_dict()
         return data
 
@@ -106,16 +139,19 @@ class Verdict:
         def events(items: Sequence[dict[str, Any]]) -> tuple[EventRef, ...]:
             return tuple(EventRef(**item) for item in items)
 
+        def violations(items: Sequence[dict[str, Any]]) -> tuple[Violation, ...]:
+            return tuple(
+                Violation(v["rule"], v["law"], v["other"], events(v["events"])) for v in items
+            )
+
+        after = data.get("after_goal") or {}  # none in verdicts stored before it was kept
         return cls(
             testcase=data["testcase"],
             controller=data["controller"],
             goal_reached=data["goal"]["reached"],
             goal_time=data["goal"]["time"],
             collisions=tuple(CollisionRecord(**item) for item in data["collisions"]),
-            violations=tuple(
-                Violation(v["rule"], v["law"], v["other"], events(v["events"]))
-                for v in data["violations"]
-            ),
+            violations=violations(data["violations"]),
             ego_events=events(data["ego_events"]),
             duration=data["duration"],
             errors=tuple(data["errors"]),
@@ -123,6 +159,10 @@ class Verdict:
                 Criticality.from_dict(data["criticality"]) if data.get("criticality") else None
             ),
             guard=data.get("guard"),
+            after_goal_collisions=tuple(
+                CollisionRecord(**item) for item in after.get("collisions", ())
+            ),
+            after_goal_violations=violations(after.get("violations", ())),
         )
 
     def to_junit(self) -> str:
@@ -171,7 +211,7 @@ def verdict_case(
     verdict: Verdict, name: str | None = None, classname: str = "scengen.check"
 ) -> JUnitCase:
     """The test case of a verdict: named ``name``, by default ``test-case / controller``;
-    a failure lists the reasons."""
+    a failure lists the reasons (never what happened after the goal: information)."""
     label = name or f"{verdict.testcase} / {verdict.controller}"
     properties = criticality_properties(verdict)
     if verdict.passed:

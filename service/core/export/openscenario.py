@@ -16,7 +16,8 @@ The folder holds:
   time, ``followingMode="position"``), placed at its first pose by a ``TeleportAction``;
   the ego (``type = ego_vehicle``, the convention of CARLA's ScenarioRunner) is teleported
   to its start with its start speed and gets its route, and no trajectory: the system
-  under test drives it. The scenario stops at the duration. A signalized test-case's
+  under test drives it. The scenario stops when the ego has reached its goal (where
+  scengen's judgement ends: ``goal_stop``), or at the duration. A signalized test-case's
   program is the RoadNetwork's TrafficSignalController (one TrafficSignalState per head and
   phase), its cycle starting where SUMO's stands at t = 0, so that it shows SUMO's colour
   at every moment (``openscenario_signals``: the offset, the heads, the colour words).
@@ -60,8 +61,9 @@ from service.core.export.openscenario_signals import (
     signal_rules_text,
 )
 from service.core.files import replacing, write_atomically
-from service.core.motion.poses import interpolate_heading, start_front
+from service.core.motion.poses import CLEARANCE, interpolate_heading, start_front
 from service.core.network import ControlType, Fork, Intersection, parsed_network
+from service.core.network.lanes import departure_polyline
 from service.core.network.override import run_netconvert
 from service.core.sumo.run import front_to_centre
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
@@ -283,6 +285,37 @@ def _ego_route(
     return route
 
 
+def goal_stop(testcase: TestCase, intersection: Intersection, minor: int) -> xosc.ConditionGroup:
+    """The run stops once the ego has reached its goal, where scengen's judgement ends, as
+    the replay's ego leaves there (service.core.sim.replay.goal_end): its reference point
+    (the centre of its footprint) within half its exit lane's width of a point on the road
+    after the junction, that point placed so that the earliest it comes within is with the
+    ego's rear Step 1's CLEARANCE past the start of its exit lane. ASAM's 1.2 says it
+    with a DistanceCondition, CARLA's 1.0 with a ReachPositionCondition."""
+    net = parsed_network(intersection.network_file)
+    exit_lane = net.getLane(intersection.route(testcase.ego.route.id).exit)
+    tolerance = exit_lane.getWidth() / 2.0
+    along = testcase.ego.length / 2.0 + CLEARANCE + tolerance
+    road = LineString(departure_polyline(net, exit_lane, intersection.junction, along + 1.0))
+    point, before = road.interpolate(along), road.interpolate(max(0.0, along - 1.0))
+    angle = math.degrees(math.atan2(point.x - before.x, point.y - before.y)) % 360.0
+    position = _world(point.x, point.y, angle)
+    condition: xosc.DistanceCondition | xosc.ReachPositionCondition
+    if minor >= 2:
+        condition = xosc.DistanceCondition(
+            tolerance, xosc.Rule.lessOrEqual, position, alongroute=False, freespace=False,
+            distance_type=xosc.RelativeDistanceType.euclidianDistance,
+            coordinate_system=xosc.CoordinateSystem.entity,
+        )  # fmt: skip
+    else:
+        condition = xosc.ReachPositionCondition(position, tolerance)
+    group = xosc.ConditionGroup("stop")
+    group.add_condition(
+        xosc.EntityTrigger("ego_reached_its_goal", 0, xosc.ConditionEdge.none, condition, "ego")
+    )
+    return group
+
+
 def _network_file(testcase: TestCase, flavour: str) -> str:
     town = re.match(r"Town\d+(?:HD)?(?:_Opt)?(?![A-Za-z0-9])", Path(testcase.network.ref).name)
     if flavour == "carla" and town:  # Town05.net.xml, an upload Town05-1a2b...
@@ -352,11 +385,16 @@ def scenario(
             raise InvalidInput("the test-case has no certificates (an ego-only test-case)")
         followers.append(("ego", getattr(testcase.certificates, certificate)))
 
-    stop = xosc.ValueTrigger(
-        "duration_reached", 0, xosc.ConditionEdge.none,
-        xosc.SimulationTimeCondition(testcase.duration, xosc.Rule.greaterThan),
-        "stop",
+    duration = xosc.ConditionGroup("stop")
+    duration.add_condition(
+        xosc.ValueTrigger(
+            "duration_reached", 0, xosc.ConditionEdge.none,
+            xosc.SimulationTimeCondition(testcase.duration, xosc.Rule.greaterThan),
+        )
     )  # fmt: skip
+    stop = xosc.Trigger("stop")  # either: the goal reached, or the duration over
+    stop.add_conditiongroup(goal_stop(testcase, intersection, minor))
+    stop.add_conditiongroup(duration)
     storyboard = xosc.StoryBoard(init, stop)
     if followers:
         act = xosc.Act("trajectories", _starts_now("at_the_start", minor))
@@ -401,9 +439,11 @@ def rules_text(
         signals = signal_rules_text(program, junction, _check_flavour(flavour)) + "\n"
     return f"""# Pass-fail criteria of this test-case (scengen)
 
-OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the run at
-{testcase.duration:g} s. scengen judges the ego's trajectory (`scengen check testcase.json
---ego TRAJECTORY`) with these criteria; the ego passes when all of them hold:
+OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the run, when
+the ego has reached its goal (its reference point on the road just past its exit lane's
+start, its rear out of the junction: `ego_reached_its_goal`) or at {testcase.duration:g} s.
+scengen judges the ego's trajectory (`scengen check testcase.json --ego TRAJECTORY`) with
+these criteria; the ego passes when all of them hold:
 
 - it reaches its exit lane (route `{testcase.ego.route.id}`) within {testcase.duration:g} s;
 - it collides with no other car (footprints of {testcase.ego.length:g} m x
@@ -417,6 +457,10 @@ OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the r
 - in a queue, each car stops at the limit line itself, a car behind another has not yet
   arrived, and the ego keeps {p.gap:g} m plus {p.headway:g} s of headway to the car
   ahead (running into it is a rear-end collision);
+- the judgement ends with the goal: the moment the ego is on its exit lane with its whole
+  footprint out of the junction (every rule of the junction is judged before it), or the
+  duration when it never gets there; a collision or violation after it is reported as
+  information, never as the ego's failure;
 - parameters: minimum perceptible time difference m = {p.m:g} s, stopped at or below
   {p.v_stop:g} m/s, running a sign at or above {p.v_run:g} m/s, arrival within
   {p.arrival_distance:g} m of the line, speed limit {p.v_max:g} m/s.

@@ -1196,6 +1196,8 @@ def _verify(
     if not verdict.passed:
         reasons = "; ".join(verdict.reasons)
         return f"solvability certificate fails the new test-case: {reasons}", None
+    if late := _after_goal(verdict):
+        return f"solvability certificate {late} in the new test-case", None
     complexity = old_judge.ego_car(
         [PoseSample(**s.model_dump()) for s in new.certificates.complexity]
     )
@@ -1203,6 +1205,8 @@ def _verify(
     if not verdict.passed:
         reasons = "; ".join(verdict.reasons)
         return f"complexity certificate fails the old test-case: {reasons}", None
+    if late := _after_goal(verdict):
+        return f"complexity certificate {late} in the old test-case", None
     verdict = new_judge.verdict(complexity, "complexity")
     if verdict.passed:
         return "complexity certificate passes the new test-case", verdict
@@ -1212,6 +1216,8 @@ def _verify(
     if any(c.other not in ids or c.kind != REAR_END for c in verdict.collisions):
         problem = "complexity certificate collides with a car other than a new car ahead of it"
         return problem, verdict
+    if late := _after_goal(verdict):
+        return f"complexity certificate {late} in the new test-case", verdict
     if any(v.other not in ids for v in verdict.violations):
         return "complexity certificate breaks a rule besides a new car's right-of-way", verdict
     if junction.signals is not None:  # every new car obeys its signal
@@ -1232,6 +1238,20 @@ def _verify(
             if hit is not None:
                 return f"{car_id} collides with {other} at {hit.time:.2f} s", verdict
     return _gaps_kept(new, new_judge, solvability, junction, ids), verdict
+
+
+def _after_goal(verdict: Verdict) -> str | None:
+    """What a certificate does after its goal that a certificate must not, in words (None:
+    nothing). The pass-fail criteria end with the goal, so the verdict only keeps it as
+    information; a certificate still collides with no car and breaks no rule over its
+    whole trajectory (design, section 2), and the complexity certificate's one binding
+    rear-end collision is judged: before its goal."""
+    if verdict.after_goal_collisions:
+        first = verdict.after_goal_collisions[0]
+        return f"collides with {first.other} at {first.t:.2f} s, after its goal"
+    if verdict.after_goal_violations:
+        return f"breaks {verdict.after_goal_violations[0].rule} after its goal"
+    return None
 
 
 def _gaps_kept(

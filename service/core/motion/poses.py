@@ -15,6 +15,7 @@ from __future__ import annotations
 import bisect
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -206,6 +207,32 @@ def plan_drive(
         skip=skip,
         start_on=start_on,
     )
+
+
+def route_end(
+    intersection: Intersection, route: Route, edges: Sequence[str], beyond: float
+) -> tuple[tuple[str, ...], float] | None:
+    """Where a car driving ``edges`` (a plan's, along ``route``) has its front ``beyond``
+    metres past the start of the route's exit lane, counted along its lanes as SUMO drives
+    them: the edges up to there and the position on the last one (SUMO's ``arrivalPos``:
+    SUMO removes the car there, as at the end of any route). A point inside a junction
+    further on moves to the start of the edge after it. None when the edges end first
+    (SUMO removes the car at the end of the road)."""
+    net = parsed_network(intersection.network_file)
+    lane = net.getLane(route.exit)
+    fork_edge = net.getLane(route.fork).getEdge().getID()
+    index = list(edges).index(lane.getEdge().getID(), list(edges).index(fork_edge) + 1)
+    left = beyond
+    while lane.getLength() < left:
+        left -= lane.getLength()
+        onward = straightest_successor(net, lane, intersection.junction)
+        if onward is None or index + 1 >= len(edges):
+            return None
+        if onward.getToLane().getEdge().getID() != edges[index + 1]:
+            return None  # not the plan's road (plan_drive walks the same way)
+        left -= sum(net.getLane(v).getLength() for v in via_chain(net, onward))
+        lane, index = onward.getToLane(), index + 1
+    return tuple(edges[: index + 1]), max(left, 0.0)
 
 
 def start_speed_limit(intersection: Intersection, plan: DrivePlan) -> float:

@@ -30,11 +30,13 @@ from service.core.checker.verdict import Verdict
 from service.core.errors import BudgetExceeded, InvalidInput
 from service.core.files import write_atomically
 from service.core.motion.poses import (
+    CLEARANCE,
     PoseSample,
     centre_to_front,
     check_start_speed,
     front_to_centre,
     plan_drive,
+    route_end,
     start_distance_of,
 )
 from service.core.network import Intersection, SignalProgram, parsed_network
@@ -59,6 +61,9 @@ ROUTES_FILE = "testcase.all.rou.xml"
 SIGNALS_FILE = "testcase.signals.xml"  # the test-case's signal program, at a signalized junction
 
 
+GOAL_PAST = 0.5  # metres past the runner's goal where the ego's route ends (more than
+# SUMO's POSITION_EPS, by which a car arrives early)
+
 SCRIPTED_MAX_SPEED = 100.0  # m/s: above every v_max a test-case may have
 SCRIPTED_SPEED_FACTOR = 100.0  # times any lane's limit (at least 1 m/s): SCRIPTED_MAX_SPEED
 
@@ -78,6 +83,10 @@ class Departure:
     # there (internal lane, position) right after it departs just before that junction
     road: float = math.inf  # metres from its start to the end of its route (SUMO removes
     # the car when its front gets there; its trajectory may go on off the map)
+    goal: float | None = None  # the ego's: metres from its start at which it has passed
+    # its goal (its rear out of the junction): the runner removes it there (``goal_end``)
+    arrival: float | None = None  # the ego's: where on its last edge its route ends, just
+    # past its goal (SUMO's arrivalPos; ``goal_end``); None: at the end of the last edge
 
 
 @dataclass(frozen=True)
@@ -98,9 +107,10 @@ def departures(testcase: TestCase, intersection: Intersection) -> tuple[Departur
         testcase.params.v_max * testcase.duration,  # as far as any controller can drive
     )  # fmt: skip
     check_start_speed(intersection, plan, ego.start.speed)
+    edges, arrival = goal_end(testcase, intersection, plan.edges)
     ego_departure = Departure(
-        "ego", plan.edges, plan.depart_lane, plan.depart_pos, ego.start.speed,
-        ego.length, ego.width, plan.start_on,
+        "ego", edges, plan.depart_lane, plan.depart_pos, ego.start.speed, ego.length,
+        ego.width, plan.start_on, goal=plan.leave_distance - plan.skip, arrival=arrival,
     )  # fmt: skip
     others = []
     for nonego in testcase.nonegos:
@@ -128,6 +138,25 @@ def departures(testcase: TestCase, intersection: Intersection) -> tuple[Departur
             )
         )
     return ego_departure, others
+
+
+def goal_end(
+    testcase: TestCase, intersection: Intersection, edges: tuple[str, ...]
+) -> tuple[tuple[str, ...], float | None]:
+    """The ego's route in SUMO: ``edges`` (as far as any controller can drive) cut where
+    its test ends, and the position there on the last edge (SUMO's ``arrivalPos``; None
+    where the road ends first). The test ends with the goal: the ego leaves the simulation
+    there, as at the end of any route, rather than driving on to the next junction and
+    standing at it, where a non-ego that follows its trajectory would run into it. The
+    runner (service.core.sumo.run) removes it at the first step past its goal (its rear
+    Step 1's CLEARANCE out of the junction: ``Departure.goal``); the route ends one step
+    at ``v_max`` and GOAL_PAST later, so that where nothing moved the ego (plain ``sumo``
+    on a bundle) SUMO's own route end leaves a last step past the goal too (SUMO reports a
+    car last at the step before it arrives)."""
+    beyond = (testcase.ego.length + CLEARANCE + GOAL_PAST
+              + testcase.params.v_max * testcase.timestep)  # fmt: skip
+    end = route_end(intersection, intersection.route(testcase.ego.route.id), edges, beyond)
+    return (edges, None) if end is None else end
 
 
 def vtype_lines(ego: Departure, nonegos: Sequence[Departure], testcase: TestCase) -> list[str]:
@@ -159,16 +188,18 @@ def vtype_lines(ego: Departure, nonegos: Sequence[Departure], testcase: TestCase
 
 
 def vehicle_lines(cars: Sequence[Departure]) -> list[str]:
-    """Each car departing at t = 0 with its own route, lane, position and speed. SUMO's
+    """Each car departing at t = 0 with its own route, lane, position and speed (the ego
+    arriving at the end of its route, just past its goal: ``goal_end``). SUMO's
     insertion checks are off: the test-case fixes every start (SUMO would otherwise delay a
     car that starts fast just after a junction it must yield at, "unpriorised junction too
     close", and the replay would no longer be the test-case)."""
     lines = []
     for car in cars:
+        arrival = "" if car.arrival is None else f' arrivalPos="{car.arrival:.3f}"'
         lines.append(
             f'    <vehicle id="{car.id}" type="type_{car.id}" depart="0" '
             f'departLane="{car.lane}" departPos="{car.position:.3f}" '
-            f'departSpeed="{car.speed:.3f}" insertionChecks="none">'
+            f'departSpeed="{car.speed:.3f}"{arrival} insertionChecks="none">'
         )
         lines.append(f'        <route edges="{" ".join(car.edges)}"/>')
         lines.append("    </vehicle>")
@@ -251,6 +282,7 @@ def run_plan(
             "length": ego.length,
             "width": ego.width,
             "start_on": list(ego.start_on) if ego.start_on else None,
+            "goal": ego.goal,
             "start_distance": testcase.ego.start.distance,
             "arrival_distance": testcase.params.arrival_distance,
         },

@@ -6,7 +6,12 @@ and, every step, ``setSpeed`` with the distance they cover in that step (SUMO mo
 its speed times the step, Euler steps). The ego is driven by SUMO's own driver with a
 controller's settings, or replays a certificate, or is left to a caller's ``on_step`` (a
 user controller). Cars that start inside an upstream junction depart just before it and are
-moved onto their start (``vehicle.moveTo``) right after the first step.
+moved onto their start (``vehicle.moveTo``) right after the first step. The test ends with
+the ego's goal: the ego leaves the simulation at the end of its route, the first step past
+its goal (``plan["ego"]["goal"]``, metres from its start), rather than driving on and
+standing where a non-ego that follows its trajectory runs into it. (The route file ends its
+route a little further on, where SUMO removes it by itself; a ``moveTo`` onto another edge
+makes SUMO forget a route's ``arrivalPos``, so the runner does not rely on it.)
 
 This file is standalone on purpose: the standard library and SUMO's own Python modules
 (libsumo, or traci with the ``sumo`` binary) only, so that a bundle runs where only
@@ -118,6 +123,9 @@ def drive(
     guard: Any = None,
 ) -> tuple[list[Row], str | None]:
     """Run the started simulation step by step; the ego's rows and what stopped it early.
+    The ego leaves the simulation at the end of its route: the first step at which it is
+    ``plan["ego"]["goal"]`` metres from its start or more, past its goal, where its test
+    ends (or where SUMO removes it, at the end of its route's last lane).
 
     ``controller``: ``{"kind": "sumo", "speed_mode", "stop_sign_wait", "rolling_speed"}``,
     ``{"kind": "certificate", "certificate": "solvability"|"complexity"}``, or
@@ -135,6 +143,7 @@ def drive(
             raise RunFailed("this test-case has no certificates to replay")
         replayed.append((EGO, certificates[controller["certificate"]]))
     sumo_driven = controller["kind"] == "sumo"
+    goal = None if ego.get("goal") is None else float(ego["goal"])
     moved = {car["id"]: car["start_on"] for car in (ego, *plan["nonegos"]) if car["start_on"]}
     rows: list[Row] = []
     rolling = capped = False
@@ -165,6 +174,9 @@ def drive(
             "odometer": traci.vehicle.getDistance(EGO) - odometer,
         }  # fmt: skip
         rows.append(row)
+        if goal is not None and row["odometer"] >= goal:
+            traci.vehicle.remove(EGO)  # past its goal: its test is over, it leaves
+            break
         if step == steps:
             break
         for car, distances in replayed:
@@ -389,7 +401,7 @@ def main(argv: list[str] | None = None) -> int:
     until = (
         f"for the whole {duration:g} s"
         if last >= duration - 1e-9
-        else f"until it left the network at the end of its route at {last:.2f} s"
+        else f"until it left at the end of its route, past its goal, at {last:.2f} s"
     )
     print(f"run.py: {args.controller} drove the ego {until}; wrote {args.fcd_output}")
     if guard is not None:

@@ -483,6 +483,43 @@ function egoTrack(testcase, samples, label, colour, ghost) {
   return { id: label, label, colour, length: testcase.ego.length, width: testcase.ego.width, samples, ghost };
 }
 
+// The test ends with the goal (README, `scengen check`): an ego is drawn until its goal and
+// is gone after it, as the replay's ego leaves the simulation there. An evaluation's verdict
+// says when (`untilTime`); a certificate reaches it when its footprint has left the junction's
+// area for good (`untilOut`): both keep the samples up to the first at or after it.
+function untilTime(samples, time) {
+  if (time === null || time === undefined) return samples;
+  const last = samples.findIndex((s) => s[0] >= time - 1e-9);
+  return last < 0 ? samples : samples.slice(0, last + 1);
+}
+
+function untilOut(samples, area, length, width) {
+  let inside = -1;
+  samples.forEach((s, k) => { if (area.some((ring) => overlaps(footprint(s, length, width), ring))) inside = k; });
+  return inside >= 0 && inside + 1 < samples.length ? samples.slice(0, inside + 2) : samples;
+}
+
+function footprint(sample, length, width) { // a car's corners: centre, heading clockwise from north
+  const a = (sample[3] * Math.PI) / 180, f = [Math.sin(a) * length / 2, Math.cos(a) * length / 2];
+  const r = [Math.cos(a) * width / 2, -Math.sin(a) * width / 2];
+  return [[1, 1], [1, -1], [-1, -1], [-1, 1]].map(([i, j]) => [sample[1] + i * f[0] + j * r[0], sample[2] + i * f[1] + j * r[1]]);
+}
+
+function overlaps(corners, ring) { // a convex quadrilateral and a simple polygon share area
+  const inside = (point, polygon) => { // the crossing number
+    let odd = false;
+    for (let k = 0, j = polygon.length - 1; k < polygon.length; j = k++) {
+      const [xk, yk] = polygon[k], [xj, yj] = polygon[j];
+      if ((yk > point[1]) !== (yj > point[1]) && point[0] < ((xj - xk) * (point[1] - yk)) / (yj - yk) + xk) odd = !odd;
+    }
+    return odd;
+  };
+  const side = (a, b, c) => (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+  const crossing = (a, b, c, d) => side(a, b, c) * side(a, b, d) < 0 && side(c, d, a) * side(c, d, b) < 0;
+  if (corners.some((corner) => inside(corner, ring)) || ring.some((point) => inside(point, corners))) return true;
+  return corners.some((a, k) => ring.some((c, j) => crossing(a, corners[(k + 1) % 4], c, ring[(j + 1) % ring.length])));
+}
+
 // The time-distance panel: every shown track's distance over time, metres on the y axis,
 // seconds on the x axis, each curve named in a gutter right of the plot (at its end's
 // height, moved apart so that no two names overlap, a thin line back to its curve when
@@ -573,8 +610,9 @@ async function testcasePage(id) {
   const tracks = tracksOf(testcase);
   const certificates = [];
   if (testcase.certificates) {
-    certificates.push(egoTrack(testcase, rows(testcase.certificates.solvability), "ego (solvability)", "#111827", true));
-    certificates.push(egoTrack(testcase, rows(testcase.certificates.complexity), "ego (complexity)", "#dc2626", true));
+    const untilGoal = (kind) => untilOut(rows(testcase.certificates[kind]), geometry.area, testcase.ego.length, testcase.ego.width);
+    certificates.push(egoTrack(testcase, untilGoal("solvability"), "ego (solvability)", "#111827", true));
+    certificates.push(egoTrack(testcase, untilGoal("complexity"), "ego (complexity)", "#dc2626", true));
   }
   const player = new Player(geometry, [...tracks, ...certificates], testcase.duration, playerOptions(testcase));
   stopPage = () => player.pause();
@@ -620,7 +658,7 @@ function titleOf(testcase, id) {
 }
 
 function verdictCell(verdict) {
-  if (verdict.passed) return h("span", { class: "pass" }, "pass");
+  if (verdict.passed) return h("span", { class: "pass", title: (verdict.information || []).join("\n") || null }, "pass");
   return h("span", { class: "fail", title: verdict.reasons.join("\n") }, `FAIL: ${failureOf(verdict)}`);
 }
 
@@ -640,15 +678,19 @@ async function replayPage(id) {
   const record = await get(`/testcases/${evaluation.testcase}`);
   const testcase = record.testcase;
   const [geometry, drive] = await Promise.all([geometryOf(testcase), get(`/evaluations/${id}/drive`)]);
-  const samples = drive.trajectory.map((r) => [r[0], r[1], r[2], r[3], r[4], r[5]]);
+  const verdict = evaluation.verdict;
+  // until its goal: a drive stored before the replay ended there goes on after it
+  const samples = untilTime(drive.trajectory.map((r) => [r[0], r[1], r[2], r[3], r[4], r[5]]), verdict.goal.reached ? verdict.goal.time : null);
   const tracks = [...tracksOf(testcase), egoTrack(testcase, samples, `ego (${evaluation.controller})`, "#111827", false)];
   const player = new Player(geometry, tracks, testcase.duration, playerOptions(testcase));
   stopPage = () => player.pause();
-  const verdict = evaluation.verdict;
+  const information = verdict.information || [];
   render(
     h("h1", {}, `${evaluation.controller} on ${titleOf(testcase, evaluation.testcase)}`),
     h("p", { id: "verdict" }, verdictCell(verdict), " · test-case ", link(testcase.name || short(evaluation.testcase), `#/testcases/${evaluation.testcase}`)),
     verdict.reasons.length ? h("ul", {}, verdict.reasons.map((r) => h("li", {}, r))) : h("p", { class: "muted" }, "The ego reached its exit without collision, obeying every rule."),
+    information.length ? h("div", { id: "after-goal" }, h("p", { class: "muted" }, `The test ended with the ego's goal at ${verdict.goal.time.toFixed(2)} s; after it, not judged:`),
+      h("ul", { class: "muted" }, information.map((line) => h("li", {}, line.replace(/^after its goal \(not judged\): /, ""))))) : null,
     samples.length ? null : h("p", { class: "muted" }, "This evaluation was stored before drives were kept: the ego is not shown."),
     h("div", { class: "row" }, h("div", { class: "card" }, player.element, player.legend()), h("div", { class: "card" }, h("h2", {}, "Time and distance"), timeDistance(tracks, testcase.duration))),
     criticalityTable(verdict.criticality),

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -223,3 +224,44 @@ def test_run_py_names_the_valid_controllers(bundle_run: Path) -> None:
     assert result.returncode == 2
     assert "unknown controller 'autopilot'" in result.stderr
     assert "sumo-cautious" in result.stderr and "certificate:complexity" in result.stderr
+
+
+def test_the_bundle_ends_the_ego_with_its_goal(next_junction: TestCase, tmp_path: Path) -> None:
+    """On a chain whose car1 drives on through the next junction: `python run.py` drives
+    the ego as `scengen evaluate` does, until it leaves just past its goal, and `scengen
+    check` on its FCD gives evaluate's verdict; plain `sumo` ends the ego's route there
+    too (its arrivalPos). Neither stands at the next junction's red light, where car1
+    would run into it."""
+    junction = load_testcase_intersection(next_junction)
+    export_bundle(next_junction, tmp_path, junction)
+    done = subprocess.run(
+        [sys.executable, "run.py", "--controller", "sumo", "--fcd-output", "run.fcd.xml"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert "until it left at the end of its route, past its goal, at" in done.stdout
+    length = next_junction.ego.length
+    ego = read_trajectory(tmp_path / "run.fcd.xml", "ego", length)
+    evaluation = evaluate(next_junction, "sumo", junction)
+    assert [(s.t, round(s.distance, 6)) for s in ego] == [
+        (s.t, round(s.distance, 6)) for s in evaluation.trajectory
+    ]
+    judged = subprocess.run(
+        [sys.executable, "-m", "service", "check", "testcase.json", "--ego", "run.fcd.xml",
+         "--controller", "sumo", "--json"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert judged.returncode == 0, judged.stderr
+    verdict = json.loads(judged.stdout)
+    service = json.loads(evaluation.verdict.to_json())
+    for key in ("passed", "goal", "judged_until", "collisions", "violations", "after_goal"):
+        assert verdict[key] == service[key], key
+    assert verdict["after_goal"] == {"collisions": [], "violations": []}
+    subprocess.run(
+        [sumo_binary("sumo"), "-c", "testcase.sumocfg", "--fcd-output", "plain.fcd.xml"],
+        cwd=tmp_path, check=True, capture_output=True, timeout=120,
+    )  # fmt: skip
+    plain = read_trajectory(tmp_path / "plain.fcd.xml", "ego", length)
+    on_plain = check_testcase(next_junction, plain, "sumo", junction)
+    assert on_plain.goal_time is not None and plain[-1].t < on_plain.goal_time + 1.0
+    assert on_plain.passed and on_plain.after_goal_collisions == ()

@@ -15,8 +15,9 @@ from pathlib import Path
 import pytest
 from shapely.geometry import Point
 
+from service.core.checker.check import check_testcase
 from service.core.export.openscenario import angle_of, export_openscenario, heading_of
-from service.core.motion.poses import interpolate_heading
+from service.core.motion.poses import PoseSample, interpolate_heading
 from service.core.network import Intersection, load_intersection
 from service.core.sumo.binaries import sumo_binary
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
@@ -194,7 +195,11 @@ def test_the_ego_is_the_system_under_test_at_its_start(
         assert start is not None and speed is not None
         assert float(speed.get("value", -1)) == case.ego.start.speed
         assert ego.find(".//FollowTrajectoryAction") is None
-        assert not [g for g in root.iter("EntityRef") if g.get("entityRef") == "ego"]
+        story = root.find("Storyboard/Story")
+        assert story is None or story.find(".//EntityRef[@entityRef='ego']") is None
+        # the ego is named once: by the condition that stops the run at its goal
+        refs = root.iterfind("Storyboard/StopTrigger/ConditionGroup/Condition//EntityRef")
+        assert [r.get("entityRef") for r in refs] == ["ego"]
         # where a certificate starts is where the ego starts (front bumper at its distance)
         if case.certificates is not None:
             first = case.certificates.solvability[0]
@@ -203,6 +208,48 @@ def test_the_ego_is_the_system_under_test_at_its_start(
             assert metres < 0.05 and degrees < 1.0, case.name
         route = private.findall(".//AssignRouteAction/Route/Waypoint")
         assert len(route) == 2
+
+
+def _goal_condition(root: ET.Element) -> tuple[float, float, float]:
+    """(x, y, tolerance) of the stop trigger's condition on the ego's goal: ASAM 1.2's
+    DistanceCondition or CARLA's 1.0 ReachPositionCondition."""
+    groups = root.findall("Storyboard/StopTrigger/ConditionGroup")
+    names = [[c.get("name") for c in g.iter("Condition")] for g in groups]
+    assert names == [["ego_reached_its_goal"], ["duration_reached"]]  # either stops it
+    condition = groups[0].find(".//DistanceCondition")
+    if condition is not None:
+        assert condition.get("rule") == "lessOrEqual" and condition.get("freespace") == "false"
+        assert condition.get("relativeDistanceType") == "euclidianDistance"
+        tolerance = float(condition.get("value", "nan"))
+    else:
+        condition = groups[0].find(".//ReachPositionCondition")
+        assert condition is not None
+        tolerance = float(condition.get("tolerance", "nan"))
+    position = condition.find("Position/WorldPosition")
+    assert position is not None
+    return float(position.get("x", "nan")), float(position.get("y", "nan")), tolerance
+
+
+def test_the_run_stops_when_the_ego_has_reached_its_goal(
+    exported: list[tuple[TestCase, Path, Path]],
+) -> None:
+    """The storyboard stops when the ego reaches its goal, where scengen's judgement ends
+    (or at the duration): driven as its solvability certificate, in both flavours, the ego
+    first meets the condition just after the checker's goal (its rear a metre out of the
+    junction), never before it."""
+    checked = 0
+    for case, asam, carla in exported:
+        if case.certificates is None:
+            continue
+        certificate = [PoseSample(**s.model_dump()) for s in case.certificates.solvability]
+        goal = check_testcase(case, certificate, "solvability", criticality=False).goal_time
+        assert goal is not None
+        for folder in (asam, carla):
+            x, y, tolerance = _goal_condition(ET.parse(folder / "testcase.xosc").getroot())
+            met = next(s.t for s in certificate if math.hypot(s.x - x, s.y - y) <= tolerance)
+            assert goal < met < goal + 1.0, (case.name, folder.name, goal, met)
+            checked += 1
+    assert checked >= 2 * 10
 
 
 def _fork_at(intersection: Intersection, point: Point) -> str:

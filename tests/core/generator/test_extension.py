@@ -21,7 +21,7 @@ from service.core.errors import (
     UnknownRoute,
 )
 from service.core.generator import extension
-from service.core.generator.extension import Extension, extend_testcase
+from service.core.generator.extension import Extension, extend_testcase, verify_extension
 from service.core.generator.ordering import Ordering, OrderingSearch
 from service.core.generator.timing import TimingProblem
 from service.core.motion.invariants import motion_fault
@@ -35,7 +35,7 @@ from service.core.testcase import (
     parse_testcase,
 )
 from tests.conftest import TOWN07
-from tests.helpers import off_road_samples
+from tests.helpers import off_road_samples, with_nonegos
 
 
 def samples(rows: list) -> list[PoseSample]:  # type: ignore[type-arg]
@@ -284,3 +284,31 @@ def test_each_order_of_both_search_rounds_is_timed_by_its_own_problem(
     for ordering, problem in timing:
         assert problem.relations == ordering.named
     assert_strictly_more_complex(old, new)
+
+
+def test_a_certificate_that_collides_after_its_goal_is_not_verified(
+    y_start: TestCase, y_extension: Extension
+) -> None:
+    """The pass-fail criteria end with the goal, but a certificate collides with nobody
+    over its whole trajectory: a car standing on the ego's exit lane, where the
+    solvability certificate gets 4 s after its goal, leaves the certificate passing and
+    the candidate refused."""
+    new = y_extension.testcase
+    junction = load_testcase_intersection(new)
+    ids = [n.id for n in new.nonegos]
+    assert verify_extension(y_start, new, junction, ids) is None
+    assert new.certificates is not None
+    solvability = samples(new.certificates.solvability)
+    goal = check_testcase(new, solvability, "solvability").goal_time
+    assert goal is not None
+    there = next(s for s in solvability if s.t >= goal + 4.0)
+    standing = [PoseSample(round(k * new.timestep, 6), there.x, there.y, there.heading, 0.0, 0.0)
+                for k in range(len(solvability))]  # fmt: skip
+    blocked = with_nonegos(new, [("car9", "SW2C_0:C2SE_0", standing)])
+    verdict = check_testcase(blocked, solvability, "solvability")
+    assert verdict.passed and [c.other for c in verdict.after_goal_collisions] == ["car9"]
+    late = verdict.after_goal_collisions[0]
+    assert verify_extension(y_start, blocked, junction, [*ids, "car9"]) == (
+        f"solvability certificate collides with car9 at {late.t:.2f} s, after its goal "
+        "in the new test-case"
+    )
