@@ -68,6 +68,12 @@ DOMAIN: dict[type[errors.ScengenError], ProblemType] = {
         "Unknown route",
         "No connection of the junction links that fork and exit.",
     ),
+    errors.UnknownWalk: _type(
+        "unknown-walk",
+        422,
+        "Unknown walk",
+        "No crossing of the junction is walked that way, or the junction has no crossings.",
+    ),
     errors.InvalidTestCase: _type(
         "invalid-testcase", 422, "Invalid test-case", "The test-case document fails validation."
     ),

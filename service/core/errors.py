@@ -6,6 +6,9 @@
     │   ├── UnknownJunction         a junction id that is not in the network, or none was named
     │   ├── UnknownLane             a lane id that is not a fork or an exit of the intersection
     │   ├── UnknownRoute            a (fork, exit) pair that no connection links
+    │   ├── UnknownWalk             a walk (a crossing walked one way) the junction has not,
+    │   │                           or a junction without crossings (the message says how
+    │   │                           to add them)
     │   ├── InvalidTestCase         a test-case document that fails validation
     │   └── InvalidTrajectory       an ego trajectory (JSON or SUMO FCD) that cannot be used
     ├── UnsupportedIntersection     the junction's control type has no rule set
@@ -64,6 +67,11 @@ class UnknownLane(InvalidInput):
 
 class UnknownRoute(InvalidInput):
     """Raised when no connection of the junction links the given fork and exit."""
+
+
+class UnknownWalk(InvalidInput):
+    """Raised when a walk id names no crossing of the junction walked in that direction,
+    or when the junction has no crossings at all (the message says how to add them)."""
 
 
 class InvalidTestCase(InvalidInput):

@@ -20,8 +20,10 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    SerializerFunctionWrapHandler,
     ValidationError,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -55,6 +57,9 @@ from service.core.network.signals import (
 )
 
 SCHEMA = "scengen/testcase/1"
+# A document with pedestrians is written in version 2, the first that can hold them; one
+# without stays in version 1, byte for byte as before (every stored hash stays valid).
+SCHEMA_WITH_PEDESTRIANS = "scengen/testcase/2"
 RESERVED_IDS = frozenset({"ego", "illegal"})
 
 # Bounds on the work one test-case can ask for (every sample is simulated, stored, checked).
@@ -85,6 +90,24 @@ def check_name(value: str) -> str:
             f"must not contain control characters (U+{ord(bad):04X} at position {value.index(bad)})"
         )
     return value
+
+
+class WalkingParams(_Model):
+    """Bounds of the pedestrians' walking (Step 3's speed profiles, the plausibility of a
+    document): people on foot walk at most a brisk 2.5 m/s, speed up and slow down gently,
+    and may stand (at or below ``Params.v_stop``), at the curb or anywhere else."""
+
+    v_max: float = Field(2.0, gt=0.2, le=2.5, description="fastest walking speed (m/s)")
+    a_max: float = Field(1.0, ge=0.1, le=3.0, description="strongest speeding up (m/s^2)")
+    a_min: float = Field(
+        -1.5, ge=-5.0, le=-0.1, description="strongest slowing down (m/s^2, negative)"
+    )
+    arrival_distance: float = Field(
+        1.0,
+        ge=0.1,
+        le=10,
+        description="a pedestrian is at the curb when its front is this close to the crossing (m)",
+    )
 
 
 class Params(_Model):
@@ -119,6 +142,14 @@ class Params(_Model):
         le=10,
         description="time headway a car keeps on top of the gap: gap + headway x speed (s)",
     )
+    walking: WalkingParams | None = Field(
+        None, description="the pedestrians' bounds (absent: WalkingParams' defaults)"
+    )
+
+    @property
+    def walk(self) -> WalkingParams:
+        """The pedestrians' bounds in force."""
+        return self.walking or WalkingParams()
 
     @model_validator(mode="after")
     def _speeds_ordered(self) -> Params:
@@ -220,6 +251,35 @@ class NonEgo(_Model):
         return samples
 
 
+PedestrianLength = Annotated[float, Field(ge=0.1, le=2, description="m, front to back")]
+PedestrianWidth = Annotated[float, Field(ge=0.2, le=2, description="m, shoulder to shoulder")]
+PEDESTRIAN_LENGTH = 0.215  # SUMO's default pedestrian (vType DEFAULT_PEDTYPE)
+PEDESTRIAN_WIDTH = 0.478
+
+
+class Pedestrian(_Model):
+    """A person on foot who walks over one crossing of the junction (a walk of the
+    intersection, ``Intersection.walks``). Its trajectory is of the same kind as a car's:
+    ``x``, ``y`` the centre of its rectangle, ``heading`` its walking direction, and
+    ``distance`` the metres walked along its path since t = 0."""
+
+    id: str = Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$")
+    walk: str = Field(
+        min_length=1,
+        max_length=200,
+        description="the crossing walked and its direction: the crossing's id without SUMO's "
+        "leading colon, then + along its centreline or - against it (C_c0+)",
+    )
+    length: PedestrianLength = PEDESTRIAN_LENGTH
+    width: PedestrianWidth = PEDESTRIAN_WIDTH
+    trajectory: list[Sample] = Field(min_length=2)
+    events: list[EventRecord] = []
+    added_in: int = Field(ge=1, description="extension level that added this pedestrian")
+
+    _not_reserved = field_validator("id")(NonEgo._not_reserved.__func__)  # type: ignore[attr-defined]
+    _monotone = field_validator("trajectory")(NonEgo._monotone.__func__)  # type: ignore[attr-defined]
+
+
 class SignalPhaseDoc(_Model):
     duration: float = Field(gt=0, le=MAX_PHASE_DURATION, description="seconds")
     state: str = Field(
@@ -278,7 +338,11 @@ class TestCase(_Model):
 
     __test__ = False  # not a pytest class
 
-    schema_: Literal["scengen/testcase/1"] = Field("scengen/testcase/1", alias="schema")
+    schema_: Literal["scengen/testcase/1", "scengen/testcase/2"] = Field(
+        "scengen/testcase/1",
+        alias="schema",
+        description="scengen/testcase/2 when the test-case has pedestrians, else /1",
+    )
     name: str = Field("", max_length=MAX_NAME_LENGTH)
     network: NetworkRef
     junction: str = Field(min_length=1)
@@ -301,6 +365,9 @@ class TestCase(_Model):
     params: Params = Params()
     ego: Ego
     nonegos: list[NonEgo] = []
+    pedestrians: list[Pedestrian] = Field(
+        [], description="people on foot (schema scengen/testcase/2); absent: none"
+    )
     certificates: Certificates | None = None
     provenance: dict[str, Any] | None = None
 
@@ -312,6 +379,35 @@ class TestCase(_Model):
     @classmethod
     def _printable_name(cls, value: str) -> str:
         return check_name(value)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _schema_of_contents(cls, data: Any) -> Any:
+        """Version 2 with pedestrians (a version 1 document cannot have them), version 1
+        without: a document states the first version that can hold it."""
+        if not isinstance(data, dict):
+            return data
+        walking = bool(data.get("pedestrians"))
+        given = data.get("schema", data.get("schema_"))
+        if walking and given == SCHEMA:
+            raise ValueError(f"pedestrians need schema {SCHEMA_WITH_PEDESTRIANS}, not {SCHEMA}")
+        if given not in (None, SCHEMA, SCHEMA_WITH_PEDESTRIANS):
+            return data  # an unknown schema: refused as it is
+        key = "schema_" if "schema_" in data and "schema" not in data else "schema"
+        return {**data, key: SCHEMA_WITH_PEDESTRIANS if walking else SCHEMA}
+
+    @model_serializer(mode="wrap")
+    def _without_empty_pedestrians(self, handler: SerializerFunctionWrapHandler) -> Any:
+        """No ``pedestrians`` key when there are none: a version 1 document, as before."""
+        dumped = handler(self)
+        if isinstance(dumped, dict) and not dumped.get("pedestrians"):
+            dumped.pop("pedestrians", None)
+        return dumped
+
+    @property
+    def road_users(self) -> list[NonEgo | Pedestrian]:
+        """Every non-ego: the cars, then the pedestrians."""
+        return [*self.nonegos, *self.pedestrians]
 
     @model_validator(mode="after")
     def _consistent(self) -> TestCase:
@@ -338,12 +434,17 @@ class TestCase(_Model):
             raise ValueError("duration must be at least one time step")
         if self.duration / self.timestep > MAX_SAMPLES:
             raise ValueError(_too_many_samples(self.duration, self.timestep, MAX_SAMPLES))
-        ids = [n.id for n in self.nonegos]
+        ids = [n.id for n in self.road_users]
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         if duplicates:
-            raise ValueError(f"non-ego ids must be unique; repeated: {', '.join(duplicates)}")
+            raise ValueError(
+                f"non-ego ids must be unique among cars and pedestrians; repeated: "
+                f"{', '.join(duplicates)}"
+            )
         for index, nonego in enumerate(self.nonegos):
             _check_timing(nonego.trajectory, self.timestep, f"nonegos.{index}.trajectory")
+        for index, person in enumerate(self.pedestrians):
+            _check_timing(person.trajectory, self.timestep, f"pedestrians.{index}.trajectory")
         return self
 
 
@@ -407,7 +508,7 @@ def implausible_trajectories(testcase: TestCase) -> list[str]:
     """Each stored trajectory that jumps further between two samples than any car can
     drive (service.core.motion.plausibility), in words: a warning, not an error, since the
     checker judges a document as it is written."""
-    found = [(f"{car.id}'s trajectory", first_jump(car.trajectory)) for car in testcase.nonegos]
+    found = [(f"{car.id}'s trajectory", first_jump(car.trajectory)) for car in testcase.road_users]
     if testcase.certificates is not None:
         found += [
             ("the complexity certificate", first_jump(testcase.certificates.complexity)),
@@ -426,7 +527,7 @@ def dump_testcase(testcase: TestCase) -> str:
 
 def testcase_level(testcase: TestCase) -> int:
     """0 for an ego-only test-case, else the level of the extension that added its last cars."""
-    return max((n.added_in for n in testcase.nonegos), default=0)
+    return max((n.added_in for n in testcase.road_users), default=0)
 
 
 def readable_name(testcase: TestCase, stem: str = "", network: str = "") -> str:

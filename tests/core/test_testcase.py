@@ -13,6 +13,7 @@ from service.core.network import load_intersection
 from service.core.testcase import (
     DEFAULT_START_DISTANCE,
     SCHEMA,
+    SCHEMA_WITH_PEDESTRIANS,
     TestCase,
     dump_testcase,
     load_testcase_intersection,
@@ -136,7 +137,10 @@ def test_new_testcase_refuses_an_ego_whose_light_stays_red() -> None:
             r"a traffic_light junction needs its signal program",
         ),
         (lambda d: d.update(rules="right_before_left"), r"rules 'right_before_left' do not match"),
-        (lambda d: d.update(schema="other/1"), r"schema: Input should be 'scengen/testcase/1'"),
+        (
+            lambda d: d.update(schema="other/1"),
+            r"schema: Input should be 'scengen/testcase/1' or 'scengen/testcase/2'",
+        ),
         (lambda d: d["params"].update(v_run=0.05), r"params: .*v_stop < v_run < v_max"),
         (lambda d: d.update(colour="red"), r"colour: Extra inputs are not permitted"),
         (lambda d: d.pop("ego"), r"ego: Field required"),
@@ -277,3 +281,60 @@ def test_the_automatic_start_fits_the_road(cache_dir: Path) -> None:
     assert full.ego.start.distance == DEFAULT_START_DISTANCE == 30.0
     with pytest.raises(InvalidInput, match=r"start distance 30 m is longer than the road"):
         new_testcase(TOWN07, "-26#1_0:14_0", "725", "allway_stop", 30.0, cache_dir=cache_dir)
+
+
+def _pedestrian(**changes: Any) -> dict[str, Any]:
+    person = {
+        "id": "ped1",
+        "walk": "C_c0+",
+        "trajectory": [
+            {
+                "t": round(k * 0.1, 9),
+                "x": 1.0,
+                "y": 0.1 * k,
+                "heading": 0.0,
+                "speed": 1.0,
+                "distance": round(0.1 * k, 9),
+            }
+            for k in range(3)
+        ],  # fmt: skip
+        "added_in": 1,
+    }
+    return {**person, **changes}
+
+
+def test_a_document_with_pedestrians_is_version_2_and_one_without_stays_version_1(
+    ego_only: TestCase,
+) -> None:
+    plain = _document(ego_only)
+    assert plain["schema"] == SCHEMA and "pedestrians" not in plain
+    walking = parse_testcase({**plain, "schema": SCHEMA_WITH_PEDESTRIANS,
+                              "pedestrians": [_pedestrian()]})  # fmt: skip
+    written = _document(walking)
+    assert written["schema"] == SCHEMA_WITH_PEDESTRIANS
+    assert written["pedestrians"][0]["length"] == 0.215  # SUMO's default pedestrian
+    assert parse_testcase(dump_testcase(walking)) == walking
+    # a version 2 document without pedestrians is written as version 1, unchanged
+    assert dump_testcase(parse_testcase({**plain, "schema": SCHEMA_WITH_PEDESTRIANS})) == (
+        dump_testcase(ego_only)
+    )
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"schema": SCHEMA}, "pedestrians need schema scengen/testcase/2"),
+        ({"pedestrians": [_pedestrian(id="ego")]}, "'ego' is reserved"),
+        ({"nonegos": [_nonego(id="ped1")]}, "unique among cars and pedestrians; repeated: ped1"),
+        ({"pedestrians": [_pedestrian(width=3.0)]}, r"pedestrians\.0\.width"),
+        ({"params": {"walking": {"v_max": 4.0}}}, r"params\.walking\.v_max"),
+        ({"params": {"walking": {"a_min": 0.5}}}, r"params\.walking\.a_min"),
+    ],
+)
+def test_pedestrians_and_their_bounds_are_checked_at_the_edge(
+    ego_only: TestCase, change: dict[str, Any], message: str
+) -> None:
+    document = {**_document(ego_only), "schema": SCHEMA_WITH_PEDESTRIANS,
+                "pedestrians": [_pedestrian()], **change}  # fmt: skip
+    with pytest.raises(InvalidTestCase, match=message):
+        parse_testcase(document)

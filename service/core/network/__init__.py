@@ -11,12 +11,15 @@ from service.core.network.load import (
 from service.core.network.model import (
     ConnectingLane,
     ControlType,
+    Crossing,
     Exit,
     Fork,
     Intersection,
     Route,
     Turn,
+    Walk,
     route_id,
+    walk_id,
 )
 from service.core.network.override import file_sha256
 from service.core.network.signals import SignalPhase, SignalProgram
@@ -24,6 +27,7 @@ from service.core.network.signals import SignalPhase, SignalProgram
 __all__ = [
     "ConnectingLane",
     "ControlType",
+    "Crossing",
     "Exit",
     "Fork",
     "Intersection",
@@ -31,6 +35,7 @@ __all__ = [
     "SignalPhase",
     "SignalProgram",
     "Turn",
+    "Walk",
     "bundled_networks",
     "file_sha256",
     "load_intersection",
@@ -38,5 +43,6 @@ __all__ = [
     "read_network",
     "resolve_network",
     "route_id",
+    "walk_id",
     "with_signals",
 ]

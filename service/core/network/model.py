@@ -12,7 +12,7 @@ from pathlib import Path
 
 from shapely.geometry import LineString, MultiPolygon, Polygon
 
-from service.core.errors import UnknownLane, UnknownRoute, choices
+from service.core.errors import UnknownLane, UnknownRoute, UnknownWalk, choices
 from service.core.network.signals import SignalProgram
 
 Point = tuple[float, float]
@@ -111,6 +111,54 @@ class Route:
         return route_id(self.fork, self.exit)
 
 
+@dataclass(frozen=True)
+class Crossing:
+    """A pedestrian crossing of the junction: SUMO's crossing edge (``:J_cN``), the strip
+    people on foot walk across the road between two walking areas (``:J_wN``)."""
+
+    id: str  # the crossing edge, as SUMO names it (":C_c0")
+    lane: str  # its one lane (":C_c0_0"): events and rule facts name it
+    edges: tuple[str, ...]  # the road edges it crosses (SUMO's crossingEdges)
+    centreline: LineString  # SUMO's lane shape, from ``ends[0]`` to ``ends[1]``
+    polygon: Polygon  # the strip: the centreline widened to ``width``
+    width: float
+    ends: tuple[str, str]  # the walking areas at the start and at the end of the centreline
+    link_index: int = -1  # its link in the traffic light's program (the pedestrian
+    # signal); -1: no signal
+
+    @property
+    def length(self) -> float:
+        return float(self.centreline.length)
+
+
+@dataclass(frozen=True)
+class Walk:
+    """One crossing walked in one direction, from the walking area at one end to the
+    walking area at the other: what a pedestrian of a test-case does. Its id is the
+    crossing's without SUMO's leading colon, then ``+`` (along the crossing's centreline)
+    or ``-`` (against it): ``C_c0+``."""
+
+    id: str
+    crossing: str  # Crossing.id
+    start: str  # the walking area it comes from
+    end: str  # the walking area it goes to
+    path: LineString  # the crossing's centreline in the walking direction, curb to curb
+    heading: float  # of ``path``, degrees clockwise from north
+    before: str  # a sidewalk lane that leads into ``start`` (where Step 1's walk begins)
+    after: str  # a sidewalk lane that leads out of ``end`` (where it ends)
+    conflicts: tuple[str, ...]  # ids of the vehicle routes whose connecting lane crosses it
+
+    @property
+    def length(self) -> float:
+        return float(self.path.length)
+
+
+def walk_id(crossing: str, along: bool) -> str:
+    """The public id of a walk: the crossing's id without SUMO's leading colon, then ``+``
+    along its centreline or ``-`` against it."""
+    return f"{crossing.lstrip(':')}{'+' if along else '-'}"
+
+
 def route_id(fork: str, exit_lane: str) -> str:
     """The public id of a route: ``FORK_LANE:EXIT_LANE``."""
     return f"{fork}:{exit_lane}"
@@ -146,6 +194,10 @@ class Intersection:
     tls_links: int = 0
     signals: SignalProgram | None = None
     signals_refused: str | None = None  # why the network's program cannot be used
+    # the pedestrian crossings of the junction by id, and the walks over them by id (none
+    # on a network without sidewalks and crossings: netconvert --crossings.guess adds them)
+    crossings: dict[str, Crossing] = field(default_factory=dict)
+    walks: dict[str, Walk] = field(default_factory=dict)
 
     def signal_colour(self, route: Route, t: float) -> str | None:
         """The SUMO colour of ``route``'s signal at time ``t``; None without a signal."""
@@ -214,6 +266,31 @@ class Intersection:
                 junction=self.junction,
             )
         return self.exits[lane]
+
+    def walk(self, walk_ref: str) -> Walk:
+        """The walk with id ``walk_ref``; raises UnknownWalk naming the valid walks, or
+        saying how to add crossings to a junction that has none."""
+        if walk_ref in self.walks:
+            return self.walks[walk_ref]
+        if not self.walks:
+            raise UnknownWalk(
+                f"junction {self.junction!r} has no pedestrian crossings, so no walk "
+                f"{walk_ref!r}: add sidewalks and crossings with --guess-crossings (netconvert "
+                "--sidewalks.guess --crossings.guess; the car lanes' indices then move up by "
+                "one, as the sidewalk becomes lane 0)",
+                junction=self.junction,
+            )
+        raise UnknownWalk(
+            f"walk {walk_ref!r} is not a walk of junction {self.junction!r}; valid walks: "
+            f"{choices(self.walks)}",
+            junction=self.junction,
+        )
+
+    def signal_colour_of_crossing(self, crossing: Crossing, t: float) -> str | None:
+        """The SUMO colour of ``crossing``'s pedestrian signal at time ``t``; None without."""
+        if self.signals is None or crossing.link_index < 0:
+            return None
+        return self.signals.colour(crossing.link_index, t)
 
     def connecting_lane_of(self, route: Route) -> ConnectingLane:
         return self.connecting_lanes[route.connecting_lane]
