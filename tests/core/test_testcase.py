@@ -297,7 +297,7 @@ def _pedestrian(**changes: Any) -> dict[str, Any]:
                 "distance": round(0.1 * k, 9),
             }
             for k in range(3)
-        ],  # fmt: skip
+        ],
         "added_in": 1,
     }
     return {**person, **changes}
