@@ -55,6 +55,8 @@ SHARES = (0.7, 0.85)  # shares of the bounds a plan may use (the curves keep the
 WORK = 4_000_000  # z3 rlimit of one program with choices or a core (a count, not seconds)
 CLEARANCE = 0.01  # metres a free knot keeps from the knots around it (events stay sharp)
 STOP_LEAD = 0.1  # seconds before a stand when a stopping car is still faster than v_stop
+STOP_LEAD_BRAKING = 3.0  # ... or this many times v_stop over its strongest braking, when
+# that is longer (a pedestrian's gentle braking: a stand within 0.1 s of v_stop is too abrupt)
 INSIDE_WEIGHT = 0.1  # plan cost of a second inside the junction beyond three times
 # the least time to cross it and two seconds (pace changes cost seconds per metre)
 CRUISE = 0.5  # share of v_max a car makes for after its last event (the curve's end)
@@ -82,6 +84,8 @@ class CarPlan:
     start_speed: float | None  # fixed for the certificates, free for new non-egos
     run: tuple[int, int] | None  # knot indices between which it runs a stop sign
     inside: tuple[int, int] | None = None  # knot indices of entering and leaving its lane
+    bounds: Bounds | None = None  # its own speed and acceleration bounds (a pedestrian's
+    # walking bounds); None: the problem's, a car's
 
 
 @dataclass(frozen=True)
@@ -130,6 +134,10 @@ class TimingProblem:
     @property
     def bounds(self) -> Bounds:
         return Bounds(self.v_max, self.a_max, self.a_min)
+
+    def bounds_of(self, car: CarPlan) -> Bounds:
+        """The speed and acceleration bounds of ``car``: its own, or the problem's."""
+        return car.bounds or self.bounds
 
 
 @dataclass(frozen=True)
@@ -269,7 +277,8 @@ class _Plan:
         p, program = self.problem, self.program
         terms = [Linear(), *(Linear({name: 1.0}) for name in self.knots[car.car])]
         distances = [0.0] + [k.distance for k in car.knots]
-        for j, gap in enumerate(least_gaps(distances, car.start_speed, p.bounds.scaled(share))):
+        bounds = p.bounds_of(car).scaled(share)
+        for j, gap in enumerate(least_gaps(distances, car.start_speed, bounds)):
             program.at_least(terms[j + 1] - terms[j], max(gap, TICK))
         for term in terms[1:]:
             program.at_most(term, p.duration - p.margin)
@@ -289,7 +298,7 @@ class _Plan:
         cost = []
         if car.inside is not None:  # cross briskly: wait before the line, not inside
             entry, leave = car.inside
-            gaps = least_gaps(distances, car.start_speed, p.bounds.scaled(share))
+            gaps = least_gaps(distances, car.start_speed, bounds)
             comfortable = 3 * sum(gaps[entry + 1 : leave + 1]) + 2.0
             lingering = program.variable(f"linger{number}", 0)
             program.at_least(lingering - (terms[leave + 1] - terms[entry + 1]), -comfortable)
@@ -304,8 +313,9 @@ class _Plan:
         can change the speed between their middles (a stand counts as speed 0, the start
         as the start speed). The average speed D / h is linearised around ``previous``, a
         plan of the same knots, so that the program stays linear."""
-        up, down = share * self.problem.a_max, -share * self.problem.a_min
         for car in self.problem.cars:
+            own = self.problem.bounds_of(car)
+            up, down = share * own.a_max, -share * own.a_min
             names, before = self.knots[car.car], [0.0, *previous[car.car]]
             terms = [Linear(), *(Linear({name: 1.0}) for name in names)]
             distances = [0.0] + [k.distance for k in car.knots]
@@ -379,8 +389,8 @@ def plan_on_speed_grid(
     can keep together), or (None, None) when z3 cannot tell."""
     plan = _Plan(problem, share)
     program = plan.program
-    bounds = problem.bounds.scaled(share)
     for number, car in enumerate(problem.cars):
+        bounds = problem.bounds_of(car).scaled(share)
         options = _speed_options(car, problem, bounds)
         if not all(options):
             return None, []
@@ -453,15 +463,23 @@ class _Boundary:
     least_speed: float = 0.0
 
 
+def stop_lead(v_stop: float, bounds: Bounds) -> float:
+    """Seconds before a stand when a stopping car is still faster than ``v_stop``:
+    STOP_LEAD, or longer where its braking is gentle (STOP_LEAD_BRAKING)."""
+    return max(STOP_LEAD, STOP_LEAD_BRAKING * v_stop / -bounds.a_min)
+
+
 def _boundaries(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -> list[_Boundary]:
     """Piece ends: the start, the knots, and free knots at most PIECE apart between them.
-    Before a stand, the car keeps above v_stop from its previous knot until STOP_LEAD
-    before the stand, so that its stop begins when it is planned (the checker's stop is
-    the first moment at v_stop or below), not while it creeps up to the line."""
+    Before a stand, the car keeps above v_stop from its previous knot until a lead
+    (``stop_lead``) before the stand, so that its stop begins when it is planned (the
+    checker's stop is the first moment at v_stop or below), not while it creeps up to the
+    line."""
     times = [0.0, *knot_times, problem.duration]
     distances = [0.0] + [k.distance for k in car.knots]
     stopped = [False] + [k.stop for k in car.knots]
     found = [_Boundary(times[0], 0.0, 0.0, 0.0, car.start_speed)]
+    before_stand = stop_lead(problem.v_stop, problem.bounds_of(car))
     for j in range(1, len(times)):
         last = j == len(times) - 1  # the end of the duration: the distance is free
         low = distances[j - 1]
@@ -469,7 +487,7 @@ def _boundaries(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -
         stand = not last and high - low <= SAME
         clearance = 0.0 if stand else min(CLEARANCE, (high - low) / 4)
         stops_here = not last and stopped[j] and not stopped[j - 1]
-        lead = STOP_LEAD if stops_here and times[j] - times[j - 1] > STOP_LEAD else 0.0
+        lead = before_stand if stops_here and times[j] - times[j - 1] > before_stand else 0.0
         floor = problem.v_stop if lead else 0.0
         if floor and found[-1].speed is None:
             previous = found[-1]
@@ -585,7 +603,7 @@ def _following(
                 if rear >= follow.parting or (follow.joined and rear < 0):
                     continue
                 bound = rear - gap + follow.follower_line
-                if bound >= highs[k + 1] + follow.headway * problem.v_max:
+                if bound >= highs[k + 1] + follow.headway * problem.bounds_of(car).v_max:
                     continue  # the car cannot be that far yet
                 _, distance, pace = _on_piece(points, d, v, t)
                 rows.append(_GapRow(distance + pace * follow.headway, bound, True))
@@ -629,7 +647,7 @@ def _solve_with_gaps(program: LinearProgram, rows: Sequence[_GapRow]) -> dict[st
 
 def _pieces(
     program: LinearProgram,
-    problem: TimingProblem,
+    bounds: Bounds,
     points: Sequence[_Boundary],
     d: Sequence[Linear],
     v: Sequence[Linear],
@@ -645,18 +663,18 @@ def _pieces(
         # Controls c1 = d0 + v0 h / 3 and c2 = d1 - v1 h / 3, multiplied out.
         program.at_least(combine((one, d1), (-one, d0), (-h / 3, v0), (-h / 3, v1)), 0)
         middle = combine((3 / h, d1), (-3 / h, d0), (-one, v0), (-one, v1))
-        program.at_most(middle, problem.v_max)
+        program.at_most(middle, bounds.v_max)
         start = combine((6 / h**2, d1), (-6 / h**2, d0), (-4 / h, v0), (-2 / h, v1))
         end = combine((-6 / h**2, d1), (6 / h**2, d0), (2 / h, v0), (4 / h, v1))
         for acceleration in (start, end):
-            program.at_least(acceleration, problem.a_min)
-            program.at_most(acceleration, problem.a_max)
+            program.at_least(acceleration, bounds.a_min)
+            program.at_most(acceleration, bounds.a_max)
         found.append((middle, start, end))
     return found
 
 
 def _unknowns(
-    program: LinearProgram, problem: TimingProblem, points: Sequence[_Boundary]
+    program: LinearProgram, v_max: float, points: Sequence[_Boundary]
 ) -> tuple[list[Linear], list[Linear]]:
     """Every piece end's distance and speed: fixed where the point says, else variables."""
     d: list[Linear] = []
@@ -669,7 +687,7 @@ def _unknowns(
         if point.speed is not None:
             v.append(Linear.of(point.speed))
         else:
-            v.append(program.variable(f"v{k}", point.least_speed, problem.v_max))
+            v.append(program.variable(f"v{k}", point.least_speed, v_max))
     return d, v
 
 
@@ -697,13 +715,14 @@ def fit_curve(
     cars ahead of it (``fitted``: their curves) and ahead of the old cars behind it; None
     when the bounds allow none (or the work limit was reached)."""
     points = _boundaries(problem, car, knot_times)
+    bounds = problem.bounds_of(car)
     program = LinearProgram(WORK)
-    d, v = _unknowns(program, problem, points)
+    d, v = _unknowns(program, bounds.v_max, points)
     rows = _following(problem, car, points, d, v, fitted or {})
     running = _running_span(car, knot_times)
     peak = program.variable("peak")
     cost: list[Linear] = [peak * 10]
-    for k, (middle, start, end) in enumerate(_pieces(program, problem, points, d, v)):
+    for k, (middle, start, end) in enumerate(_pieces(program, bounds, points, d, v)):
         h = points[k + 1].t - points[k].t
         for acceleration in (start, end):
             program.at_most(acceleration - peak, 0)
@@ -720,7 +739,7 @@ def fit_curve(
     last_knot = knot_times[-1] if knot_times else 0.0
     for k in range(1, len(points)):
         if points[k].t > last_knot:
-            miss = program.magnitude(v[k] - CRUISE * problem.v_max)
+            miss = program.magnitude(v[k] - CRUISE * bounds.v_max)
             cost.append(miss * (TAIL_WEIGHT * (points[k].t - points[k - 1].t)))
     program.minimize(total(cost))
     solution = _solve_with_gaps(program, rows)
@@ -740,8 +759,9 @@ def frontier(
     points += [_Boundary(problem.duration * k / steps, None, 0.0, high, None)
                for k in range(1, steps + 1)]  # fmt: skip
     program = LinearProgram(WORK)
-    d, v = _unknowns(program, problem, points)
-    _pieces(program, problem, points, d, v)
+    bounds = problem.bounds_of(car)
+    d, v = _unknowns(program, bounds.v_max, points)
+    _pieces(program, bounds, points, d, v)
     program.minimize(total(d[1:]) * -1.0)
     solution = _solve_with_gaps(program, _following(problem, car, points, d, v, fitted))
     return None if solution is None else _curve(points, d, v, solution)

@@ -5,7 +5,8 @@ accelerations within the bounds (some stop and stand on the way); its knots are 
 that drive, and the order relations are read off the drive's own times with room to spare.
 So a speed profile exists for every problem, and the checks are:
 
-- whatever curves Step 3 returns keep every invariant: distance never decreases, speed in
+- whatever curves Step 3 returns keep every invariant (a car with its own bounds, a
+  pedestrian's, keeps those): distance never decreases, speed in
   [0, v_max], acceleration in [a_min, a_max] (finely differenced), the start speed, standing
   where a knot says, at least v_run where the car runs a sign, and every order relation
   holds between the times the curves pass their knots, with the margin;
@@ -37,12 +38,18 @@ from service.core.generator.timing import (
     order_core,
     plan_on_speed_grid,
     solve_timing,
+    stop_lead,
 )
 from service.core.motion.invariants import motion_fault
-from service.core.motion.kinematics import DWELL
+from service.core.motion.kinematics import DWELL, Bounds
 from service.core.testcase import Params
 
 PARAMS = Params()
+PARAMS_BOUNDS = Bounds(PARAMS.v_max, PARAMS.a_max, PARAMS.a_min)
+# motion_fault's view of a pedestrian: the walking bounds in a car's parameters
+WALKING_PARAMS = Params(
+    v_max=PARAMS.walk.v_max, a_max=PARAMS.walk.a_max, a_min=PARAMS.walk.a_min, v_run=1.0
+)
 DURATION = 20.0
 MARGIN = 0.2
 STEP = 0.05  # seconds: the drives are integrated this finely
@@ -66,19 +73,24 @@ class Drive:
         return math.inf
 
 
+WALKING = Bounds(PARAMS.walk.v_max, PARAMS.walk.a_max, PARAMS.walk.a_min)
+
+
 @st.composite
-def drives(draw: st.DrawFn, start_speed: float | None, stop: bool) -> tuple[Drive, float | None]:
-    """A motion within the bounds and the distance where it stands (when it stops)."""
-    v = start_speed if start_speed is not None else draw(st.floats(0.0, PARAMS.v_max))
+def drives(
+    draw: st.DrawFn, start_speed: float | None, stop: bool, bounds: Bounds = PARAMS_BOUNDS
+) -> tuple[Drive, float | None]:
+    """A motion within ``bounds`` and the distance where it stands (when it stops)."""
+    v = start_speed if start_speed is not None else draw(st.floats(0.0, bounds.v_max))
     t, d = 0.0, 0.0
     times, distances, speeds = [0.0], [0.0], [v]
     stand_at = draw(st.floats(4.0, 12.0)) if stop else math.inf
     stood: float | None = None
     while t < DURATION + 1.0:
-        accel = draw(st.floats(PARAMS.a_min * 0.9, PARAMS.a_max * 0.9))
+        accel = draw(st.floats(bounds.a_min * 0.9, bounds.a_max * 0.9))
         for _ in range(draw(st.integers(10, 60))):
             if stood is None and t >= stand_at:
-                brake = -PARAMS.a_min * 0.8
+                brake = -bounds.a_min * 0.8
                 while v > 0:  # brake to a stand, then stand
                     v = max(0.0, v - brake * STEP)
                     t, d = t + STEP, d + v * STEP
@@ -87,8 +99,8 @@ def drives(draw: st.DrawFn, start_speed: float | None, stop: bool) -> tuple[Driv
                 for _ in range(round(draw(st.floats(DWELL + 0.5, 3.0)) / STEP)):
                     t += STEP
                     times.append(t), distances.append(d), speeds.append(0.0)
-                accel = PARAMS.a_max * 0.8
-            v = min(max(v + accel * STEP, 0.0), PARAMS.v_max)
+                accel = bounds.a_max * 0.8
+            v = min(max(v + accel * STEP, 0.0), bounds.v_max)
             t, d = t + STEP, d + v * STEP
             times.append(t), distances.append(d), speeds.append(v)
     return Drive(times, distances, speeds), stood
@@ -100,9 +112,11 @@ def problems(draw: st.DrawFn) -> tuple[TimingProblem, dict[str, Drive]]:
     cars, drives_of, symbols = [], {}, {}
     for number in range(draw(st.integers(1, 3))):
         name = f"car{number}"
-        certificate = draw(st.booleans())
+        walking = draw(st.booleans())  # a pedestrian: its own, gentler bounds
+        certificate = not walking and draw(st.booleans())
         start = 8.0 if certificate else None
-        drive, stood = draw(drives(start, stop=draw(st.booleans())))
+        bounds = WALKING if walking else PARAMS_BOUNDS
+        drive, stood = draw(drives(start, stop=draw(st.booleans()), bounds=bounds))
         moments = sorted(draw(st.lists(st.floats(0.5, DURATION - MARGIN - 0.5), min_size=2,
                                        max_size=5, unique=True)))  # fmt: skip
         points: list[float] = []
@@ -123,7 +137,8 @@ def problems(draw: st.DrawFn) -> tuple[TimingProblem, dict[str, Drive]]:
             if knot.symbol is not None:
                 symbols[knot.symbol] = drive.time_at(knot.distance)
         reach = drive.distances[-1]
-        cars.append(CarPlan(name, tuple(knots), reach, start, None))
+        cars.append(CarPlan(name, tuple(knots), reach, start, None,
+                            bounds=WALKING if walking else None))  # fmt: skip
         drives_of[name] = drive
     fixed = tuple((f"old:{k}", draw(st.floats(1.0, DURATION - 1.0))) for k in range(2))
     known = {**symbols, **dict(fixed)}
@@ -164,12 +179,14 @@ def crossing(curve: Curve, distance: float) -> float:
 
 
 def assert_invariants(problem: TimingProblem, car: CarPlan, curve: Curve) -> None:
+    """The curve keeps the car's own bounds (a pedestrian's where it has them)."""
     fine = 0.01
+    own = problem.bounds_of(car)
     samples = [curve.at(k * fine) for k in range(round(DURATION / fine) + 1)]
     for (d0, v0), (d1, v1) in itertools.pairwise(samples):
         assert d1 >= d0 - 1e-9, "backs up"
-        assert -1e-6 <= v1 <= problem.v_max + 1e-6, "speed outside [0, v_max]"
-        assert problem.a_min - 0.05 <= (v1 - v0) / fine <= problem.a_max + 0.05, "acceleration"
+        assert -1e-6 <= v1 <= own.v_max + 1e-6, "speed outside [0, v_max]"
+        assert own.a_min - 0.05 <= (v1 - v0) / fine <= own.a_max + 0.05, "acceleration"
     if car.start_speed is not None:
         assert abs(samples[0][1] - car.start_speed) < 1e-6
     assert samples[-1][0] <= car.reach + 1e-6
@@ -186,12 +203,14 @@ def assert_invariants(problem: TimingProblem, car: CarPlan, curve: Curve) -> Non
         if rows and rows[-1].distance - 1e-6 < distance < rows[-1].distance:
             distance = rows[-1].distance
         rows.append(Row(round(k * 0.1, 9), round(max(speed, 0.0), 6), round(distance, 6)))
-    assert motion_fault(rows, PARAMS, 0.1, car.start_speed) is None
+    checked = PARAMS if car.bounds is None else WALKING_PARAMS
+    assert motion_fault(rows, checked, 0.1, car.start_speed) is None
     for first, second in zip(car.knots, car.knots[1:], strict=False):
         if first.stop and second.stop:  # a stand: faster than v_stop until just before it
             begin = crossing(curve, first.distance)
             if first.distance > 0:  # a car that stands where it starts has no approach
-                assert curve.at(begin - 0.1 - 1e-3)[1] > problem.v_stop - 1e-6
+                lead = stop_lead(problem.v_stop, own)
+                assert curve.at(begin - lead - 1e-3)[1] > problem.v_stop - 1e-6
             assert abs(curve.at(begin + DWELL / 2)[1]) < 1e-6
 
 
