@@ -190,6 +190,13 @@ def _arrival(
 def _stop(
     track: _Track, fork: Fork, arrived: LaneEvent, entered_at: float, v_stop: float
 ) -> LaneEvent | None:
+    return _stop_before(track, fork.lane, arrived, entered_at, v_stop)
+
+
+def _stop_before(
+    track: _Track, lane: str, arrived: LaneEvent, entered_at: float, v_stop: float
+) -> LaneEvent | None:
+    """The first moment at ``v_stop`` or below between arriving and entering."""
     speeds = [s.speed for s in track.samples]
     for k, sample in enumerate(track.samples):
         if sample.t < arrived.time or sample.t >= entered_at or sample.speed > v_stop:
@@ -200,7 +207,7 @@ def _stop(
             time, distance, *_ = track.between(k - 1, share)
             if time < arrived.time:
                 time, distance = arrived.time, arrived.distance
-        return LaneEvent(EventKind.STOPPED, fork.lane, time, distance)
+        return LaneEvent(EventKind.STOPPED, lane, time, distance)
     return None
 
 
@@ -251,11 +258,76 @@ def compute_events(
         stopped = _stop(track, the_fork, arrived, limit, v_stop)
         if stopped is not None:
             events.append(stopped)
-    for lane in intersection.connecting_lanes.values():
+    events.extend(_lane_events(track, intersection))
+    return _in_order(events)
+
+
+def _lane_events(track: _Track, intersection: Intersection) -> list[LaneEvent]:
+    """Entering and leaving every connecting lane and every crossing (its lane) the
+    rectangle touches: the conflict areas of cars with cars and with people on foot."""
+    regions = [(lane.polygon, lane.id) for lane in intersection.connecting_lanes.values()]
+    regions += [(crossing.polygon, crossing.lane) for crossing in intersection.crossings.values()]
+    events = []
+    for region, lane in regions:
         events.extend(
-            _region_events(
-                track, lane.polygon, lane.id, EventKind.ENTERED_LANE, EventKind.LEFT_LANE
-            )
+            _region_events(track, region, lane, EventKind.ENTERED_LANE, EventKind.LEFT_LANE)
         )
+    return events
+
+
+def _in_order(events: list[LaneEvent]) -> list[LaneEvent]:
     order = list(EventKind)
     return sorted(events, key=lambda e: (e.distance, e.time, order.index(e.kind), e.lane))
+
+
+def pedestrian_events(
+    samples: Sequence[PoseSample],
+    length: float,
+    width: float,
+    intersection: Intersection,
+    walk: str,
+    arrival_distance: float,
+    v_stop: float,
+) -> list[LaneEvent]:
+    """All events of a pedestrian on ``walk`` (docs/pedestrians.md): at the curb
+    (``arrived``: its front within ``arrival_distance`` of the crossing), waiting there
+    (``stopped``), on the crossing (``entered``, then ``exited`` when it is off it for good;
+    the lane of the three is the crossing's id), and entering and leaving every connecting
+    lane and crossing lane it touches; ordered by distance then kind."""
+    if len(samples) < 2:
+        return []
+    crossing = intersection.crossings[intersection.walk(walk).crossing]
+    track = _Track(samples, length, width)
+    on = _region_events(track, crossing.polygon, crossing.id, EventKind.ENTERED,
+                        EventKind.EXITED)  # fmt: skip
+    events = [e for e in on[:1] if e.kind is EventKind.ENTERED]
+    if on and on[-1].kind is EventKind.EXITED:
+        events.append(on[-1])
+    arrived = _at_curb(track, crossing.polygon, crossing.id, arrival_distance)
+    if arrived is not None and (not events or arrived.time <= events[0].time):
+        events.append(arrived)
+        limit = events[0].time if events and events[0].kind is EventKind.ENTERED else math.inf
+        stopped = _stop_before(track, crossing.id, arrived, limit, v_stop)
+        if stopped is not None:
+            events.append(stopped)
+    events.extend(_lane_events(track, intersection))
+    return _in_order(events)
+
+
+def _at_curb(
+    track: _Track, region: Polygon, lane: str, arrival_distance: float
+) -> LaneEvent | None:
+    """When the front first comes within ``arrival_distance`` of ``region``."""
+    rad = np.radians(track.heading)
+    fronts = shapely.points(track.x + np.sin(rad) * track.length / 2.0,
+                            track.y + np.cos(rad) * track.length / 2.0)  # fmt: skip
+    gaps = shapely.distance(fronts, region)
+    near = np.flatnonzero(gaps <= arrival_distance)
+    if near.size == 0:
+        return None
+    k = int(near[0])
+    if k == 0:
+        return LaneEvent(EventKind.ARRIVED, lane, float(track.t[0]), float(track.distance[0]))
+    share = (gaps[k - 1] - arrival_distance) / (gaps[k - 1] - gaps[k])
+    time, distance, *_ = track.between(k - 1, float(share))
+    return LaneEvent(EventKind.ARRIVED, lane, time, distance)
