@@ -76,6 +76,7 @@ IS_OPPOSITE_OF = Predicate("isOppositeOf", 2)
 SAME_DIRECTION = Predicate("sameDirection", 2)
 HAS_STOP_SIGN = Predicate("hasStopSign", 1)
 REQUESTED_LANE = Predicate("requestedLane", 2)
+PEDESTRIAN = Predicate("pedestrian", 1)
 # Signals (signals.lp)
 SIGNAL_LANE = Predicate("signalLane", 1)
 LANE_COLOUR = Predicate("laneColour", 3)
@@ -87,6 +88,10 @@ STOPPED_AT_FORK = Predicate("stoppedAtForkAtTime", 3)
 ENTERED_FORK = Predicate("enteredForkAtTime", 3)
 ENTERED_LANE = Predicate("enteredLaneAtTime", 3)
 LEFT_LANE = Predicate("leftLaneAtTime", 3)
+ARRIVED_AT_CURB = Predicate("arrivedAtCurbAtTime", 3)
+STOPPED_AT_CURB = Predicate("stoppedAtCurbAtTime", 3)
+ENTERED_CROSSING = Predicate("enteredCrossingAtTime", 3)
+LEFT_CROSSING = Predicate("leftCrossingAtTime", 3)
 # Time (time.lp)
 TIME = Predicate("time", 1)
 EQUAL = Predicate("equal", 2)
@@ -120,6 +125,14 @@ def geometry_facts(intersection: Intersection) -> list[Fact]:
         facts += [LANE_FROM_FORK(lane, route.fork), LANE_TURN(lane, constant(route.turn.value))]
         for other in sorted(intersection.conflicts[route.id]):
             facts.append(OVERLAPS(lane, intersection.routes[other].connecting_lane))
+    for crossing in intersection.crossings.values():
+        crossed = {
+            intersection.routes[route].connecting_lane
+            for walk in intersection.walks.values()
+            if walk.crossing == crossing.id
+            for route in walk.conflicts
+        }
+        facts += [OVERLAPS(crossing.lane, lane) for lane in sorted(crossed)]
     return facts
 
 
@@ -179,6 +192,28 @@ def event_facts(car: str, fork: str, events: Iterable[TimedEvent]) -> list[Fact]
             facts.append(ENTERED_LANE(car, event.lane, symbol))
         elif event.kind is EventKind.LEFT_LANE:
             facts.append(LEFT_LANE(car, event.lane, symbol))
+    return facts
+
+
+def pedestrian_event_facts(person: str, crossing: str, events: Iterable[TimedEvent]) -> list[Fact]:
+    """The events of one pedestrian on its walk over ``crossing`` as facts
+    (docs/pedestrians.md): at the curb, waiting there, onto the crossing and off it, and
+    entering and leaving every lane it touches."""
+    kinds = {
+        EventKind.ARRIVED: ARRIVED_AT_CURB,
+        EventKind.STOPPED: STOPPED_AT_CURB,
+        EventKind.ENTERED: ENTERED_CROSSING,
+        EventKind.EXITED: LEFT_CROSSING,
+    }
+    facts = []
+    for timed in events:
+        event, symbol = timed.event, timed.symbol
+        if event.kind in kinds:
+            facts.append(kinds[event.kind](person, crossing, symbol))
+        elif event.kind is EventKind.ENTERED_LANE:
+            facts.append(ENTERED_LANE(person, event.lane, symbol))
+        elif event.kind is EventKind.LEFT_LANE:
+            facts.append(LEFT_LANE(person, event.lane, symbol))
     return facts
 
 

@@ -91,12 +91,24 @@ from service.core.motion.queues import (
     line_distance,
     needed_gap,
 )
-from service.core.network import Intersection, Route
+from service.core.generator.walkers import (
+    NewPedestrians,
+    new_pedestrian_cars,
+    new_pedestrian_ids,
+    old_pedestrian_cars,
+    pedestrian_rows,
+    pedestrian_tracks,
+    validate_walks,
+    walker_plan,
+)
+from service.core.network import Intersection, Route, Walk
 from service.core.testcase import (
+    SCHEMA_WITH_PEDESTRIANS,
     TestCase,
     document_sha256,
     load_testcase_intersection,
     parse_testcase,
+    testcase_level,
 )
 
 STEP1_SPEED = 8.0  # m/s: Step 1 drives at this speed; it sets only how dense the poses are
@@ -220,23 +232,27 @@ def extend_testcases(
     max_orders: int = MAX_ORDERS,
     judge: Judge | None = None,
     avoid: Sequence[TestCase] = (),
+    walks: Sequence[str] = (),
 ) -> Extensions:
     """Up to ``count`` verified extensions (as ``extend_testcase`` makes one) that differ
     from each other and from ``avoid`` (variety.Signature): different orders of events
     first, each answer set at most once; then other timings of the verified orders, aimed
     at the points of variety.AIMS of the new cars' entry windows. Raises what
     ``extend_testcase`` raises when there is none; fewer than ``count`` is not an error
-    (``Extensions.shortfall`` says why)."""
+    (``Extensions.shortfall`` says why). ``walks``: new pedestrians, one on each walk
+    (docs/pedestrians.md), with the new cars or without them."""
     if count < 1:
         raise InvalidInput(f"count must be at least 1, not {count}")
-    deadline = _Deadline(budget, routes, seed)
+    deadline = _Deadline(budget, [*routes, *walks], seed)
     say = progress or (lambda _: None)
     seconds: dict[str, float] = {}
     junction = intersection or load_testcase_intersection(old)
     old_judge = judge or checked_judge(old, junction)
-    new_routes = _validate(old, junction, routes)
+    new_walks = validate_walks(junction, walks)
+    new_routes = _validate(old, junction, routes, new_walks)
     ego_route = junction.route(old.ego.route.id)
     ids = _new_ids(old, len(new_routes))
+    people = NewPedestrians(tuple(new_walks), tuple(new_pedestrian_ids(old, len(new_walks))))
     starts, shortened = automatic_starts(old, old_judge, new_routes, start_distance, junction)
     for cut in shortened:
         say(
@@ -265,16 +281,25 @@ def extend_testcases(
             deadline.check(attempts, "Step 1", expired=True)
         raise
     ego_track, new_tracks = tracks[0], dict(zip(ids, tracks[1:], strict=True))
-    tracks_of = {**new_tracks, "ego": ego_track, "illegal": ego_track}
+    try:
+        walked = pedestrian_tracks(junction, people, old, max(drive_budget, 0.01))
+    except BudgetExceeded:
+        if drive_budget < DRIVE_BUDGET:
+            deadline.check(attempts, "Step 1", expired=True)
+        raise
+    tracks_of = {**new_tracks, **walked, "ego": ego_track, "illegal": ego_track}
     seconds["poses"] = time.monotonic() - clock
     say(f"step 1 poses: {len(tracks)} drives in {seconds['poses']:.2f} s")
     deadline.check(attempts, "Step 1")
 
     cars = _ordering_cars(old, old_judge, junction, ego_track, new_tracks, new_routes, ids)
+    cars += old_pedestrian_cars(old_judge, junction)
+    cars += new_pedestrian_cars(junction, people, walked, old)
     queue = _queue(old, old_judge, junction, cars, tracks_of, ids)
+    added = _Added(tuple(new_routes), tuple(ids), people)
     search = _Search(
-        old, junction, cars, queue, tracks_of, (new_routes, ids), seed, old_judge, deadline,
-        say, seconds, attempts,
+        old, junction, cars, queue, tracks_of, added, seed, old_judge, deadline, say, seconds,
+        attempts,
     )  # fmt: skip
     taken = [signature(t) for t in avoid]
     found: list[Extension] = []
@@ -323,7 +348,7 @@ class _Search:
         cars: list[OrderingCar],
         queue: _Queue,
         tracks: dict[str, PoseTrack],
-        added: tuple[Sequence[Route], Sequence[str]],
+        added: _Added,
         seed: int,
         judge: Judge,
         deadline: _Deadline,
@@ -402,7 +427,7 @@ class _Search:
         """What of an order the test-case keeps (variety.Signature): the relations among
         its cars and which new cars stop; orders alike in these differ only in how the
         certificates drive, and Step 3 plans the new cars alike for them."""
-        ids = self.added[1]
+        ids = self.added.everyone
         return tuple(test_relations(ordering.describe())), ordering.stops & set(ids)
 
     def timings(
@@ -466,7 +491,7 @@ class _Search:
         smooth = plan_times(problem, SHARES[0])
         windows = []
         for plan in problem.cars:
-            if plan.car not in self.added[1]:
+            if plan.car not in self.added.everyone:
                 continue
             symbol = _entry_symbol(plan)
             window = entry_window(problem, symbol) if symbol is not None else None
@@ -543,13 +568,14 @@ def _limits(old: TestCase, margin: float | None = None, share: float = 1.0) -> L
     acceleration bounds, the safety margin of every relation, and the least average speed
     through the junction (v_run: a car the generator plans does not stall inside). Without
     a margin (the proof that nothing exists), any crossing speed."""
-    params = old.params
+    params, walk = old.params, old.params.walk
     return Limits(
         old.duration,
         Bounds(params.v_max, params.a_max, params.a_min).scaled(share),
         params.v_run,
         _margin(old) if margin is None else margin,
         None if margin == 0.0 else params.v_run,
+        Bounds(walk.v_max, walk.a_max, walk.a_min).scaled(share),
     )
 
 
@@ -608,30 +634,28 @@ def _judge(
     timing: TimingSolution,
     tracks: dict[str, PoseTrack],
     junction: Intersection,
-    added: tuple[Sequence[Route], Sequence[str]],
+    added: _Added,
     seed: int,
     tried: int,
     old_judge: Judge,
 ) -> tuple[str, TestCase | None]:
     """The candidate of one answer set, when its samples keep the motion invariants and the
     checker verifies it; else what is wrong with it."""
-    routes, ids = added
     samples = {
         car: [_rounded(s) for s in _sample(curve.at, tracks[car], old.duration, old.timestep)]
         for car, curve in timing.curves.items()
     }
     for car, rows in samples.items():
         start = old.ego.start.speed if car in ("ego", "illegal") else None
-        fault = motion_fault(rows, old.params, old.timestep, start)
+        limits = old.params.walk if car in added.people.ids else old.params
+        fault = motion_fault(rows, limits, old.timestep, start)
         if fault is not None:
             return f"curves: {car} {fault}", None
     try:
-        candidate = _candidate(
-            old, junction, ordering, samples, routes, ids, seed, timing.method, tried
-        )
+        candidate = _candidate(old, junction, ordering, samples, added, seed, timing.method, tried)
     except InvalidTestCase as error:  # our own fault, never the caller's input
         return f"internal: the candidate is not a valid test-case ({error})", None
-    problem, verdict = _verify(old, candidate, junction, ids, old_judge)
+    problem, verdict = _verify(old, candidate, junction, added.everyone, old_judge)
     if problem is not None:
         return f"verification: {problem}", None
     assert candidate.provenance is not None and verdict is not None
@@ -639,9 +663,28 @@ def _judge(
     return "verified", candidate
 
 
-def _validate(old: TestCase, junction: Intersection, routes: Sequence[str]) -> list[Route]:
-    if not routes:
-        raise InvalidInput("name at least one new route (FORK_LANE:EXIT_LANE) to add")
+@dataclass(frozen=True)
+class _Added:
+    """What an extension adds: cars on routes, and pedestrians on walks."""
+
+    routes: tuple[Route, ...]
+    ids: tuple[str, ...]  # the new cars'
+    people: NewPedestrians
+
+    @property
+    def everyone(self) -> tuple[str, ...]:
+        """The ids of every new road user: the cars, then the pedestrians."""
+        return (*self.ids, *self.people.ids)
+
+
+def _validate(
+    old: TestCase, junction: Intersection, routes: Sequence[str], walks: Sequence[Walk] = ()
+) -> list[Route]:
+    if not routes and not walks:
+        raise InvalidInput(
+            "name at least one new route (FORK_LANE:EXIT_LANE) or walk (a crossing and its "
+            "direction, as scengen intersection lists them) to add"
+        )
     chosen = [junction.route(r) for r in routes]
     ego = junction.route(old.ego.route.id)
     for route in chosen:
@@ -651,12 +694,13 @@ def _validate(old: TestCase, junction: Intersection, routes: Sequence[str]) -> l
                 "a car on it can never matter to anyone"
             )
     if not any(ego.id in junction.conflicts[route.id] or route.fork == ego.fork
-               for route in chosen):  # fmt: skip
+               for route in chosen) and not any(ego.id in w.conflicts for w in walks):  # fmt: skip
         raise NoMoreComplexTestCase(
             "no more complex test-case exists for these routes: none of them crosses or "
-            f"merges with the ego's route {ego.id} or starts ahead of the ego on its fork, so "
-            "no ego behaviour can violate a new car's right-of-way or drive into it",
-            routes=list(routes),
+            f"merges with the ego's route {ego.id} or starts ahead of the ego on its fork, "
+            "and no walk crosses it, so no ego behaviour can violate a new road user's "
+            "right-of-way or drive into it",
+            routes=[*routes, *(w.id for w in walks)],
         )
     return chosen
 
@@ -893,6 +937,7 @@ def _queue(
     tracks: dict[str, PoseTrack],
     ids: Sequence[str],
 ) -> _Queue:
+    cars = [car for car in cars if not car.walker]  # people on foot keep no queue
     by_name = {car.car: car for car in cars}
     members: dict[str, QueueMember] = {}
     queue_cars: list[QueueCar] = []
@@ -982,8 +1027,11 @@ def _timing_problem(
         if car.kind is CarKind.OLD:
             fixed += [(str(t.symbol), t.event.time) for t in timed_events(car)]
             continue
-        sign = junction.forks[car.fork].stop_sign
-        plans.append(_plan(car, ordering, tracks[car.car], sign))
+        if car.walker:
+            plans.append(walker_plan(_plan(car, ordering, tracks[car.car], False), old))
+        else:
+            sign = junction.forks[car.fork].stop_sign
+            plans.append(_plan(car, ordering, tracks[car.car], sign))
         fixed += [  # events where the car starts happen at t = 0
             (str(group[0].symbol), 0.0)
             for group in event_groups(car)
@@ -1096,15 +1144,15 @@ def _candidate(
     junction: Intersection,
     ordering: Ordering,
     samples: dict[str, list[PoseSample]],
-    routes: Sequence[Route],
-    ids: Sequence[str],
+    added: _Added,
     seed: int,
     method: str,
     tried: int,
 ) -> TestCase:
     document: dict[str, Any] = old.model_dump(mode="json", by_alias=True, exclude_none=True)
-    level = 1 + max((n.added_in for n in old.nonegos), default=0)
-    for car_id, route in zip(ids, routes, strict=True):
+    level = 1 + testcase_level(old)
+    ids = added.everyone
+    for car_id, route in zip(added.ids, added.routes, strict=True):
         trajectory = samples[car_id]
         events = _events(trajectory, old.ego.length, old.ego.width, junction, route.fork, old)
         document["nonegos"].append(
@@ -1125,6 +1173,11 @@ def _candidate(
                 ],
                 "added_in": level,
             }
+        )
+    if added.people:
+        document["schema"] = SCHEMA_WITH_PEDESTRIANS
+        document.setdefault("pedestrians", []).extend(
+            pedestrian_rows(old, junction, added.people, samples, level, _row)
         )
     document["certificates"] = {
         "complexity": [_row(s) for s in samples["illegal"]],
@@ -1220,7 +1273,7 @@ def _verify(
         return f"complexity certificate {late} in the new test-case", verdict
     if any(v.other not in ids for v in verdict.violations):
         return "complexity certificate breaks a rule besides a new car's right-of-way", verdict
-    if junction.signals is not None:  # every new car obeys its signal
+    if junction.signals is not None or new.pedestrians:  # new road users obey the rules
         for car_id in ids:
             broken = new_judge.rules_broken_by(car_id)
             if broken:
@@ -1228,7 +1281,7 @@ def _verify(
                 return f"{car_id} breaks {laws}", verdict
     motions = {
         n.id: Motion([PoseSample(**s.model_dump()) for s in n.trajectory], n.length, n.width)
-        for n in new.nonegos
+        for n in new.road_users
     }
     for car_id in ids:
         for other, motion in motions.items():

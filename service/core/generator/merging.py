@@ -57,6 +57,7 @@ def exit_followings(
     other's connecting lane first (in ``ordering``) leads. ``lines``: each car's entry
     line and length; ``rows``: the old cars' samples."""
     exit_of = {route.connecting_lane: route.exit for route in junction.routes.values()}
+    cars = [car for car in cars if not car.walker]  # people on foot share no exit lane
     exits = {car.car: exit_of[car.lane] for car in cars}
     times = dict(ordering.times)
     found = []

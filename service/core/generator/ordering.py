@@ -27,6 +27,7 @@ import clingo.ast
 from clingodl import ClingoDLTheory
 
 from service.core.checker.rules import (
+    PEDESTRIAN,
     REAL_LTE,
     REQUESTED_LANE,
     TIME,
@@ -36,6 +37,7 @@ from service.core.checker.rules import (
     asp_dir,
     event_facts,
     geometry_facts,
+    pedestrian_event_facts,
     perceptible_order,
     phase_facts,
     rule_set_file,
@@ -92,7 +94,9 @@ class CarKind(StrEnum):
 
 @dataclass(frozen=True)
 class OrderingCar:
-    """A car in Step 2: its kind, route and events (numeric times matter for old cars only)."""
+    """A road user in Step 2: its kind, route and events (numeric times matter for old
+    ones only). A pedestrian (``walker``) has its walk's crossing for a fork and the
+    crossing's lane for a connecting lane (docs/pedestrians.md)."""
 
     car: str
     kind: CarKind
@@ -100,6 +104,7 @@ class OrderingCar:
     lane: str  # the connecting lane of its route
     events: tuple[LaneEvent, ...]
     start_speed: float | None = None  # fixed for the certificates
+    walker: bool = False  # a person on foot: its crossing's events, the walking bounds
 
 
 @dataclass(frozen=True)
@@ -111,6 +116,14 @@ class Limits:
     v_run: float
     margin: float  # seconds every relation with a symbolic time keeps beyond m
     crossing: float | None = None  # least average speed from entering to leaving its lane
+    walking: Bounds | None = None  # the pedestrians' bounds (None: the cars')
+
+    def of(self, car: OrderingCar) -> Limits:
+        """The limits of ``car``: a pedestrian walks within the walking bounds, and no
+        least speed holds it inside (it may stand on the crossing as anywhere)."""
+        if not car.walker or self.walking is None:
+            return self
+        return Limits(self.duration, self.walking, self.v_run, self.margin, None, self.walking)
 
 
 def stop_symbol(car: str) -> clingo.Symbol:
@@ -329,6 +342,8 @@ def ordering_facts(
     for car in cars:
         kind_fact = {CarKind.OLD: OLD, CarKind.NEW: NEW, CarKind.CERTIFICATE: CERTIFICATE}
         facts += [kind_fact[car.kind](car.car), REQUESTED_LANE(car.car, car.lane)]
+        if car.walker:
+            facts.append(PEDESTRIAN(car.car))
         timed = [
             t
             for t in timed_events(car)
@@ -337,16 +352,16 @@ def ordering_facts(
         ]
         for t in timed:
             symbols.setdefault(t.symbol, t)
-        facts += event_facts(car.car, car.fork, timed)
+        facts += (pedestrian_event_facts if car.walker else event_facts)(car.car, car.fork, timed)
         if car.kind is CarKind.OLD:
             old_timed += timed
             for t in timed:
                 ms = t.event.time * 1000
                 facts.append(OLD_TIME(t.symbol, math.floor(ms), math.ceil(ms)))
             continue
-        stop_sign = intersection.forks[car.fork].stop_sign
+        stop_sign = not car.walker and intersection.forks[car.fork].stop_sign
         may_stop = car.fork in intersection.signal_forks
-        facts += _time_facts(car, timed, stop_sign, limits, may_stop)
+        facts += _time_facts(car, timed, stop_sign, limits.of(car), may_stop)
         facts += _nominal(car, timed, stop_sign, seed)
         distinct = list(dict.fromkeys(t.symbol for t in timed))
         facts += [TIME(s) for s in distinct]
