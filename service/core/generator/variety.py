@@ -25,7 +25,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from service.core.testcase import MAX_NAME_LENGTH, TestCase
+from service.core.testcase import MAX_NAME_LENGTH, Pedestrian, TestCase, testcase_level
 
 DISTINCT_GAP = 1.0  # seconds: new cars entering the junction this far apart make a new test-case
 AIMS = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875)  # shares of the entry window
@@ -75,7 +75,7 @@ class NewCar:
     never arrives or never enters)."""
 
     car: str
-    route: str  # FORK:EXIT
+    route: str  # FORK:EXIT, or a pedestrian's walk
     stops: bool
     arrival: float
     entry: float
@@ -87,20 +87,21 @@ class NewCar:
 
 def signature(testcase: TestCase) -> Signature:
     """The signature of a test-case as its last level made it (the cars it added)."""
-    level = max((n.added_in for n in testcase.nonegos), default=0)
+    level = testcase_level(testcase)
     provenance = testcase.provenance or {}
     cars = []
-    for car in sorted(testcase.nonegos, key=lambda n: n.id):
+    for car in sorted(testcase.road_users, key=lambda n: n.id):
         if car.added_in != level:
             continue
         times: dict[str, float] = {}
         for event in reversed(car.events):  # the first of each kind wins
             times[str(event.kind)] = event.t
         last = car.events[-1].t if car.events else 0.0
+        way = car.walk if isinstance(car, Pedestrian) else f"{car.route.fork}:{car.route.exit}"
         cars.append(
             NewCar(
                 car.id,
-                f"{car.route.fork}:{car.route.exit}",
+                way,
                 "stopped" in times,
                 round(times.get("arrived", last), 3),
                 round(times.get("entered", last), 3),
