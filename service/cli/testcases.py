@@ -197,9 +197,17 @@ def extension_count(text: str) -> int:
     arg(
         "--add",
         action="append",
-        required=True,
+        default=[],
         metavar="FORK_LANE:EXIT_LANE",
-        help="route of a new non-ego (repeat to add several in one extension)",
+        help="route of a new car (repeat to add several in one extension)",
+    ),
+    arg(
+        "--add-pedestrian",
+        action="append",
+        default=[],
+        metavar="WALK",
+        help="walk of a new pedestrian: a crossing and its direction, as `scengen "
+        "intersection` lists them (C_c0+; repeatable, mixable with --add)",
     ),
     arg("--seed", type=int, default=0, help="seed of the search (default 0)"),
     arg(
@@ -236,6 +244,11 @@ def extension_count(text: str) -> int:
     NETWORK_FILE,
 )
 def extend(args: argparse.Namespace) -> int:
+    if not args.add and not args.add_pedestrian:
+        args.usage.error(
+            "name what to add: --add FORK_LANE:EXIT_LANE (a car) or --add-pedestrian WALK "
+            "(a pedestrian), each repeatable"
+        )
     start_distance = start_distances(args)
     if args.count > 1 and args.output is None:
         args.usage.error(
@@ -260,8 +273,9 @@ def extend(args: argparse.Namespace) -> int:
     if args.count > 1:
         return _extend_variants(args, old, start_distance, intersection, network_file, started)
     extension = extend_testcase(
-        old, args.add, args.seed, args.budget, start_distance, progress(started), intersection
-    )
+        old, args.add, args.seed, args.budget, start_distance, progress(started), intersection,
+        walks=args.add_pedestrian,
+    )  # fmt: skip
     name = args.name or readable_name(extension.testcase, name_stem(old.name))
     extended = renamed(extension.testcase, name)
     provenance = extended.provenance or {}
@@ -287,7 +301,7 @@ def _extend_variants(
     the others, and why fewer came back when they did."""
     extensions = extend_testcases(
         old, args.add, args.count, args.seed, args.budget, start_distance, progress(started),
-        intersection,
+        intersection, walks=args.add_pedestrian,
     )  # fmt: skip
     found = extensions.found
     print(

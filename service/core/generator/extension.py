@@ -177,6 +177,7 @@ def extend_testcase(
     max_orders: int = MAX_ORDERS,
     judge: Judge | None = None,
     avoid: Sequence[TestCase] = (),
+    walks: Sequence[str] = (),
 ) -> Extension:
     """A strictly more complex, solvable test-case with new non-egos on ``routes``, each
     starting ``start_distance`` before its stop line (one number for all, one per route,
@@ -187,10 +188,11 @@ def extend_testcase(
     checker of ``old`` from ``checked_judge`` (a chain tries many routes on one test-case
     and makes it once). The seed draws the order Step 2 tries first and where in its
     timings Step 3 aims (variety.seed_aim: seed 0 takes the smoothest). ``avoid``:
-    test-cases the result must differ from (variety.Signature)."""
+    test-cases the result must differ from (variety.Signature). ``walks``: new pedestrians,
+    one on each walk (docs/pedestrians.md)."""
     return extend_testcases(
         old, routes, 1, seed, budget, start_distance, progress, intersection, max_orders,
-        judge, avoid,
+        judge, avoid, walks,
     ).found[0]  # fmt: skip
 
 
