@@ -79,3 +79,15 @@ def check_start_count(routes: Sequence[str], start: float | Sequence[Any] | None
 
 def _count(n: int, what: str) -> str:
     return f"{n} {what}" if n == 1 else f"{n} {what}s"
+
+
+def check_new_road_users(routes: Sequence[str], walks: Sequence[str], most: int = 6) -> None:
+    """ValueError unless an extension adds at least one road user, and at most ``most``:
+    a car per route, a pedestrian per walk."""
+    if not routes and not walks:
+        raise ValueError("name at least one new car (routes) or pedestrian (pedestrians)")
+    if len(routes) + len(walks) > most:
+        raise ValueError(
+            f"at most {most} new road users in one extension: {_count(len(routes), 'route')} "
+            f"and {_count(len(walks), 'pedestrian')}"
+        )

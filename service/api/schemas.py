@@ -30,7 +30,11 @@ from service.core.testcase import (
     check_name,
 )
 from service.start_distances import DESCRIPTION as START_DISTANCES
-from service.start_distances import StartDistancesField, check_start_count
+from service.start_distances import (
+    StartDistancesField,
+    check_new_road_users,
+    check_start_count,
+)
 
 MAX_SEED = 2**32 - 1  # clingo's and z3's seeds are unsigned 32-bit
 EXAMPLE_NETWORK = "4way-stop"
@@ -63,6 +67,14 @@ RouteText = Annotated[
     Field(description="fork lane id:exit lane id, from the junction's routes"),
 ]
 Ident = Annotated[str, StringConstraints(min_length=1, max_length=2000)]
+# A walk is a crossing's id without SUMO's leading colon, then + or - (docs/pedestrians.md).
+WALK_PATTERN = r"^[^:\s]+[+-]$"
+WalkText = Annotated[
+    str,
+    StringConstraints(pattern=WALK_PATTERN, max_length=2000),
+    Field(description="a crossing walked one way, from the junction's walks (C_c0+)"),
+]
+MAX_NEW_ROAD_USERS = 6  # cars and pedestrians one extension adds at most
 
 
 def no_null_base(value: Any) -> Any:
@@ -201,11 +213,17 @@ class Attempt(BaseModel):
 
 
 class ExtendRequest(_Body):
-    """Extend a test-case (inline, or stored by id) with new cars on `routes`."""
+    """Extend a test-case (inline, or stored by id) with new cars on `routes` and new
+    pedestrians on `pedestrians` (walks)."""
 
     testcase: dict[str, Any] | None = Field(None, description="the old test-case document")
     testcase_id: Ident | None = Field(None, description="or the id of a stored test-case")
-    routes: list[RouteText] = Field(min_length=1, max_length=6, description="one new car per route")
+    routes: list[RouteText] = Field(
+        [], max_length=MAX_NEW_ROAD_USERS, description="one new car per route"
+    )
+    pedestrians: list[WalkText] = Field(
+        [], max_length=MAX_NEW_ROAD_USERS, description="one new pedestrian per walk"
+    )
     seed: int = Field(0, ge=0, le=MAX_SEED, description="same seed, same bytes")
     budget: float | None = Field(None, gt=0, description="seconds (default SCENGEN_EXTEND_BUDGET)")
     start_distance: StartDistancesField = Field(None, description=START_DISTANCES)
@@ -223,6 +241,7 @@ class ExtendRequest(_Body):
     def _one_base(self) -> ExtendRequest:
         if (self.testcase is None) == (self.testcase_id is None):
             raise ValueError("give exactly one of testcase (inline) and testcase_id")
+        check_new_road_users(self.routes, self.pedestrians)
         check_start_count(self.routes, self.start_distance)
         return self
 

@@ -31,15 +31,17 @@ def extend(
     budget: float,
     start_distance: float | list[float | None] | None,
     deadline: float | None = None,
+    walks: list[str] | None = None,
 ) -> dict[str, Any]:
     """``tasks.extend``, the new test-case in its stored form (``stored``) with the ids of
-    its new cars (``new_cars``)."""
+    its new road users (``new_cars``)."""
     from service.jobs import tasks
     from service.store import stored_form
 
     result = tasks.extend(
-        document, network_file, cache_dir, routes, seed, budget, start_distance, deadline
-    )
+        document, network_file, cache_dir, routes, seed, budget, start_distance, deadline,
+        walks or [],
+    )  # fmt: skip
     new = parse_testcase(result.pop("document"))
     assert new.provenance is not None  # an extension always says which cars it added
     return {
@@ -59,14 +61,16 @@ def extend_variants(
     budget: float,
     start_distance: float | list[float | None] | None,
     deadline: float | None = None,
+    walks: list[str] | None = None,
 ) -> dict[str, Any]:
-    """``tasks.extend_variants``, each extension in its stored form with its new cars."""
+    """``tasks.extend_variants``, each extension in its stored form with its new road users."""
     from service.jobs import tasks
     from service.store import stored_form
 
     result = tasks.extend_variants(
-        document, network_file, cache_dir, routes, count, seed, budget, start_distance, deadline
-    )
+        document, network_file, cache_dir, routes, count, seed, budget, start_distance, deadline,
+        walks or [],
+    )  # fmt: skip
     variants = []
     for variant in result["extensions"]:
         new = parse_testcase(variant.pop("document"))

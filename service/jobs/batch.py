@@ -18,7 +18,11 @@ from service.core.errors import InvalidInput
 from service.core.generator.variety import MAX_COUNT
 from service.core.testcase import Control, Signals
 from service.start_distances import DESCRIPTION as START_DISTANCES
-from service.start_distances import StartDistancesField, check_start_count
+from service.start_distances import (
+    StartDistancesField,
+    check_new_road_users,
+    check_start_count,
+)
 
 MAX_SEED = 2**32 - 1  # clingo's and z3's seeds are unsigned 32-bit
 
@@ -43,10 +47,11 @@ class _Based(_Item):
 
 
 class ExtendItem(_Based):
-    """One extension: new cars on `routes`."""
+    """One extension: new cars on `routes`, new pedestrians on `pedestrians` (walks)."""
 
     kind: Literal["extend"]
-    routes: list[str] = Field(min_length=1, max_length=6)
+    routes: list[str] = Field([], max_length=6)
+    pedestrians: list[str] = Field([], max_length=6, description="one new pedestrian per walk")
     seed: int = Field(0, ge=0, le=MAX_SEED)
     budget: float | None = Field(None, gt=0, description="seconds (default: the server's)")
     start_distance: StartDistancesField = Field(None, description=START_DISTANCES)
@@ -60,6 +65,7 @@ class ExtendItem(_Based):
 
     @model_validator(mode="after")
     def _one_start_per_route(self) -> ExtendItem:
+        check_new_road_users(self.routes, self.pedestrians)
         check_start_count(self.routes, self.start_distance)
         return self
 

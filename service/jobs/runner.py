@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from service.core.budget import decode_outcome, encode_call
@@ -153,7 +153,7 @@ class Work:
             made, progress = self._variants(old, spec)
         else:
             extension = self._extension(
-                old, spec.routes, spec.seed, spec.budget, spec.start_distance
+                old, spec.routes, spec.seed, spec.budget, spec.start_distance, spec.pedestrians
             )
             made, progress = [extension.id], "done"
         self.jobs.record(self.item.job, self.item.position, self.owner, progress, made)
@@ -166,9 +166,11 @@ class Work:
         result = self.call(
             tasks.extend_variants,
             (old.document, self.store.network_file_for(old.testcase), self.settings.cache_dir,
-             spec.routes, spec.count, spec.seed, budget, spec.start_distance),
+             spec.routes, spec.count, spec.seed, budget, spec.start_distance, None,
+             spec.pedestrians),
             budget + 5.0,
-            f"extending {old.id} by {', '.join(spec.routes)} ({spec.count} distinct)",
+            f"extending {old.id} by {', '.join([*spec.routes, *spec.pedestrians])} "
+            f"({spec.count} distinct)",
         )  # fmt: skip
         made = [
             self.store.add_testcase(parse_testcase(variant["document"]), parent=old.id).id
@@ -240,10 +242,11 @@ class Work:
 
     def _extension(
         self, old: TestCaseRecord, routes: list[str] | None, seed: int, budget: float | None,
-        start_distance: float | list[float | None] | None = None,
+        start_distance: float | list[float | None] | None = None, walks: Sequence[str] = (),
     ) -> TestCaseRecord:  # fmt: skip
-        """``old`` extended by cars on ``routes``, or on a route the service picks (None);
-        the new cars start ``start_distance`` before their stop lines (None: automatic)."""
+        """``old`` extended by cars on ``routes`` and pedestrians on ``walks``, or on a route
+        the service picks (``routes`` None); the new cars start ``start_distance`` before
+        their stop lines (None: automatic)."""
         chosen = budget or self.settings.extend_budget
         common = (old.document, self.store.network_file_for(old.testcase), self.settings.cache_dir)
         call: Callable[..., Any]
@@ -251,8 +254,9 @@ class Work:
         if routes is None:
             call, args, what = tasks.extend_any, (*common, seed, chosen), f"extending {old.id}"
         else:
-            call, args = tasks.extend, (*common, routes, seed, chosen, start_distance)
-            what = f"extending {old.id} by {', '.join(routes)}"
+            call = tasks.extend
+            args = (*common, routes, seed, chosen, start_distance, None, list(walks))
+            what = f"extending {old.id} by {', '.join([*routes, *walks])}"
         result = self.call(call, args, chosen + 5.0, what)
         return self.store.add_testcase(parse_testcase(result["document"]), parent=old.id)
 

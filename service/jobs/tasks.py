@@ -16,7 +16,7 @@ import io
 import tempfile
 import time
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -194,11 +194,12 @@ def extend(
     budget: float,
     start_distance: float | list[float | None] | None,
     deadline: float | None = None,
+    walks: Sequence[str] = (),
 ) -> dict[str, Any]:
     """The extension of a test-case: the new document (named as ``named_extension`` says),
     the attempts and the step timings. ``start_distance`` is one for all new cars, one (or
     None) per route, or None: automatic. With ``deadline`` (a Unix time), the generator gets
-    only what is left of ``budget``."""
+    only what is left of ``budget``. ``walks``: new pedestrians, one on each."""
     from service.core.generator.extension import extend_testcase
 
     old = parse_testcase(document)
@@ -207,7 +208,7 @@ def extend(
         budget,
         deadline,
         lambda left: extend_testcase(
-            old, routes, seed, left, start_distance, intersection=intersection
+            old, routes, seed, left, start_distance, intersection=intersection, walks=walks
         ),
     )
     return {
@@ -226,6 +227,7 @@ def extend_variants(
     budget: float,
     start_distance: float | list[float | None] | None,
     deadline: float | None = None,
+    walks: Sequence[str] = (),
 ) -> dict[str, Any]:
     """Up to ``count`` distinct extensions of a test-case (as ``extend`` makes one), each
     named as variant K (``variety.variant_name``): ``extensions``, each with its document,
@@ -240,8 +242,15 @@ def extend_variants(
         budget,
         deadline,
         lambda left: extend_testcases(
-            old, routes, count, seed, left, start_distance, intersection=intersection
-        ),
+            old,
+            routes,
+            count,
+            seed,
+            left,
+            start_distance,
+            intersection=intersection,
+            walks=walks,
+        ),  # fmt: skip
     )
     found = extensions.found
     differences = describe_variants([e.testcase for e in found])

@@ -38,7 +38,8 @@ GRACE = 2.0
     },
 )
 async def extend_testcase(state: State, body: ExtendRequest) -> Response:
-    """Add cars on the given routes so that the test-case becomes strictly harder: one
+    """Add cars on the given routes and pedestrians on the given walks so that the
+    test-case becomes strictly harder: one
     extension (`ExtensionPublic`), or with `count` above 1 up to that many distinct ones
     (`ExtensionsPublic`), each stored."""
     started = time.monotonic()
@@ -52,7 +53,7 @@ async def extend_testcase(state: State, body: ExtendRequest) -> Response:
     # The deadline is the request's: the wait for a free worker counts against it.
     deadline = time.time() + budget - (time.monotonic() - started)
     common = (document, network_file, state.cache_dir, body.routes)
-    tail = (body.seed, budget, body.start_distance, deadline)
+    tail = (body.seed, budget, body.start_distance, deadline, body.pedestrians)
     if body.count > 1:
         result = await state.run(
             "extend", worker.extend_variants, (*common, body.count, *tail), budget, started, GRACE

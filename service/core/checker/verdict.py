@@ -30,9 +30,23 @@ class EventRef:
     t: float
 
 
+# The rules that give a pedestrian the right-of-way (asp/laws: cvc21950.lp, cvc21951.lp,
+# and the signal laws cvc21451.lp, cvc21453.lp): their ``other`` is a person on foot.
+RIGHTS_OF_PEDESTRIANS = frozenset(
+    {
+        "yieldToPedestrian",
+        "passesCarStoppedForPedestrian",
+        "yieldToPedestrianOnGreen",
+        "yieldToPedestrianOnArrow",
+        "yieldToPedestrianOnRightOnRed",
+    }
+)
+
+
 @dataclass(frozen=True)
 class Violation:
-    """A rule the ego broke; ``other`` is the car whose right-of-way it violated, if any."""
+    """A rule the ego broke; ``other`` is the car, or the pedestrian (a rule of
+    RIGHTS_OF_PEDESTRIANS), whose right-of-way it violated, if any."""
 
     rule: str
     law: str  # California Vehicle Code section, e.g. "21800(a)"
@@ -41,12 +55,14 @@ class Violation:
 
     def describe(self) -> str:
         times = ", ".join(f"{e.car} {e.kind} {e.lane} at {e.t:.2f} s" for e in self.events)
-        against = f" of {self.other}" if self.other else ""
+        whose = "pedestrian " if self.rule in RIGHTS_OF_PEDESTRIANS else ""
+        against = f" of {whose}{self.other}" if self.other else ""
         return f"violated CVC {self.law} ({self.rule}){against}: {times}"
 
 
 REAR_END = "rear-end"
 CROSSING = "crossing"
+PEDESTRIAN = "pedestrian"  # the ego and a person on foot
 
 
 @dataclass(frozen=True)
@@ -55,10 +71,13 @@ class CollisionRecord:
     t: float
     x: float
     y: float
-    kind: str = CROSSING  # REAR_END: two cars of one fork, one drove into the other
+    kind: str = CROSSING  # REAR_END: two cars of one fork, one drove into the other;
+    # PEDESTRIAN: the ego and a person on foot
 
     def describe(self) -> str:
-        what = "rear-end collision with" if self.kind == REAR_END else "collided with"
+        what = {REAR_END: "rear-end collision with", PEDESTRIAN: "collided with pedestrian"}.get(
+            self.kind, "collided with"
+        )
         return f"{what} {self.other} at {self.t:.2f} s at ({self.x:.1f}, {self.y:.1f})"
 
 

@@ -27,7 +27,6 @@ import clingo.ast
 from clingodl import ClingoDLTheory
 
 from service.core.checker.rules import (
-    PEDESTRIAN,
     REAL_LTE,
     REQUESTED_LANE,
     TIME,
@@ -37,7 +36,7 @@ from service.core.checker.rules import (
     asp_dir,
     event_facts,
     geometry_facts,
-    pedestrian_event_facts,
+    pedestrian_facts,
     perceptible_order,
     phase_facts,
     rule_set_file,
@@ -342,8 +341,6 @@ def ordering_facts(
     for car in cars:
         kind_fact = {CarKind.OLD: OLD, CarKind.NEW: NEW, CarKind.CERTIFICATE: CERTIFICATE}
         facts += [kind_fact[car.kind](car.car), REQUESTED_LANE(car.car, car.lane)]
-        if car.walker:
-            facts.append(PEDESTRIAN(car.car))
         timed = [
             t
             for t in timed_events(car)
@@ -352,7 +349,10 @@ def ordering_facts(
         ]
         for t in timed:
             symbols.setdefault(t.symbol, t)
-        facts += (pedestrian_event_facts if car.walker else event_facts)(car.car, car.fork, timed)
+        if car.walker:  # its crossing's lane names its crossing
+            facts += pedestrian_facts(car.car, car.lane, timed)
+        else:
+            facts += event_facts(car.car, car.fork, timed)
         if car.kind is CarKind.OLD:
             old_timed += timed
             for t in timed:

@@ -145,8 +145,12 @@ def pedestrian_rows(
                 "width": PEDESTRIAN_WIDTH,
                 "trajectory": [row(s) for s in trajectory],
                 "events": [
-                    {"kind": e.kind.value, "lane": e.lane, "t": round(e.time, 6),
-                     "distance": round(e.distance, 6)}
+                    {
+                        "kind": e.kind.value,
+                        "lane": e.lane,
+                        "t": round(e.time, 6),
+                        "distance": round(e.distance, 6),
+                    }
                     for e in events
                 ],  # fmt: skip
                 "added_in": level,
