@@ -250,7 +250,7 @@ def extend_variants(
             start_distance,
             intersection=intersection,
             walks=walks,
-        ),  # fmt: skip
+        ),
     )
     found = extensions.found
     differences = describe_variants([e.testcase for e in found])

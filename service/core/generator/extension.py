@@ -69,6 +69,16 @@ from service.core.generator.variety import (
     signature,
     test_relations,
 )
+from service.core.generator.walkers import (
+    NewPedestrians,
+    new_pedestrian_cars,
+    new_pedestrian_ids,
+    old_pedestrian_cars,
+    pedestrian_rows,
+    pedestrian_tracks,
+    validate_walks,
+    walker_plan,
+)
 from service.core.motion.collisions import Motion, first_collision
 from service.core.motion.events import EventKind, LaneEvent, compute_events
 from service.core.motion.invariants import ROUNDING, motion_fault
@@ -90,16 +100,6 @@ from service.core.motion.queues import (
     gap_fault,
     line_distance,
     needed_gap,
-)
-from service.core.generator.walkers import (
-    NewPedestrians,
-    new_pedestrian_cars,
-    new_pedestrian_ids,
-    old_pedestrian_cars,
-    pedestrian_rows,
-    pedestrian_tracks,
-    validate_walks,
-    walker_plan,
 )
 from service.core.network import Intersection, Route, Walk
 from service.core.testcase import (

@@ -152,7 +152,7 @@ def pedestrian_rows(
                         "distance": round(e.distance, 6),
                     }
                     for e in events
-                ],  # fmt: skip
+                ],
                 "added_in": level,
             }
         )
