@@ -23,7 +23,14 @@ from service.core.checker.verdict import PEDESTRIAN, Verdict
 from service.core.motion.events import EventKind
 from service.core.motion.poses import PoseSample, PoseTrack, generate_poses
 from service.core.network import Intersection, Walk
-from service.core.testcase import TestCase, dump_testcase, new_testcase, parse_testcase
+from service.core.network.signals import SignalPhase, SignalProgram
+from service.core.testcase import (
+    TestCase,
+    dump_testcase,
+    new_testcase,
+    parse_testcase,
+    under_testcase_signals,
+)
 from tests.core.checker.crossing_model import JUNCTIONS, signal_crossings, stop_crossings
 from tests.helpers import drive_with_stops, retime, with_nonegos
 
@@ -248,10 +255,20 @@ def test_waiting_beside_the_stopped_car_passes_21951(
 # --- At the signal: 21451 (a) and 21456 ----------------------------------------------------
 
 
-def signal_case(people: list[tuple[str, str, list[PoseSample]]]) -> TestCase:
+def signal_case(
+    people: list[tuple[str, str, list[PoseSample]]], signals: SignalProgram | None = None
+) -> TestCase:
     base = new_testcase(JUNCTIONS / "signal-crossings.net.xml", TURN, start_distance=START,
-                        duration=DURATION)  # fmt: skip
+                        duration=DURATION, signals=signals)  # fmt: skip
     return with_people(base, [], people)
+
+
+def turn_only(colour: str) -> SignalProgram:
+    """One phase: the north's right turn (link 0) shows ``colour``, :C_c3 (link 19) walks,
+    every other link is red."""
+    state = ["r"] * 20
+    state[0], state[19] = colour, "G"
+    return SignalProgram("C", "turn", 0.0, (SignalPhase(DURATION, "".join(state)),))
 
 
 def test_turning_on_green_into_a_pedestrian_on_walk_fails_21451a(
@@ -306,3 +323,34 @@ def test_a_pedestrian_who_starts_on_walk_breaks_no_rule(
     person = walking(signal.walk("C_c3-"), [(0.0, 11.0)])
     testcase = signal_case([("ped1", "C_c3-", person)])
     assert Judge(testcase, signal).rules_broken_by("ped1") == []
+
+
+@pytest.mark.parametrize(
+    ("colour", "stops", "law", "rule"),
+    [
+        # a protected right turn: the ego turns on its arrow at 5 s, at the crosswalk at 5.6 s
+        ("G", [], "21451(b)", "yieldToPedestrianOnArrow"),
+        # a right on red: the ego stops at its line at 6.3 s, turns at 7.5 s, at the
+        # crosswalk at 9 s
+        ("s", [(LINE, 0.5)], "21453(b)", "yieldToPedestrianOnRightOnRed"),
+    ],
+)
+def test_turning_on_an_arrow_or_on_red_into_a_pedestrian_fails_its_signal_law(
+    signal: Intersection,
+    tracks: dict[str, PoseTrack],
+    colour: str,
+    stops: list[tuple[float, float]],
+    law: str,
+    rule: str,
+) -> None:
+    # ped1 (C_c3-) is on the crossing from 2.3 s, in the ego's exit lane from 9.9 s to 12.7 s
+    person = walking(signal.walk("C_c3-"), [(0.0, 1.0)])
+    testcase = signal_case([("ped1", "C_c3-", person)], turn_only(colour))
+    junction = under_testcase_signals(signal, testcase)
+    verdict, found = judged(testcase, driving(tracks[TURN], stops), junction)
+    assert found == [(law, "ped1")] and verdict.violations[0].rule == rule
+    assert verdict.collisions == () and verdict.goal_reached
+    # waiting at the line until 12.3 s, the ego reaches the crosswalk at 14.5 s, ped1 past
+    # its lane at 12.7 s
+    verdict, _ = judged(testcase, driving(tracks[TURN], [(LINE, 6.0)]), junction)
+    assert verdict.passed, verdict.reasons
