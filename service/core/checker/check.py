@@ -9,8 +9,8 @@ out: every event of the ego at the junction comes before), or at the duration wh
 never gets there. A collision that starts later, and a
 violation whose ego events all come later, are kept in the verdict as information (its
 ``after_goal_*``); they do not fail the ego. The criticality measures end there too.
-Events of every car are computed from its trajectory (service.core.motion.events), a
-pedestrian's and a car's at the crosswalks too (service.core.checker.pedestrians), their
+Events of every road user are computed from its trajectory (service.core.motion.events:
+a car's at the crosswalks too, a pedestrian's on its walk), their
 perceptible order from the numbers with one m (service.core.checker.rules), and the
 rules decide. The rules a pedestrian breaks (21950 (b), 21456) are not the ego's: the
 verdict keeps them as information (``pedestrians_broke``). With all orders given, the rule
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from shapely.geometry import Point
 
-from service.core.checker.pedestrians import Walker, walker, with_crossing_events
+from service.core.checker.pedestrians import Walker, walker
 from service.core.checker.rules import (
     REQUESTED_LANE,
     TimedEvent,
@@ -232,7 +232,6 @@ def _car(
         samples, length, width, junction, fork,
         testcase.params.arrival_distance, testcase.params.v_stop, not_before,
     )  # fmt: skip
-    events = with_crossing_events(junction, samples, length, width, events)
     line = line_distance(samples, length, junction.fork(fork), events) if samples else 0.0
     return Car(car_id, fork, lane, length, width, samples, tuple(events), line)
 

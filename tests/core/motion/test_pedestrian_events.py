@@ -1,4 +1,4 @@
-"""A pedestrian's events and a car's at the crosswalks (service.core.checker.pedestrians),
+"""A pedestrian's events and a car's at the crosswalks (service.core.motion.events),
 against times worked out by hand on straight walks over the all-way stop's south crossing
 :C_c2 (12.8 m long, 4 m wide; tests/data/junctions/stop-crossings)."""
 
@@ -6,8 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from service.core.checker.pedestrians import crossing_events, pedestrian_events
-from service.core.motion.events import EventKind, LaneEvent
+from service.core.motion.events import EventKind, LaneEvent, compute_events, pedestrian_events
 from service.core.motion.poses import PoseSample
 from service.core.network import Intersection, Walk
 from tests.core.checker.crossing_model import stop_crossings
@@ -47,7 +46,7 @@ def test_a_walk_across_has_its_events_where_the_rectangle_meets_the_crossing(
     stop: Intersection,
 ) -> None:
     walk = stop.walk("C_c2+")
-    events = pedestrian_events(stop, walk, straight(walk, 5.0), LENGTH, WIDTH, 1.0, 0.1)
+    events = pedestrian_events(straight(walk, 5.0), LENGTH, WIDTH, stop, walk.id, 1.0, 0.1)
     # the front within 1 m of the crossing: centre 1.1075 m before it
     assert _of(events, EventKind.ARRIVED, ":C_c2") == pytest.approx([(5.0 - 1.1075) / PACE],
                                                                     abs=1e-3)  # fmt: skip
@@ -68,8 +67,8 @@ def test_a_walk_across_has_its_events_where_the_rectangle_meets_the_crossing(
 
 def test_a_pedestrian_waiting_at_the_curb_has_arrived_and_stopped(stop: Intersection) -> None:
     walk = stop.walk("C_c2-")
-    events = pedestrian_events(stop, walk, straight(walk, 0.8, stand=3.0), LENGTH, WIDTH, 1.0,
-                               0.1)  # fmt: skip
+    events = pedestrian_events(straight(walk, 0.8, stand=3.0), LENGTH, WIDTH, stop, walk.id,
+                               1.0, 0.1)  # fmt: skip
     assert _of(events, EventKind.ARRIVED) == [0.0]
     assert _of(events, EventKind.STOPPED) == [0.0]
     assert _of(events, EventKind.ENTERED) == pytest.approx([3.0 + (0.8 - LENGTH / 2) / PACE],
@@ -80,19 +79,19 @@ def test_a_pedestrian_who_never_reaches_the_crossing_has_no_crossing_event(
     stop: Intersection,
 ) -> None:
     walk = stop.walk("C_c2+")
-    events = pedestrian_events(stop, walk, straight(walk, 5.0, stand=100.0), LENGTH, WIDTH, 1.0,
-                               0.1)  # fmt: skip
+    events = pedestrian_events(straight(walk, 5.0, stand=100.0), LENGTH, WIDTH, stop, walk.id,
+                               1.0, 0.1)  # fmt: skip
     assert events == []
 
 
-def test_a_cars_crosswalk_events_are_not_doubled(stop: Intersection) -> None:
+def test_a_car_reaches_and_leaves_each_crosswalk_once(stop: Intersection) -> None:
     """A car driving north along S2C_1's lane centre (x = 154.8) at 10 m/s crosses :C_c2
-    (y 139.6 to 143.6) and :C_c0 (y 156.4 to 160.4): in and out of each once; events the
-    car already has for a crossing lane (the events stage's, once it computes them) are
-    not computed again."""
+    (y 139.6 to 143.6) and :C_c0 (y 156.4 to 160.4): in and out of each once, with its
+    other events."""
     samples = [PoseSample(t / 10, 154.8, 120.0 + t, 0.0, 10.0, float(t)) for t in range(61)]
-    events = crossing_events(stop, samples, 5.0, 1.8)
-    found = sorted((e.lane, e.kind.value, round(e.time, 3)) for e in events)
+    events = compute_events(samples, 5.0, 1.8, stop, "S2C_1", 10.0, 0.1)
+    found = sorted((e.lane, e.kind.value, round(e.time, 3)) for e in events
+                   if e.lane.startswith(":C_c"))  # fmt: skip
     # the rectangle (5 m long) meets a strip when its front is at the strip's near edge
     assert found == [
         (":C_c0_0", "entered_lane", round((156.4 - 2.5 - 120.0) / 10, 3)),
@@ -100,5 +99,3 @@ def test_a_cars_crosswalk_events_are_not_doubled(stop: Intersection) -> None:
         (":C_c2_0", "entered_lane", round((139.6 - 2.5 - 120.0) / 10, 3)),
         (":C_c2_0", "left_lane", round((143.6 + 2.5 - 120.0) / 10, 3)),
     ]
-    known = [e for e in events if e.lane == ":C_c2_0"]
-    assert {e.lane for e in crossing_events(stop, samples, 5.0, 1.8, known)} == {":C_c0_0"}
