@@ -4,7 +4,8 @@ A test-case's judgement ends when the ego has reached its goal (on its exit lane
 rectangle out of the junction), or at the duration when it never does: ``judged_until``.
 Collisions and rule violations after that moment are kept apart (``after_goal_*``, in the
 JSON ``after_goal``), as information: they are not reasons, never fail the ego, and JUnit
-reports them nowhere as failures.
+reports them nowhere as failures. So are the rules a pedestrian breaks (21950 (b), 21456:
+``pedestrians_broke``, in the JSON only when there are some): they are not the ego's.
 """
 
 from __future__ import annotations
@@ -60,6 +61,18 @@ class Violation:
         return f"violated CVC {self.law} ({self.rule}){against}: {times}"
 
 
+@dataclass(frozen=True)
+class RoadUserViolation:
+    """A rule a pedestrian broke (a rule of the pedestrian: ``violation.other`` is None):
+    information in the ego's verdict, never its failure."""
+
+    by: str
+    violation: Violation
+
+    def describe(self) -> str:
+        return f"pedestrian {self.by} (not the ego's failure) {self.violation.describe()}"
+
+
 REAR_END = "rear-end"
 CROSSING = "crossing"
 PEDESTRIAN = "pedestrian"  # the ego and a person on foot
@@ -103,6 +116,8 @@ class Verdict:
     # after the judgement ended (the goal): information, not failures (module docstring)
     after_goal_collisions: tuple[CollisionRecord, ...] = ()
     after_goal_violations: tuple[Violation, ...] = ()
+    # the rules the test-case's pedestrians broke: information, not the ego's failure
+    pedestrians_broke: tuple[RoadUserViolation, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -121,7 +136,8 @@ class Verdict:
         records = [c.describe() for c in self.after_goal_collisions]
         records += [v.describe() for v in self.after_goal_violations]
         when = "after its goal" if self.goal_reached else "after the duration"
-        return [f"{when} (not judged): {record}" for record in records]
+        found = [f"{when} (not judged): {record}" for record in records]
+        return found + [broken.describe() for broken in self.pedestrians_broke]
 
     @property
     def reasons(self) -> list[str]:
@@ -143,6 +159,8 @@ class Verdict:
             "collisions": data.pop("after_goal_collisions"),
             "violations": data.pop("after_goal_violations"),
         }
+        if not self.pedestrians_broke:
+            del data["pedestrians_broke"]  # as before pedestrians: no key
         data["reasons"] = self.reasons
         data["information"] = self.information
         data["criticality"] = None if self.criticality is None else self.criticality.to_dict()
@@ -182,6 +200,10 @@ class Verdict:
                 CollisionRecord(**item) for item in after.get("collisions", ())
             ),
             after_goal_violations=violations(after.get("violations", ())),
+            pedestrians_broke=tuple(
+                RoadUserViolation(item["by"], violations([item["violation"]])[0])
+                for item in data.get("pedestrians_broke", ())
+            ),
         )
 
     def to_junit(self) -> str:

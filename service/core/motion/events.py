@@ -113,17 +113,24 @@ class _Track:
             interpolate_heading(a.heading, b.heading, share),
         )
 
-    def rects_between(self, k: int, shares: np.ndarray) -> np.ndarray:
-        """The rectangles at ``shares`` of the way from sample k to k+1."""
+    def poses_between(
+        self, k: int, shares: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, y, heading) at ``shares`` of the way from sample k to k+1."""
         a, b = self.samples[k], self.samples[k + 1]
         delta = (b.heading - a.heading + 180.0) % 360.0 - 180.0
-        return rectangles(
-            a.x + shares * (b.x - a.x),
-            a.y + shares * (b.y - a.y),
-            (a.heading + shares * delta) % 360.0,
-            self.length,
-            self.width,
-        )
+        return (a.x + shares * (b.x - a.x), a.y + shares * (b.y - a.y),
+                (a.heading + shares * delta) % 360.0)  # fmt: skip
+
+    def rects_between(self, k: int, shares: np.ndarray) -> np.ndarray:
+        """The rectangles at ``shares`` of the way from sample k to k+1."""
+        return rectangles(*self.poses_between(k, shares), self.length, self.width)
+
+    def fronts(self, x: np.ndarray, y: np.ndarray, heading: np.ndarray) -> np.ndarray:
+        """The middles of the front edges of the rectangles at these poses."""
+        rad = np.radians(heading)
+        half = self.length / 2.0
+        return shapely.points(x + np.sin(rad) * half, y + np.cos(rad) * half)  # type: ignore[no-any-return]
 
     def refine(self, k: int, flips: Callable[[np.ndarray], np.ndarray]) -> tuple[float, float]:
         """(time, distance) where the state flips between samples k and k+1: the first
@@ -310,7 +317,9 @@ def pedestrian_events(
         stopped = _stop_before(track, crossing.id, arrived, limit, v_stop)
         if stopped is not None:
             events.append(stopped)
-    events.extend(_lane_events(track, intersection))
+    regions = [(lane.polygon, lane.id) for lane in intersection.connecting_lanes.values()]
+    for region, lane in [*regions, (crossing.polygon, crossing.lane)]:
+        events += _region_events(track, region, lane, EventKind.ENTERED_LANE, EventKind.LEFT_LANE)
     return _in_order(events)
 
 
@@ -318,16 +327,17 @@ def _at_curb(
     track: _Track, region: Polygon, lane: str, arrival_distance: float
 ) -> LaneEvent | None:
     """When the front first comes within ``arrival_distance`` of ``region``."""
-    rad = np.radians(track.heading)
-    fronts = shapely.points(track.x + np.sin(rad) * track.length / 2.0,
-                            track.y + np.cos(rad) * track.length / 2.0)  # fmt: skip
-    gaps = shapely.distance(fronts, region)
+    gaps = shapely.distance(track.fronts(track.x, track.y, track.heading), region)
     near = np.flatnonzero(gaps <= arrival_distance)
     if near.size == 0:
         return None
     k = int(near[0])
     if k == 0:
         return LaneEvent(EventKind.ARRIVED, lane, float(track.t[0]), float(track.distance[0]))
-    share = (gaps[k - 1] - arrival_distance) / (gaps[k - 1] - gaps[k])
-    time, distance, *_ = track.between(k - 1, float(share))
+
+    def flips(shares: np.ndarray) -> np.ndarray:
+        fronts = track.fronts(*track.poses_between(k - 1, shares))
+        return shapely.distance(fronts, region) <= arrival_distance  # type: ignore[no-any-return]
+
+    time, distance = track.refine(k - 1, flips)
     return LaneEvent(EventKind.ARRIVED, lane, time, distance)

@@ -1,45 +1,34 @@
-"""The pedestrian laws (CVC 21950, 21951, 21451 and 21453 (b) for people on foot, 21456) at
-the ASP level: hand-written events with numeric times, real clingo, on the bundled four-ways
-with sidewalks and crossings guessed (tests/data/junctions/*-crossings; crossings and walks
-built by tests/core/checker/crossing_model.py).
+"""The pedestrian laws (CVC 21950 (a), (b), 21951) at the ASP level: hand-written events with
+numeric times, real clingo, on the bundled all-way stop with sidewalks and crossings guessed
+(tests/data/junctions/stop-crossings; crossings and walks built by
+tests/core/checker/crossing_model.py); and no car law treats a pedestrian as a car, under
+every rule set. The signal laws for people on foot: test_pedestrian_signal_rules.py.
 
-m = 1 s. At the all-way stop the ego comes from the south on lane 1 (``S2C_1``) and its near
-crosswalk is :C_c2, across the south road; walking C_c2+ (eastwards, from the south-west
-corner) a pedestrian crosses the two southbound exit lanes first, then S2C_2's and last
-S2C_1's path; walking C_c2- it meets S2C_1's path first. Times were chosen by hand: each
-comment says what happens.
+m = 1 s. The ego comes from the south on lane 1 (``S2C_1``) and its near crosswalk is :C_c2,
+across the south road; walking C_c2+ (eastwards, from the south-west corner) a pedestrian
+crosses the two southbound exit lanes first, then S2C_2's and last S2C_1's path; walking
+C_c2- it meets S2C_1's path first. Times were chosen by hand: each comment says what
+happens.
 """
 
 from __future__ import annotations
 
-import dataclasses
-
-import clingo
 import pytest
 
-from service.core.checker.rules import (
-    REQUESTED_LANE,
-    TimedEvent,
-    event_facts,
-    geometry_facts,
-    pedestrian_facts,
-    perceptible_order,
-    phase_facts,
-    signal_facts,
-    solve_rules,
-    time_symbol,
-)
-from service.core.checker.verdict import RIGHTS_OF_PEDESTRIANS
-from service.core.motion.events import EventKind, LaneEvent
-from service.core.network import ControlType, Intersection, load_intersection
-from service.core.network.signals import SignalPhase, SignalProgram
+from service.core.checker.rules import solve_rules
+from service.core.network import Intersection, load_intersection
 from tests.core.checker.crossing_model import signal_crossings, stop_crossings, with_crossings
-
-ARRIVED, STOPPED, ENTERED, EXITED = (
-    EventKind.ARRIVED, EventKind.STOPPED, EventKind.ENTERED, EventKind.EXITED,
-)  # fmt: skip
-IN, OUT = EventKind.ENTERED_LANE, EventKind.LEFT_LANE
-Event = tuple[str, EventKind, str | None, float]
+from tests.core.checker.pedestrian_traces import (
+    ARRIVED,
+    ENTERED,
+    EXITED,
+    IN,
+    OUT,
+    STOPPED,
+    Event,
+    facts_of,
+    judge,
+)
 
 EGO = "S2C_1:C2N_1"  # straight on from the south, lane 1
 BESIDE = "S2C_2:C2N_2"  # straight on from the south, lane 2, beside the ego
@@ -54,58 +43,6 @@ def stop() -> Intersection:
 @pytest.fixture(scope="module")
 def signal() -> Intersection:
     return signal_crossings()
-
-
-def facts_of(
-    intersection: Intersection,
-    cars: dict[str, str],
-    people: dict[str, str],
-    events: list[Event],
-    horizon: float = 60.0,
-) -> list[clingo.Symbol]:
-    """The facts of hand-written events, the k-th event's time symbol t(who, k). ``cars``:
-    id -> route, ``people``: id -> walk. Where an event happens: None is a car's fork or a
-    pedestrian's crossing, a route id that route's connecting lane, a crossing id that
-    crossing's lane."""
-    timed = []
-    for k, (who, kind, where, time) in enumerate(events):
-        if where is None and who in cars:
-            lane = intersection.route(cars[who]).fork
-        elif where is None:
-            lane = intersection.walk(people[who]).crossing
-        elif where in intersection.routes:
-            lane = intersection.routes[where].connecting_lane
-        else:
-            lane = intersection.crossings[where].lane
-        timed.append(TimedEvent(who, time_symbol(who, k), LaneEvent(kind, lane, time, 0.0)))
-    facts = geometry_facts(intersection) + perceptible_order(timed, 1.0)
-    facts += signal_facts(intersection, horizon) + phase_facts(intersection, timed, horizon)
-    for car, route_id in cars.items():
-        route = intersection.route(route_id)
-        facts.append(REQUESTED_LANE(car, route.connecting_lane))
-        facts += event_facts(car, route.fork, [t for t in timed if t.car == car])
-    for person, walk_id in people.items():
-        crossing = intersection.crossings[intersection.walk(walk_id).crossing]
-        facts += pedestrian_facts(person, crossing.lane, [t for t in timed if t.car == person])
-    return facts
-
-
-def judge(
-    intersection: Intersection, cars: dict[str, str], people: dict[str, str], events: list[Event]
-) -> set[tuple[str, ...]]:
-    """Violations as (violator, other, rule) and (violator, rule)."""
-    found: set[tuple[str, ...]] = set()
-    for atom in solve_rules(intersection.control, facts_of(intersection, cars, people, events)):
-        if atom.match("violatesRightOfForRule", 3):
-            v1, v2, rule = atom.arguments
-            found.add((v1.string, v2.string, str(rule)))
-            # a right-of-way owed to a pedestrian is one the verdict words so, and only
-            # cars owe one
-            assert (v2.string in people) == (str(rule) in RIGHTS_OF_PEDESTRIANS), atom
-            assert v1.string in cars, atom
-        elif atom.match("violatesRule", 2):
-            found.add((atom.arguments[0].string, str(atom.arguments[1])))
-    return found
 
 
 def _ego_stops(entered_crosswalk: float) -> list[Event]:
@@ -359,133 +296,6 @@ def test_passing_into_the_pedestrian_breaks_21951_and_21950a(stop: Intersection)
         ("ego", "ped1", "passesCarStoppedForPedestrian"),
         ("ego", "ped1", "yieldToPedestrian"),
     }
-
-
-# --- At a signal: 21451 (a), (b), 21453 (b) for people on foot, and 21456 -------------------
-
-RIGHT_TURN = {"ego": "N2C_1:C2W_1"}  # link 0, g 0-20 s; crosses :C_c3 (west road) leaving
-SOUTHWARDS = {"ped1": "C_c3+"}  # from the north-west corner, the ego's exit lane first
-WEST_ROAD = ":C_c3"
-
-
-def _turning(ego_reaches_crosswalk: float, stepped: float = 2.0) -> list[Event]:
-    return [
-        ("ped1", ENTERED, None, stepped),
-        ("ped1", IN, "N2C_1:C2W_1", stepped + 0.1),
-        ("ped1", OUT, "N2C_1:C2W_1", stepped + 3.0),
-        ("ped1", EXITED, None, stepped + 9.0),
-        ("ego", ARRIVED, None, 1.0),
-        ("ego", ENTERED, None, 3.0),
-        ("ego", IN, WEST_ROAD, ego_reaches_crosswalk),
-        ("ego", OUT, WEST_ROAD, ego_reaches_crosswalk + 1.5),
-    ]
-
-
-def _program(intersection: Intersection, right_turn: str) -> Intersection:
-    """One phase: the north's right turn shows ``right_turn``, :C_c3 walks, the rest red."""
-    state = ["r"] * 20
-    state[0], state[19] = right_turn, "G"
-    assert intersection.signals is not None
-    program = SignalProgram("C", "test", 0.0, (SignalPhase(60.0, "".join(state)),))
-    return dataclasses.replace(intersection, signals=program)
-
-
-def test_turning_on_green_into_a_pedestrian_on_walk_violates_21451a(signal: Intersection) -> None:
-    found = judge(signal, RIGHT_TURN, SOUTHWARDS, _turning(4.0))
-    assert found == {("ego", "ped1", "yieldToPedestrianOnGreen")}
-
-
-def test_turning_on_green_after_the_pedestrian_keeps_21451a(signal: Intersection) -> None:
-    assert judge(signal, RIGHT_TURN, SOUTHWARDS, _turning(6.0)) == set()
-
-
-def test_turning_on_a_green_arrow_into_a_pedestrian_violates_21451b(signal: Intersection) -> None:
-    found = judge(_program(signal, "G"), RIGHT_TURN, SOUTHWARDS, _turning(4.0))
-    assert found == {("ego", "ped1", "yieldToPedestrianOnArrow")}
-
-
-def test_turning_on_a_green_arrow_after_the_pedestrian_keeps_21451b(signal: Intersection) -> None:
-    assert judge(_program(signal, "G"), RIGHT_TURN, SOUTHWARDS, _turning(6.0)) == set()
-
-
-def test_turning_right_on_red_into_a_pedestrian_violates_21453b(signal: Intersection) -> None:
-    events = [*_turning(4.0), ("ego", STOPPED, None, 2.0)]
-    found = judge(_program(signal, "s"), RIGHT_TURN, SOUTHWARDS, events)
-    assert found == {("ego", "ped1", "yieldToPedestrianOnRightOnRed")}
-
-
-def test_turning_right_on_red_after_the_pedestrian_keeps_21453b(signal: Intersection) -> None:
-    events = [*_turning(6.0), ("ego", STOPPED, None, 2.0)]
-    assert judge(_program(signal, "s"), RIGHT_TURN, SOUTHWARDS, events) == set()
-
-
-def test_a_car_running_its_red_into_a_pedestrian_violates_21950a(signal: Intersection) -> None:
-    # ped1 stepped on at 13 s on walk and crawls; the ego enters on red at 24 s
-    events: list[Event] = [
-        ("ped1", ENTERED, None, 13.0),
-        ("ped1", IN, "N2C_1:C2W_1", 13.1),
-        ("ped1", OUT, "N2C_1:C2W_1", 30.0),
-        ("ego", ARRIVED, None, 22.0),
-        ("ego", ENTERED, None, 24.0),
-        ("ego", IN, WEST_ROAD, 25.0),
-    ]
-    found = judge(signal, RIGHT_TURN, SOUTHWARDS, events)
-    assert found == {("ego", "stopAtRed"), ("ego", "ped1", "yieldToPedestrian")}
-
-
-@pytest.mark.parametrize(("stepped", "colour"), [(16.0, "y"), (24.0, "r")])
-def test_stepping_onto_the_crossing_on_dont_walk_violates_21456(
-    signal: Intersection, stepped: float, colour: str
-) -> None:
-    assert signal.signal_colour_of_crossing(signal.crossings[WEST_ROAD], stepped) == colour
-    events: list[Event] = [("ped1", ARRIVED, None, 1.0), ("ped1", ENTERED, None, stepped)]
-    assert judge(signal, {}, SOUTHWARDS, events) == {("ped1", "walkAgainstSignal")}
-
-
-def test_a_pedestrian_who_started_on_walk_may_finish_under_21456(signal: Intersection) -> None:
-    events: list[Event] = [
-        ("ped1", ENTERED, None, 13.0),  # walk; flashing from 14, don't walk from 20
-        ("ped1", IN, "N2C_1:C2W_1", 13.1),
-        ("ped1", OUT, "N2C_1:C2W_1", 18.0),
-        ("ped1", EXITED, None, 22.0),
-    ]
-    assert judge(signal, {}, SOUTHWARDS, events) == set()
-
-
-def test_a_pedestrian_who_walked_against_the_signal_is_not_lawfully_within(
-    signal: Intersection,
-) -> None:
-    events = _turning(17.5, stepped=16.0)  # ped1 steps on at the flashing don't walk
-    events[5] = ("ego", ENTERED, None, 17.0)
-    found = judge(signal, RIGHT_TURN, SOUTHWARDS, events)
-    assert found == {("ped1", "walkAgainstSignal")}
-
-
-def test_the_rule_sets_cite_each_pedestrian_section(
-    stop: Intersection, signal: Intersection
-) -> None:
-    def laws(intersection: Intersection) -> dict[str, str]:
-        atoms = solve_rules(intersection.control, [], [("law", 2)])
-        return {str(a.arguments[0]): a.arguments[1].string for a in atoms}
-
-    common = {
-        "yieldToPedestrian": "21950(a)",
-        "leavesCurbIntoHazard": "21950(b)",
-        "passesCarStoppedForPedestrian": "21951",
-    }
-    assert common.items() <= laws(stop).items()
-    assert {
-        **common,
-        "yieldToPedestrianOnGreen": "21451(a)",
-        "yieldToPedestrianOnArrow": "21451(b)",
-        "yieldToPedestrianOnRightOnRed": "21453(b)",
-        "walkAgainstSignal": "21456(a)(3)",
-    }.items() <= laws(signal).items()
-    assert laws(signal).keys() >= RIGHTS_OF_PEDESTRIANS
-    for control in ControlType:
-        assert common.keys() <= {
-            str(a.arguments[0]) for a in solve_rules(control, [], [("law", 2)])
-        }
 
 
 # --- The car laws never see a pedestrian ----------------------------------------------------
