@@ -36,21 +36,23 @@ def candidate_routes(old: TestCase, intersection: Intersection) -> list[str]:
     """Routes a new car may take: routes the junction offers (no parking lane or bay,
     service.core.network.lanes.side_lane_reason) that conflict with the ego's or start on
     its fork (a car ahead of the ego), sorted by id; a car on a fork in use joins the
-    queue there."""
+    queue there. Then the walks a new pedestrian may take: those that cross the ego's
+    route (docs/pedestrians.md), sorted by id."""
     ego = old.ego.route
-    return sorted(
+    routes = sorted(
         route
         for route in intersection.offered_routes
         if route in intersection.conflicts[ego.id] or intersection.routes[route].fork == ego.fork
     )
+    return routes + sorted(w.id for w in intersection.walks.values() if ego.id in w.conflicts)
 
 
 def _by_free_fork(old: TestCase, intersection: Intersection, routes: list[str]) -> list[list[str]]:
     """Routes from forks no car uses, then those that join a queue (each in the order
     given): the second group is tried only when the first gave nothing."""
     used = {old.ego.route.fork, *(car.route.fork for car in old.nonegos)}
-    free = [r for r in routes if intersection.routes[r].fork not in used]
-    return [free, [r for r in routes if intersection.routes[r].fork in used]]
+    queued = [r for r in routes if r in intersection.routes and intersection.routes[r].fork in used]
+    return [[r for r in routes if r not in queued], queued]
 
 
 @dataclass(frozen=True)
@@ -120,9 +122,11 @@ def _first_extension(
             if left <= 0:
                 raise _exhausted(budget, outcomes, seed)
             try:
+                walking = route in junction.walks  # a pedestrian's walk, not a car's route
                 extension = extend_testcase(
-                    old, [route], seed, left, None, progress, junction, orders, judge, avoid
-                )
+                    old, [] if walking else [route], seed, left, None, progress, junction,
+                    orders, judge, avoid, [route] if walking else [],
+                )  # fmt: skip
             except (NoMoreComplexTestCase, InvalidInput) as error:  # no room on its fork
                 outcomes.append(f"{route}: {error}")
                 continue
