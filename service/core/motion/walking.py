@@ -64,6 +64,12 @@ def plan_walk(
     before, after = net.getLane(walk.before), net.getLane(walk.after)
     back = min(before.getLength(), max(WALK_LEAD, start_distance + 1.0))
     ahead = after.getLength()
+    # A sidewalk is walked either way: towards the junction on a road into it (from the
+    # lane's end) or out of it (from its start), and away from it likewise.
+    into = before.getEdge().getToNode().getID() == intersection.junction
+    depart = before.getLength() - back if into else back
+    away = after.getEdge().getFromNode().getID() == intersection.junction
+    arrival = ahead if away else 0.0
     reach = back + pace * duration + 1.0
     steps = 3 * math.ceil(reach / (pace * timestep)) + 100  # room for SUMO's slower stretches
     edges = (before.getEdge().getID(), walk.start, walk.crossing, walk.end,
@@ -71,8 +77,8 @@ def plan_walk(
     return WalkPlan(
         network_file=str(intersection.network_file),
         edges=edges,
-        depart_pos=round(before.getLength() - back, 6),
-        arrival_pos=round(ahead, 6),
+        depart_pos=round(depart, 6),
+        arrival_pos=round(arrival, 6),
         crossing=walk.crossing,
         tls=intersection.tls,
         pace=pace,
