@@ -78,6 +78,8 @@ STOP_DELAY = 4.0  # seconds a stop at a sign adds to a car's nominal schedule
 NOMINAL_SPREAD = 6.0  # seconds a new car's nominal schedule is late by at most (seeded)
 
 
+CROSSING_PACE = 0.9  # m/s: a generated pedestrian's least average speed over its crosswalk
+# (3 ft/s, the slowest walking speed crossings are timed for: no one lingers on one)
 SOLVE_LIMIT = 200_000  # conflicts clingo may spend on one answer set: a count, not a clock
 
 
@@ -118,11 +120,13 @@ class Limits:
     walking: Bounds | None = None  # the pedestrians' bounds (None: the cars')
 
     def of(self, car: OrderingCar) -> Limits:
-        """The limits of ``car``: a pedestrian walks within the walking bounds, and no
-        least speed holds it inside (it may stand on the crossing as anywhere)."""
+        """The limits of ``car``: a pedestrian walks within the walking bounds, and crosses
+        at CROSSING_PACE on average at least (no one lingers on a crosswalk)."""
         if not car.walker or self.walking is None:
             return self
-        return Limits(self.duration, self.walking, self.v_run, self.margin, None, self.walking)
+        crossing = CROSSING_PACE if self.crossing else None
+        return Limits(self.duration, self.walking, self.v_run, self.margin, crossing,
+                      self.walking)  # fmt: skip
 
 
 def stop_symbol(car: str) -> clingo.Symbol:

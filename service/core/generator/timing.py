@@ -86,6 +86,8 @@ class CarPlan:
     inside: tuple[int, int] | None = None  # knot indices of entering and leaving its lane
     bounds: Bounds | None = None  # its own speed and acceleration bounds (a pedestrian's
     # walking bounds); None: the problem's, a car's
+    crossing: float | None = None  # its own least average speed inside (a pedestrian's on
+    # its crosswalk); None: the problem's
 
 
 @dataclass(frozen=True)
@@ -286,10 +288,11 @@ class _Plan:
             first, last = car.run
             run = car.knots[last].distance - car.knots[first].distance
             program.at_most(terms[last + 1] - terms[first + 1], run / p.v_run)
-        if car.inside is not None and p.crossing:
+        least = car.crossing or p.crossing
+        if car.inside is not None and least:
             entry, leave = car.inside
             inside = car.knots[leave].distance - car.knots[entry].distance
-            program.at_most(terms[leave + 1] - terms[entry + 1], inside / p.crossing)
+            program.at_most(terms[leave + 1] - terms[entry + 1], inside / least)
         paces = [
             (terms[j] - terms[j - 1]) * (1.0 / (distances[j] - distances[j - 1]))
             for j in range(1, len(terms))

@@ -16,7 +16,7 @@ from typing import Any
 
 from service.core.checker.check import Judge
 from service.core.errors import InvalidInput
-from service.core.generator.ordering import CarKind, OrderingCar
+from service.core.generator.ordering import CROSSING_PACE, CarKind, OrderingCar
 from service.core.generator.timing import CarPlan
 from service.core.motion.events import LaneEvent, pedestrian_events
 from service.core.motion.kinematics import Bounds
@@ -119,8 +119,10 @@ def old_pedestrian_cars(judge: Judge, junction: Intersection) -> list[OrderingCa
 
 def walker_plan(plan: CarPlan, old: TestCase) -> CarPlan:
     """A pedestrian's Step 3 plan: its knots as a car's, within the walking bounds, with no
-    sign to run and no least speed on the crossing (a person may stand anywhere)."""
-    return CarPlan(plan.car, plan.knots, math.inf, None, None, None, walking_bounds(old))
+    sign to run, crossing at CROSSING_PACE on average at least (it may wait at the curb as
+    long as it likes, and it does not linger on the crosswalk)."""
+    return CarPlan(plan.car, plan.knots, math.inf, None, None, plan.inside,
+                   walking_bounds(old), CROSSING_PACE)  # fmt: skip
 
 
 def pedestrian_rows(
