@@ -10,7 +10,10 @@ recorded path (its polyline), so that a pose is where the pedestrian has walked 
 A walk starts ``start_distance`` metres of path before the pedestrian first steps onto
 the crossing: the walk in SUMO begins further back on its sidewalk (up to WALK_LEAD
 metres), and the poses before that point are dropped and the rest resampled at the pace,
-as a car's drive that starts on internal lanes is.
+as a car's drive that starts on internal lanes is. A walk that starts or ends on a traffic
+island (no sidewalk leads there: SUMO walks no one out of a walking area against a
+crossing, nor ends a walk on one) is walked straight along its crossing's line, from
+WALK_LEAD metres before it: the one walk SUMO does not make.
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ class WalkPlan:
     timestep: float
     steps: int  # SUMO steps at most
     reach: float  # metres of path the walk covers at least, where the sidewalk goes on
+    line: tuple[tuple[float, float], ...] = ()  # a walk from an island: its straight line
 
 
 def plan_walk(
@@ -60,6 +64,8 @@ def plan_walk(
     """The SUMO walk of ``walk``: from up to WALK_LEAD metres before the curb (at least
     ``start_distance``) on the sidewalk before it, to as far along the sidewalk after it as
     the duration allows."""
+    if not walk.before or walk.after == intersection.crossings[walk.crossing].lane:
+        return _from_island(intersection, walk, pace, duration, timestep, length, width)
     net = parsed_network(intersection.network_file)
     before, after = net.getLane(walk.before), net.getLane(walk.after)
     back = min(before.getLength(), max(WALK_LEAD, start_distance + 1.0))
@@ -70,7 +76,7 @@ def plan_walk(
     depart = before.getLength() - back if into else back
     away = after.getEdge().getFromNode().getID() == intersection.junction
     arrival = ahead if away else 0.0
-    reach = back + pace * duration + 1.0
+    reach = back + pace * duration + WALK_LEAD  # room for the walking area and the crossing
     steps = 3 * math.ceil(reach / (pace * timestep)) + 100  # room for SUMO's slower stretches
     edges = (before.getEdge().getID(), walk.start, walk.crossing, walk.end,
              after.getEdge().getID())  # fmt: skip
@@ -90,11 +96,43 @@ def plan_walk(
     )
 
 
+def _from_island(
+    intersection: Intersection, walk: Walk, pace: float, duration: float, timestep: float,
+    length: float, width: float,
+) -> WalkPlan:  # fmt: skip
+    """The straight walk of ``walk`` from a traffic island: its crossing's line, from
+    WALK_LEAD metres before it to as far beyond it as the duration allows."""
+    (x0, y0), (x1, y1) = walk.path.coords[0], walk.path.coords[-1]
+    ux, uy = (x1 - x0) / walk.length, (y1 - y0) / walk.length
+    reach = WALK_LEAD + pace * duration + 1.0
+    line = ((x0 - ux * WALK_LEAD, y0 - uy * WALK_LEAD),
+            (x0 + ux * (reach - WALK_LEAD), y0 + uy * (reach - WALK_LEAD)))  # fmt: skip
+    steps = math.ceil(reach / (pace * timestep)) + 1
+    return WalkPlan(
+        str(intersection.network_file), (), 0.0, 0.0, walk.crossing, intersection.tls, pace,
+        length, width, timestep, steps, reach, line,
+    )  # fmt: skip
+
+
+def _straight(plan: WalkPlan) -> list[PoseSample]:
+    """The poses of a walk along its straight line, at the pace."""
+    (x0, y0), (x1, y1) = plan.line
+    span = math.hypot(x1 - x0, y1 - y0)
+    heading = math.degrees(math.atan2(x1 - x0, y1 - y0)) % 360.0
+    samples = []
+    for k in range(plan.steps):
+        walked = min(k * plan.timestep * plan.pace, span)
+        share = walked / span
+        samples.append(PoseSample(k * plan.timestep, x0 + share * (x1 - x0),
+                                  y0 + share * (y1 - y0), heading, plan.pace, walked))  # fmt: skip
+    return samples
+
+
 def walk_persons(plans: Sequence[WalkPlan]) -> list[list[PoseSample]]:
     """Walk each plan in libsumo, one simulation after another, in this process."""
     import libsumo  # only here: libsumo is a per-process singleton
 
-    return [_walk_one(libsumo, plan) for plan in plans]
+    return [_straight(plan) if plan.line else _walk_one(libsumo, plan) for plan in plans]
 
 
 def _walk_one(traci: Any, plan: WalkPlan) -> list[PoseSample]:

@@ -17,7 +17,7 @@ import pytest
 
 from service.core.checker.rules import solve_rules
 from service.core.network import Intersection, load_intersection
-from tests.core.checker.crossing_model import signal_crossings, stop_crossings, with_crossings
+from tests.core.checker.crossing_model import signal_crossings, stop_crossings
 from tests.core.checker.pedestrian_traces import (
     ARRIVED,
     ENTERED,
@@ -309,7 +309,7 @@ def every_rule_set(
     netconvert as a priority stop and as uncontrolled: the crossings stay)."""
     cache = tmp_path_factory.mktemp("crossings")
     rebuilt = {
-        control: with_crossings(load_intersection(stop.source_file, "C", control, cache))
+        control: load_intersection(stop.source_file, "C", control, cache)
         for control in ("priority_stop", "right_before_left")
     }
     return {"allway_stop": stop, "traffic_light": signal, **rebuilt}
