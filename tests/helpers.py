@@ -9,7 +9,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import shapely
-from shapely.geometry import LineString, Point
+from shapely.geometry import LineString, Point, Polygon
 
 from service.cli.examples import EXAMPLES, run_example
 from service.core.generator.chain import candidate_routes
@@ -207,6 +207,34 @@ def off_road_samples(
             if not area.contains(Point(x, y)):
                 found.append(f"{name} at {sample.t:g} s: ({x:.1f}, {y:.1f})")  # type: ignore[attr-defined]
     return found
+
+
+def _walkable_area(network_file: Path) -> shapely.Geometry:
+    """Where people may walk: sidewalks (lanes for pedestrians only), walking areas and
+    crossings, each as the area it covers."""
+    net = parsed_network(network_file)
+    areas = []
+    for edge in net.getEdges(withInternal=True):
+        for lane in edge.getLanes():
+            shape = [(x, y) for x, y, *_ in lane.getShape()]
+            if edge.getFunction() == "walkingarea" and len(shape) >= 3:
+                areas.append(Polygon(shape).buffer(ON_ROAD_TOLERANCE))
+            elif lane.allows("pedestrian") and len(shape) >= 2 and LineString(shape).length > 0:
+                areas.append(LineString(shape).buffer(lane.getWidth() / 2 + ON_ROAD_TOLERANCE))
+    return shapely.union_all(areas)
+
+
+def off_walkable_samples(testcase: TestCase) -> list[str]:
+    """Every sample of the test-case's pedestrians whose centre lies off the sidewalks,
+    walking areas and crossings of the network, as "ped at t: (x, y)"."""
+    network_file = load_testcase_intersection(testcase).network_file
+    area = _walkable_area(network_file)
+    return [
+        f"{person.id} at {s.t:g} s: ({s.x:.1f}, {s.y:.1f})"
+        for person in testcase.pedestrians
+        for s in person.trajectory
+        if not area.contains(Point(s.x, s.y))
+    ]
 
 
 NEXT_JUNCTION_NODES = """<nodes>

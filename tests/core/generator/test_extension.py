@@ -53,10 +53,11 @@ def assert_strictly_more_complex(old: TestCase, new: TestCase) -> None:
     on_new = check_testcase(new, complexity, "complexity")
     assert not on_new.passed
     assert on_new.goal_reached and not on_new.collisions
-    added = {n.id for n in new.nonegos} - {n.id for n in old.nonegos}
+    added = {n.id for n in new.road_users} - {n.id for n in old.road_users}
     assert on_new.violations and all(v.other in added for v in on_new.violations)
-    # Old non-egos are kept exactly: that is what makes the solutions a subset.
+    # Old non-egos (cars and pedestrians) are kept exactly: the solutions are a subset.
     assert new.nonegos[: len(old.nonegos)] == old.nonegos
+    assert new.pedestrians[: len(old.pedestrians)] == old.pedestrians
     assert implausible_trajectories(new) == []  # every car and certificate drivable
     assert off_road_samples(new) == []  # no car or certificate off the network
 
