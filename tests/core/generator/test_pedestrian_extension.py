@@ -138,10 +138,10 @@ def test_a_second_pedestrian_joins_a_level_with_one() -> None:
 
 def test_walks_that_cannot_matter_or_do_not_exist_are_refused() -> None:
     stop = new_testcase("crosswalk-stop", "E2C_1:C2N_1", duration=30.0)
-    with pytest.raises(UnknownWalk, match="valid walks: C_c0\\+, C_c0-"):
+    with pytest.raises(UnknownWalk, match=r"valid walks: C_c0\+, C_c0-"):
         extend_testcase(stop, [], walks=["C_c9+"])
     with pytest.raises(NoMoreComplexTestCase, match="no walk crosses it"):
         extend_testcase(stop, [], walks=["C_c2+"])  # the south arm: the ego never gets there
     plain = new_testcase("4way-stop", "S2C_1:C2W_1")
-    with pytest.raises(UnknownWalk, match="no pedestrian crossings.*--guess-crossings"):
+    with pytest.raises(UnknownWalk, match=r"no pedestrian crossings.*--guess-crossings"):
         extend_testcase(plain, [], walks=["C_c0+"])

@@ -208,8 +208,8 @@ def assert_invariants(problem: TimingProblem, car: CarPlan, curve: Curve) -> Non
     for first, second in zip(car.knots, car.knots[1:], strict=False):
         if first.stop and second.stop:  # a stand: faster than v_stop until just before it
             begin = crossing(curve, first.distance)
-            if first.distance > 0:  # a car that stands where it starts has no approach
-                lead = stop_lead(problem.v_stop, own)
+            lead = stop_lead(problem.v_stop, own)
+            if begin > lead:  # a car that stands (almost) where it starts has no approach
                 assert curve.at(begin - lead - 1e-3)[1] > problem.v_stop - 1e-6
             assert abs(curve.at(begin + DWELL / 2)[1]) < 1e-6
 
