@@ -9,10 +9,13 @@ border, with one lane per SUMO lane (a sidewalk, a lane only people on foot may 
 lane of type ``sidewalk``); a junction's connections are its connecting roads.
 
 scengen adds what netconvert leaves out: a stop sign (signal 206, CARLA's catalogue) at the
-end of every road into a stop line, and at a signalized junction the junction's reference
-to its traffic light's controller, after checking that every link has its head
-(``openscenario_signals``). Where there is nothing to add, the file is netconvert's, byte
-for byte, with the two header edits.
+end of every road into a stop line; at a signalized junction the junction's reference to
+its traffic light's controller, after checking that every link has its head
+(``openscenario_signals``); and where the network has crossings, every crossing as a
+crosswalk object in place of netconvert's, which OpenDRIVE 1.5's schema refuses and which
+stand beside the crossing, with the pedestrian signals' heads at a signalized junction
+(``crosswalks``). Where there is nothing to add, the file is netconvert's, byte for byte,
+with the two header edits.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from service.core.errors import NetworkBuildFailed
+from service.core.export.crosswalks import CROSSWALK, add_pedestrian_heads, replace_crosswalks
 from service.core.export.openscenario_signals import complete_signal_heads, headed_links
 from service.core.network import Fork, Intersection, parsed_network
 from service.core.network.override import run_netconvert
@@ -73,14 +77,18 @@ def road_of(roads: Sequence[ET.Element], start: tuple[float, float], heading: fl
 
 
 def _with_additions(text: str, intersection: Intersection) -> str:
-    """netconvert's text with what scengen adds: the stop signs, and the junction's
-    reference to its traffic light's controller (``openscenario_signals``); the text as
-    netconvert wrote it (the same bytes) where there is nothing to add."""
+    """netconvert's text with what scengen adds: the stop signs, the crosswalks and the
+    pedestrian signals' heads (``crosswalks``), and the junction's reference to its traffic
+    light's controller (``openscenario_signals``); the text as netconvert wrote it (the
+    same bytes) where there is nothing to add."""
     forks = [f for f in intersection.forks.values() if f.stop_sign]
-    if not forks and not headed_links(intersection):
+    crosswalks = f'type="{CROSSWALK}"' in text
+    if not forks and not headed_links(intersection) and not crosswalks:
         return text
     root = ET.fromstring(text)
     _add_stop_signs(root, intersection, forks)
+    placed = replace_crosswalks(root, intersection)
+    add_pedestrian_heads(root, intersection, placed)
     complete_signal_heads(root, intersection)
     ET.indent(root, space="    ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"

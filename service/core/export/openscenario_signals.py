@@ -88,6 +88,19 @@ def headed_links(intersection: Intersection) -> list[int]:
     return sorted({int(link) for _, _, link in tls.getConnections()})
 
 
+def crossing_links(intersection: Intersection) -> dict[int, str]:
+    """The pedestrian signals of the junction's traffic light: the link index of every
+    connection onto a crossing, and that crossing's id; empty without a traffic light."""
+    if intersection.tls is None or not intersection.control.signalized:
+        return {}
+    tls = parsed_network(intersection.network_file).getTLS(intersection.tls)
+    return {
+        int(link): outgoing.getEdge().getID()
+        for _, outgoing, link in tls.getConnections()
+        if outgoing.getEdge().getFunction() == "crossing"
+    }
+
+
 def controller_phases(program: SignalProgram) -> list[ControllerPhase]:
     """The program's cycle as it runs from t = 0 (module docstring): the phase showing at
     t = 0 first, cut there when t = 0 falls inside it."""
