@@ -53,10 +53,13 @@ from service.core.motion.poses import CLEARANCE, interpolate_heading, start_fron
 from service.core.network import Intersection, parsed_network
 from service.core.network.lanes import departure_polyline
 from service.core.sumo.run import front_to_centre
-from service.core.testcase import Sample, TestCase, load_testcase_intersection
+from service.core.testcase import Pedestrian, Sample, TestCase, load_testcase_intersection
 
 CARLA_STEP = 0.05  # s: CARLA's fixed 20 Hz
 HEIGHT = 1.5  # m: a car's height (scengen has none)
+PEDESTRIAN_HEIGHT = 1.75  # m: an adult's height (scengen has none)
+PEDESTRIAN_MASS = 80.0  # kg
+CARLA_WALKER = "walker.pedestrian.0001"  # ScenarioRunner's walker for a pedestrian entity
 
 
 def heading_of(angle: float) -> float:
@@ -84,6 +87,22 @@ def _vehicle(testcase: TestCase, name: str, length: float, width: float) -> xosc
         name, xosc.VehicleCategory.car, box, front, rear,
         params.v_max, params.a_max, -params.a_min,
     )  # fmt: skip
+
+
+def _pedestrian(person: Pedestrian, flavour: Flavour) -> xosc.Pedestrian:
+    """A person on foot as a Pedestrian entity: the bounding box of its rectangle centred
+    on the reference point, as a car's; CARLA's flavour names the walker ScenarioRunner
+    spawns (OpenSCENARIO 1.0 requires a model), the ASAM one leaves the model to the
+    player."""
+    box = xosc.BoundingBox(
+        person.width, person.length, PEDESTRIAN_HEIGHT, 0.0, 0.0, PEDESTRIAN_HEIGHT / 2
+    )
+    model = CARLA_WALKER if flavour == "carla" else None
+    entity = xosc.Pedestrian(
+        person.id, PEDESTRIAN_MASS, xosc.PedestrianCategory.pedestrian, box, model
+    )
+    entity.add_property("scengen_walk", person.walk)
+    return entity
 
 
 def _resampled(samples: Sequence[Sample], step: float | None) -> list[Sample]:
@@ -130,14 +149,14 @@ def _follow(name: str, samples: Sequence[Sample], step: float | None, minor: int
     return event
 
 
-def _leave(name: str, end: float) -> xosc.Event:
+def _leave(name: str, end: float, where: str = "road") -> xosc.Event:
     """An event that removes its actor when its trajectory ends: it reached the end of its
-    road and left the map there (as SUMO removes it)."""
+    road (a pedestrian: of its walk) and left the map there (as SUMO removes it)."""
     event = xosc.Event(f"{name}_leaves", xosc.Priority.parallel)
     event.add_action(f"{name}_leaves_the_map", xosc.DeleteEntityAction(name))
     event.add_trigger(
         xosc.ValueTrigger(
-            f"{name}_at_the_end_of_its_road", 0, xosc.ConditionEdge.none,
+            f"{name}_at_the_end_of_its_{where}", 0, xosc.ConditionEdge.none,
             xosc.SimulationTimeCondition(round(end, 6), xosc.Rule.greaterThan),
         )
     )  # fmt: skip
@@ -267,16 +286,22 @@ def scenario(
     )
     init.add_init_action("ego", xosc.AssignRouteAction(_ego_route(testcase, intersection, start)))
 
-    followers: list[tuple[str, Sequence[Sample]]] = []
-    for car in testcase.nonegos:
-        entities.add_scenario_object(car.id, _vehicle(testcase, car.id, car.length, car.width))
-        first = car.trajectory[0]
-        init.add_init_action(car.id, xosc.TeleportAction(_world(first.x, first.y, first.heading)))
-        followers.append((car.id, car.trajectory))
+    followers: list[tuple[str, Sequence[Sample], str]] = []  # name, samples, what it ends
+    for user in testcase.road_users:  # the cars, then the pedestrians
+        if isinstance(user, Pedestrian):
+            entities.add_scenario_object(user.id, _pedestrian(user, known))
+            followers.append((user.id, user.trajectory, "walk"))
+        else:
+            entities.add_scenario_object(
+                user.id, _vehicle(testcase, user.id, user.length, user.width)
+            )
+            followers.append((user.id, user.trajectory, "road"))
+        first = user.trajectory[0]
+        init.add_init_action(user.id, xosc.TeleportAction(_world(first.x, first.y, first.heading)))
     if certificate is not None:
         if testcase.certificates is None:
             raise InvalidInput("the test-case has no certificates (an ego-only test-case)")
-        followers.append(("ego", getattr(testcase.certificates, certificate)))
+        followers.append(("ego", getattr(testcase.certificates, certificate), "road"))
 
     duration = xosc.ConditionGroup("stop")
     duration.add_condition(
@@ -291,11 +316,11 @@ def scenario(
     storyboard = xosc.StoryBoard(init, stop)
     if followers:
         act = xosc.Act("trajectories", _starts_now("at_the_start", minor))
-        for name, samples in followers:
+        for name, samples, where in followers:
             maneuver = xosc.Maneuver(f"{name}_maneuver")
             maneuver.add_event(_follow(name, samples, step, minor))
             if samples[-1].t < testcase.duration - testcase.timestep / 2:
-                maneuver.add_event(_leave(name, samples[-1].t))
+                maneuver.add_event(_leave(name, samples[-1].t, where))
             group = xosc.ManeuverGroup(f"{name}_group")
             group.add_actor(name)
             group.add_maneuver(maneuver)
@@ -306,6 +331,10 @@ def scenario(
     description = f"scengen test-case {testcase.name or testcase.junction}" + (
         f", the ego on its {certificate} certificate" if certificate else ""
     )
+    if testcase.pedestrians:
+        walks = ", ".join(f"{p.id} on walk {p.walk}" for p in testcase.pedestrians)
+        laws = "21950, 21951" + (", 21451, 21453, 21456" if testcase.signals else "")
+        description += f"; pedestrians: {walks} (their rules, CVC {laws}: {RULES_FILE})"
     return xosc.Scenario(
         description,
         "scengen",

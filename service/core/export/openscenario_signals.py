@@ -194,6 +194,13 @@ def signal_rules_text(program: SignalProgram, intersection: Intersection, flavou
     heads = "\n".join(
         f"  - `{head_id(tls, r.link_index)}`: `{r.id}` ({r.turn.value})" for r in routes
     )
+    crossings = crossing_links(intersection)
+    if crossings:  # the pedestrian signals, beside the crosswalks (module crosswalks)
+        heads += "\n" + "\n".join(
+            f"  - `{head_id(tls, link)}`: the pedestrian signal of crossing `{crossing}`, "
+            "at the curb beside its crosswalk"
+            for link, crossing in sorted(crossings.items())
+        )
     phases = "\n".join(
         f"  - `phase_{k}`: {p.duration:g} s, `{p.state}`" for k, p in enumerate(program.phases)
     )

@@ -18,14 +18,35 @@ RULES_FILE = "verdict-rules.md"
 def rules_text(
     testcase: TestCase, intersection: Intersection | None = None, flavour: str = "asam"
 ) -> str:
-    """The side file: what scengen judges and OpenSCENARIO cannot say; at a signalized
-    junction, its signals too (``intersection``: the test-case's, loaded when None)."""
+    """The side file: what scengen judges and OpenSCENARIO cannot say; with pedestrians,
+    their rules; at a signalized junction, its signals too (``intersection``: the
+    test-case's, loaded when None)."""
     p = testcase.params
-    signals = ""  # a section of its own, before the coordinates
-    if testcase.signals is not None:
-        junction = intersection or load_testcase_intersection(testcase)
+    junction = intersection
+    if junction is None and (testcase.signals is not None or testcase.pedestrians):
+        junction = load_testcase_intersection(testcase)
+    sections = ""  # sections of their own, before the coordinates
+    if testcase.pedestrians and junction is not None:
+        sections += pedestrian_rules_text(testcase, junction) + "\n"
+    if testcase.signals is not None and junction is not None:
         program = testcase.signals.to_program()
-        signals = signal_rules_text(program, junction, check_flavour(flavour)) + "\n"
+        sections += signal_rules_text(program, junction, check_flavour(flavour)) + "\n"
+    collisions = """- it collides with no other car (footprints of {length:g} m x
+  {width:g} m for the ego, the non-egos' own sizes);"""
+    coordinates = """Coordinates: SUMO's network coordinates (the OpenDRIVE file's), \
+a vehicle's reference
+point at the centre of its footprint, headings in radians counter-clockwise from the x
+axis. Run the trajectory of your player back through `scengen check` as SUMO FCD, CSV or
+JSON (README, `scengen check`)."""
+    if testcase.pedestrians:
+        collisions = """- it collides with no other road user (footprints of {length:g} m x
+  {width:g} m for the ego, the cars' and the pedestrians' own sizes);"""
+        coordinates = """Coordinates: SUMO's network coordinates (the OpenDRIVE file's), \
+a vehicle's reference
+point at the centre of its footprint and a pedestrian's at the centre of its rectangle,
+headings in radians counter-clockwise from the x axis. Run the trajectory of your player
+back through `scengen check` as SUMO FCD, CSV or JSON (README, `scengen check`)."""
+    collisions = collisions.format(length=testcase.ego.length, width=testcase.ego.width)
     return f"""# Pass-fail criteria of this test-case (scengen)
 
 OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the run, when
@@ -35,8 +56,7 @@ scengen judges the ego's trajectory (`scengen check testcase.json --ego TRAJECTO
 these criteria; the ego passes when all of them hold:
 
 - it reaches its exit lane (route `{testcase.ego.route.id}`) within {testcase.duration:g} s;
-- it collides with no other car (footprints of {testcase.ego.length:g} m x
-  {testcase.ego.width:g} m for the ego, the non-egos' own sizes);
+{collisions}
 - it obeys the traffic rules of `{testcase.rules}` at junction `{testcase.junction}`
   (control `{testcase.control}`): the California Vehicle Code as scengen reads it (README,
   "Traffic rules"), in the rule set `asp/rules/{testcase.rules}.lp`:
@@ -54,10 +74,66 @@ these criteria; the ego passes when all of them hold:
   {p.v_stop:g} m/s, running a sign at or above {p.v_run:g} m/s, arrival within
   {p.arrival_distance:g} m of the line, speed limit {p.v_max:g} m/s.
 
-{signals}Coordinates: SUMO's network coordinates (the OpenDRIVE file's), a vehicle's reference
-point at the centre of its footprint, headings in radians counter-clockwise from the x
-axis. Run the trajectory of your player back through `scengen check` as SUMO FCD, CSV or
-JSON (README, `scengen check`).
+{sections}{coordinates}
+"""
+
+
+def pedestrian_rules_text(testcase: TestCase, intersection: Intersection) -> str:
+    """The section of ``verdict-rules.md`` on the test-case's pedestrians and the rules
+    that protect them (docs/pedestrians.md, "The rules on an event trace")."""
+    p, walking = testcase.params, testcase.params.walk
+    people = []
+    for person in testcase.pedestrians:
+        walk = intersection.walks.get(person.walk)
+        crossing = walk.crossing if walk is not None else ":" + person.walk[:-1]
+        along = "along" if person.walk.endswith("+") else "against"
+        people.append(
+            f"  - `{person.id}`: walk `{person.walk}`, over crossing `{crossing}` {along} its\n"
+            f"    centreline, {person.length:g} m x {person.width:g} m, from "
+            f"{person.trajectory[0].t:g} s to {person.trajectory[-1].t:g} s"
+        )
+    signals = ""
+    if testcase.signals is not None:
+        signals = """
+- 21451 (a), (b) and 21453 (b): turning on a green or a green arrow, or right on red, the
+  ego yields to pedestrians lawfully within an adjacent crosswalk: the reading of 21950
+  (a), the pedestrian having stepped onto the crosswalk on her walk signal;
+- 21456 (`walkAgainstSignal`, a rule of the pedestrian): she starts to cross only on a
+  steady walk, her crossing's link `G` or `g` (its head below); a flashing or steady don't
+  walk (`y`, `r`) forbids starting, and one who started on walk may finish. scengen's
+  pedestrians never walk against their signal."""
+    return f"""## Pedestrians
+
+People on foot walk over the junction's crosswalks on fixed trajectories, as the non-ego
+cars drive theirs. In `testcase.xosc` each is a `Pedestrian` entity (its bounding box its
+rectangle, property `scengen_walk` its walk) that follows its trajectory from t = 0 and
+leaves the map where it ends; in `testcase.xodr` each crossing of the junction is a
+crosswalk object (`<object type="crosswalk">`, id the crossing's) whose outline is the
+crossing's polygon, where scengen's rules place it:
+
+{chr(10).join(people)}
+
+The ego obeys the California Vehicle Code's rules on pedestrians, judged on the event
+trace. The ego enters a crosswalk when its footprint first overlaps the crossing's
+polygon. A pedestrian arrives at the curb when her front comes within {walking.arrival_distance:g} m
+of the polygon, steps onto the crosswalk when her rectangle first overlaps it, and is off
+it when it stops overlapping it for good; she is in the ego's path until she has left
+the ego's connecting lane. Perceptibly is by at least m = {p.m:g} s.
+
+- 21950 (a) (`yieldToPedestrian`): the ego yields to a pedestrian crossing within a
+  crosswalk: it violates her right-of-way when it enters the crosswalk perceptibly after
+  she stepped onto it and perceptibly before she has left its connecting lane, she having
+  stepped onto it lawfully (not against 21950 (b) nor, at a signal, 21456);
+- 21950 (b) (`leavesCurbIntoHazard`, a rule of the pedestrian): she does not suddenly
+  leave the curb into the path of a vehicle so close as to be an immediate hazard: when
+  the ego enters the crosswalk not perceptibly after she stepped onto it and she reaches
+  its lane before it has left the crosswalk, she has no 21950 (a) right-of-way against
+  it. scengen's pedestrians never do that to a car of the test-case;
+- 21951 (`passesCarStoppedForPedestrian`): the ego does not overtake and pass a vehicle
+  stopped at a crosswalk for a pedestrian: it does not enter the crosswalk while a car on
+  a lane of the same road in the same direction stands before it (stopped at its limit
+  line, not yet entered) and a pedestrian is on the crosswalk in the path of either of
+  them;{signals}
 """
 
 
