@@ -44,6 +44,7 @@ from shapely.geometry.polygon import orient
 from service.core.errors import NetworkBuildFailed
 from service.core.export.openscenario_signals import crossing_links, head_id
 from service.core.network import Intersection, parsed_network
+from service.core.network.lanes import dedupe, shape_2d
 
 CROSSWALK = "crosswalk"
 PEDESTRIAN_LIGHT = "1000002"  # German catalogue: a pedestrian light (red, green)
@@ -167,7 +168,7 @@ def _crossing_shapes(intersection: Intersection, crossing: str) -> tuple[Polygon
             "network",
             junction=intersection.junction,
         ) from None
-    line = LineString(lane.getShape())
+    line = LineString(dedupe(shape_2d(lane)))  # as the model reads a crossing
     return line.buffer(lane.getWidth() / 2, cap_style="flat"), line
 
 

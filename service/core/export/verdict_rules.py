@@ -99,9 +99,10 @@ def pedestrian_rules_text(testcase: TestCase, intersection: Intersection) -> str
   ego yields to pedestrians lawfully within an adjacent crosswalk: the reading of 21950
   (a), the pedestrian having stepped onto the crosswalk on her walk signal;
 - 21456 (`walkAgainstSignal`, a rule of the pedestrian): she starts to cross only on a
-  steady walk, her crossing's link `G` or `g` (its head below); a flashing or steady don't
-  walk (`y`, `r`) forbids starting, and one who started on walk may finish. scengen's
-  pedestrians never walk against their signal."""
+  steady walk, her crossing's link `G` or `g`; a flashing or steady don't walk (`y`, `r`)
+  forbids starting, and one who started on walk may finish. scengen's pedestrians never
+  walk against their signal. Each crossing's link is a pedestrian signal head (below),
+  its state `green` walk, `yellow` flashing don't walk, `red` steady don't walk."""
     return f"""## Pedestrians
 
 People on foot walk over the junction's crosswalks on fixed trajectories, as the non-ego
