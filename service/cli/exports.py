@@ -91,7 +91,8 @@ def plot(args: argparse.Namespace) -> int:
         )
     say = progress(time.monotonic())
     from service.pictures.animation import animate_testcase  # matplotlib: on use
-    from service.pictures.plot import draw_testcase, save
+    from service.pictures.junction import save
+    from service.pictures.plot import draw_testcase
 
     testcase = read_input(args.testcase)
     junction = testcase_intersection(testcase, args)

@@ -25,15 +25,12 @@ from service.core.motion.poses import PoseSample
 from service.core.network import Intersection
 from service.core.network.signals import COLOUR_WORDS
 from service.core.testcase import TestCase
+from service.pictures.junction import STOP_LINE, draw_roads, draw_stop_lines, frame_map
 from service.pictures.labels import LabelPlacer
 from service.pictures.plot import (
     CAR_COLOURS,
-    STOP_LINE,
     DrawnPath,
     car_spot,
-    draw_roads,
-    draw_stop_lines,
-    frame_map,
     normal,
     picture_title,
     queue_leaders,
