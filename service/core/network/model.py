@@ -144,8 +144,12 @@ class Walk:
     end: str  # the walking area it goes to
     path: LineString  # the crossing's centreline in the walking direction, curb to curb
     heading: float  # of ``path``, degrees clockwise from north
-    before: str  # a sidewalk lane that leads into ``start`` (where Step 1's walk begins)
-    after: str  # a sidewalk lane that leads out of ``end`` (where it ends)
+    before: str  # a sidewalk lane that leads into ``start`` (where Step 1's walk begins;
+    # on a traffic island without sidewalks, the island's walking-area lane)
+    after: str  # a sidewalk lane that leads out of ``end`` (where it ends; where ``end``
+    # is a traffic island, the crossing's own lane: SUMO ends no walk on a walking area)
+    # libsumo walks a person added on ``before``'s edge to ``after``'s over this crossing
+    # (service.core.network.crossings)
     conflicts: tuple[str, ...]  # ids of the vehicle routes whose connecting lane crosses it
 
     @property
@@ -172,7 +176,7 @@ class Intersection:
     source_file: Path  # the network the caller named
     junction: str
     control: ControlType
-    overridden: bool  # the control type was changed with netconvert
+    overridden: bool  # the control type (or the major road) was changed with netconvert
     polygon: Polygon
     forks: dict[str, Fork]
     exits: dict[str, Exit]
@@ -198,6 +202,8 @@ class Intersection:
     # on a network without sidewalks and crossings: netconvert --crossings.guess adds them)
     crossings: dict[str, Crossing] = field(default_factory=dict)
     walks: dict[str, Walk] = field(default_factory=dict)
+    # the network was rebuilt with guessed sidewalks and crossings (--guess-crossings)
+    crossings_guessed: bool = False
 
     def signal_colour(self, route: Route, t: float) -> str | None:
         """The SUMO colour of ``route``'s signal at time ``t``; None without a signal."""
