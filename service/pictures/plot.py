@@ -27,7 +27,17 @@ from service.core.motion.queues import QueueCar, follows
 from service.core.network import Intersection
 from service.core.testcase import TestCase, readable_name, testcase_level
 from service.pictures.junction import STOP_LINE, draw_roads, draw_stop_lines, frame_map, save
-from service.pictures.labels import LabelPlacer, Spot
+from service.pictures.labels import GAP, LabelPlacer, Spot
+from service.pictures.pedestrians import (
+    DISC,
+    PEDESTRIAN_COLOURS,
+    Walker,
+    crosswalk_handles,
+    draw_crosswalks,
+    draw_pavements,
+    draw_walker,
+    walkers,
+)
 from service.pictures.signals import (
     STRIP_ROW,
     SignalHeads,
@@ -204,7 +214,10 @@ def _draw_starts(axes: Axes, paths: Sequence[DrawnPath], queues: dict[str, str |
 
 
 def _map_labels(
-    paths: Sequence[DrawnPath], every: int, queues: dict[str, str | None]
+    paths: Sequence[DrawnPath],
+    every: int,
+    queues: dict[str, str | None],
+    people: Sequence[Walker] = (),
 ) -> list[tuple[str, str, float, Spot]]:
     """The map's labels in the order they are placed (text, colour, font size, spot): each
     car's id at its start (once: the certificates start together) with the car it starts
@@ -224,8 +237,23 @@ def _map_labels(
                 continue
             spot = car_spot(sample, length, width, "right")
             times.append((-1.0 if rank < 0 else sample.t, rank, text, colour, spot))
+    for k, person in enumerate(people, start=len(paths)):
+        spot = walker_spot(person, person.samples[0], "left")
+        starts.append((person.id, person.colour, START_FONT, spot))
+        for sample, text in time_labels(list(person.samples[::every]), near=WALKER_NEAR):
+            times.append((sample.t, k, text, person.colour, walker_spot(person, sample, "right")))
     times.sort(key=lambda item: (item[0], item[1]))
     return starts + [(text, colour, TIME_FONT, spot) for _, _, text, colour, spot in times]
+
+
+WALKER_NEAR = 0.5  # m: a pedestrian's discs this close share a time label (she waits)
+
+
+def walker_spot(person: Walker, sample: PoseSample, sides: Literal["right", "left"]) -> Spot:
+    """The places beside a pedestrian's disc at ``sample``, as car_spot's beside a car,
+    clear of the disc (DISC points across)."""
+    spot = car_spot(sample, person.length, person.width, sides)
+    return Spot(spot.anchor, spot.directions, [0.0] * len(spot.directions), GAP + DISC / 2.0)
 
 
 def place_map_labels(
@@ -259,25 +287,31 @@ def draw_testcase(
     panel (the third axes). ``progress`` hears of each stage."""
     say = progress or (lambda message: None)
     paths = _testcase_paths(testcase, intersection, ego, ego_label)
+    people = walkers(testcase)
     rows = signal_rows(
         testcase, intersection, [(drawn[2], drawn[3]) for drawn in paths if drawn[0] == EGO],
         [CAR_COLOURS[k % len(CAR_COLOURS)] for k in range(len(testcase.nonegos))],
+        [person.colour for person in people],
     )  # fmt: skip
     figure, axes, panel, strip = _figure(len(rows))
     draw_roads(axes, intersection)
+    draw_pavements(axes, intersection)
+    draw_crosswalks(axes, intersection)
     draw_stop_lines(axes, intersection)
     if any(fork.stop_sign for fork in intersection.forks.values()):
         axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
     heads = SignalHeads(axes, intersection)
     heads.show(0.0)  # the moment of the starts' markers; the strip has the rest
     step = max(1, round(2.0 / testcase.timestep))
-    say(f"drawing {len(paths)} paths")
+    say(f"drawing {len(paths)} paths" + (f" and {len(people)} pedestrians" if people else ""))
     obstacles = [_draw_path(axes, panel, drawn, step) for drawn in paths]
+    obstacles += [draw_walker(axes, panel, person, step) for person in people]
     queues = queue_leaders(testcase, intersection)
     _draw_starts(axes, paths, queues)
     _draw_events(panel, testcase, verdict, ego)
-    frame_map(axes, intersection, [drawn[3][0] for drawn in paths if drawn[3]])
-    _map_legend(axes, heads)
+    starts = [drawn[3][0] for drawn in paths if drawn[3]]
+    frame_map(axes, intersection, starts + [p.samples[0] for p in people if p.samples])
+    _map_legend(axes, heads, intersection)
     figure.suptitle(picture_title(testcase), fontsize=13)
     signals = "; signals at t = 0 s" if heads.heads else ""
     axes.set_title(f"junction {testcase.junction} ({intersection.control.value}), "
@@ -287,7 +321,7 @@ def draw_testcase(
         panel.tick_params(labelbottom=False)  # the strip under it has the times
     else:
         panel.set_xlabel("time (s)")
-    panel.set_ylabel("distance travelled (m)")
+    panel.set_ylabel("distance travelled or walked (m)" if people else "distance travelled (m)")
     panel.grid(alpha=0.3)
     panel.legend(loc="upper left", fontsize=7)
     figure.tight_layout()
@@ -295,7 +329,7 @@ def draw_testcase(
         _fit_verdict(figure, panel, verdict)
     else:
         panel.set_title("distance over time; markers: events")
-    labels = _map_labels(paths, step, queues)
+    labels = _map_labels(paths, step, queues, people)
     say(f"placing {len(labels)} labels")
     if heads.heads:
         obstacles.append(heads.points())
@@ -322,10 +356,13 @@ def _figure(strip_rows: int) -> tuple[Figure, Axes, Axes, Axes | None]:
     return figure, axes, panel, strip
 
 
-def _map_legend(axes: Axes, heads: SignalHeads) -> None:
-    """The map's legend below it: the paths, starts and stop lines, then the signals'
-    colours (those the heads show at some time: the strip's colours too)."""
+def _map_legend(axes: Axes, heads: SignalHeads, intersection: Intersection) -> None:
+    """The map's legend below it: the paths (the pedestrians' among them), starts and stop
+    lines, the crosswalks and sidewalks, then the signals' colours (those the heads show
+    at some time: the strip's colours too)."""
     handles, labels = axes.get_legend_handles_labels()
+    walking, names = crosswalk_handles(intersection)
+    handles, labels = handles + walking, labels + names
     more, words = colour_handles(heads.colours_used())
     axes.legend(handles + more, labels + words, loc="upper center",
                 bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)  # fmt: skip
@@ -334,10 +371,14 @@ def _map_legend(axes: Axes, heads: SignalHeads) -> None:
 def _draw_events(
     panel: Axes, testcase: TestCase, verdict: Verdict | None, ego: Sequence[PoseSample]
 ) -> None:
-    """The non-egos' events in their colours and an evaluated ego's in black, on the panel."""
-    for k, nonego in enumerate(testcase.nonegos):
-        colour = CAR_COLOURS[k % len(CAR_COLOURS)]
-        for event in nonego.events:
+    """The non-egos' events in their colours and an evaluated ego's in black, on the panel;
+    a pedestrian's (at the curb, onto and off her crossing) in hers."""
+    users = [(nonego.events, CAR_COLOURS[k % len(CAR_COLOURS)])
+             for k, nonego in enumerate(testcase.nonegos)]  # fmt: skip
+    users += [(person.events, PEDESTRIAN_COLOURS[k % len(PEDESTRIAN_COLOURS)])
+              for k, person in enumerate(testcase.pedestrians)]  # fmt: skip
+    for events, colour in users:
+        for event in events:
             if event.kind.value in EVENT_MARKERS:
                 panel.plot([event.t], [event.distance], EVENT_MARKERS[event.kind.value],
                            color=colour, ms=6)  # fmt: skip
@@ -346,8 +387,9 @@ def _draw_events(
             if ref.kind in EVENT_MARKERS:
                 at = min(ego, key=lambda s: abs(s.t - ref.t))
                 panel.plot([ref.t], [at.distance], EVENT_MARKERS[ref.kind], color="black", ms=6)
+    whose = "road user's" if testcase.pedestrians else "car's"
     for kind, marker in EVENT_MARKERS.items():
-        panel.plot([], [], marker, color="0.3", label=f"{kind} (in the car's colour)")
+        panel.plot([], [], marker, color="0.3", label=f"{kind} (in the {whose} colour)")
 
 
 def verdict_lines(verdict: Verdict, columns: int) -> list[str]:
