@@ -21,6 +21,7 @@ from shapely.geometry import Polygon
 from service.core.motion.events import rectangles
 from service.core.motion.poses import PoseSample
 from service.core.network import Intersection
+from service.pictures.pedestrians import draw_crosswalks, draw_pavements
 from service.pictures.signals import SignalHeads, colour_handles
 
 TURN_COLOURS = {"left": "tab:red", "right": "tab:green", "straight": "tab:blue"}
@@ -71,10 +72,12 @@ def plot_intersection(
     car: tuple[float, float] = (5.0, 1.8),
 ) -> None:
     """Draw the junction, every connecting lane (coloured by turn), forks with their names,
-    the highlighted routes, the signal heads at t = 0 s of the junction's program, and
-    optionally a car's rectangles every second."""
+    the highlighted routes, the crosswalks, the signal heads at t = 0 s of the junction's
+    program, and optionally a car's rectangles every second."""
     figure, axes = plt.subplots(figsize=(8, 8))
     draw_roads(axes, intersection)
+    draw_pavements(axes, intersection)
+    draw_crosswalks(axes, intersection)
     for route in intersection.routes.values():
         lane = intersection.connecting_lanes[route.connecting_lane]
         chosen = route.id in highlight
