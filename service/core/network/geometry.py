@@ -204,12 +204,13 @@ def _outline(lane: Any) -> BaseGeometry:
 
 
 def junction_geometry(intersection: Intersection) -> dict[str, Any]:
-    """Roads, junction area, connecting paths, stop lines, signal heads, crossings and
-    walking areas of ``intersection`` (each head: its fork, link index, routes, turn and
-    its bar's corners; the colour is the test-case's program's at the moment drawn; each
-    crossing: its id, lane, the roads it crosses, its signal's link index or -1, its
-    centreline, polygon, width and zebra's bars; each walking area: its id and polygon;
-    each pedestrian head: its crossing, link index, the walk that starts at it, its bar)."""
+    """Roads (each lane's polygon, and whether it is a sidewalk), junction area, connecting
+    paths, stop lines, signal heads, crossings and walking areas of ``intersection`` (each
+    head: its fork, link index, routes, turn and its bar's corners; the colour is the
+    test-case's program's at the moment drawn; each crossing: its id, lane, the roads it
+    crosses, its signal's link index or -1, its centreline, polygon, width and zebra's
+    bars; each walking area: its id and polygon; each pedestrian head: its crossing, link
+    index, the walk that starts at it, its bar)."""
     net = read_network(intersection.network_file)
     edges = {f.edge for f in intersection.forks.values()} | {
         e.edge for e in intersection.exits.values()
@@ -220,7 +221,8 @@ def junction_geometry(intersection: Intersection) -> dict[str, Any]:
             line = LineString(lane.getShape())
             if line.length > 0:
                 shape = line.buffer(lane.getWidth() / 2, cap_style="flat")
-                roads.append({"lane": lane.getID(), "polygon": _rings(shape)})
+                sidewalk = lane.allows("pedestrian") and not lane.allows("passenger")
+                roads.append({"lane": lane.getID(), "polygon": _rings(shape), "sidewalk": sidewalk})
     stop_lines = []
     for fork in sorted(intersection.forks.values(), key=lambda f: f.lane):
         x, y = fork.stop_line

@@ -51,7 +51,7 @@ def test_a_junction_without_lights_has_no_heads(four_way: Intersection) -> None:
 def test_a_zebra_lies_on_its_crossing_clear_of_the_curbs() -> None:
     """Every bar inside its crossing's strip, parallel to the road it crosses (its long
     side across the walking direction), STRIPE_GAP apart, none within STRIPE_END of a
-    curb; the geometry carries them with the crossing's width."""
+    curb; the geometry carries them with the crossing's width, and the sidewalks."""
     intersection = load_intersection("crosswalk-stop")
     assert len(intersection.crossings) == 4
     shapes = {c["id"]: c for c in junction_geometry(intersection)["crossings"]}
@@ -72,6 +72,8 @@ def test_a_zebra_lies_on_its_crossing_clear_of_the_curbs() -> None:
         assert gaps == pytest.approx([STRIPE + STRIPE_GAP] * (len(bars) - 1))
         assert shapes[crossing.id]["width"] == crossing.width
         assert len(shapes[crossing.id]["stripes"]) == len(bars)
+    sidewalks = {r["lane"] for r in junction_geometry(intersection)["roads"] if r["sidewalk"]}
+    assert sidewalks == {f"{e}_0" for e in ("C2E", "C2N", "C2S", "C2W", "E2C", "N2C", "S2C", "W2C")}
     assert pedestrian_heads(intersection) == []  # an all-way stop: no pedestrian signal
     assert junction_geometry(intersection)["pedestrian_heads"] == []
 
