@@ -9,7 +9,9 @@ evaluation. The report `scengen report JOB --server` writes works from a file, o
 A campaign whose verdicts carry criticality (hand-made ones: the measures are tested
 where they are computed) plots each measure by level beside the failure rate.
 On a server of its own, a signalized test-case's animation draws each signal head in the
-colour its program shows at the moment on the slider.
+colour its program shows at the moment on the slider; on another, a test-case with a
+pedestrian lists her, draws the crosswalks and moves her over one; a network's page
+lists its walks under each junction drawn with its zebras.
 Screenshots go to build/screenshots/ui-*.png (look at them)."""
 
 from __future__ import annotations
@@ -28,12 +30,22 @@ from playwright.sync_api import Page
 
 from service.core.campaign import run_campaign
 from service.core.checker.check import until_goal
+from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import PoseSample
-from service.core.testcase import Signals, load_testcase_intersection, parse_testcase
+from service.core.testcase import (
+    Signals,
+    TestCase,
+    load_testcase_intersection,
+    new_testcase,
+    parse_testcase,
+)
+from service.pictures.pedestrians import CROSSWALK, PEDESTRIAN_COLOURS
 from service.pictures.report import report_html
 from service.pictures.signals import SIGNAL_COLOURS
+from service.store import Store
 from tests.api.test_docs_browser import SCREENSHOTS, external, opened_page
 from tests.core.test_campaign import RULES, FakeSteps, plan
+from tests.pictures.crossings import straight_walk, with_pedestrians
 from tests.servers import Server
 
 pytestmark = pytest.mark.slow
@@ -561,4 +573,133 @@ def test_the_animation_draws_each_signal_head_in_its_colour_at_that_moment(
     shown = {s["head"]: s["colour"] for s in page.evaluate(SIGNALS_SHOWN)}
     assert shown == {head: program.colour(link, 13.0) for head, link in heads.items()}
     assert page.locator("#signal-legend").count() == 1
+    assert external(server, requested[before:]) == []
+
+
+def test_a_network_page_lists_the_walks_and_draws_the_crosswalks(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    """A network with crosswalks: each junction drawn with its zebras (the bars the API's
+    geometry gives) and, under it, its walks as `scengen intersection` describes them; at a
+    signal, a walk signal at each curb."""
+    server, _, _ = served
+    page, requested = browser_page
+    before = len(requested)
+    for network, heads in (("crosswalk-stop", 0), ("crosswalk-signal", 8)):
+        geometry = server.client.get(f"/networks/{network}/junctions/C/geometry").json()
+        walks = server.client.get(f"/networks/{network}/junctions/C").json()["walks"]
+        assert len(walks) == 8 and len(geometry["crossings"]) == 4
+        page.goto(f"{server.url}/ui/#/networks/{network}")
+        page.wait_for_selector("details.walks li", state="attached")
+        drawing = page.locator("svg.junction-drawing[data-junction='C']")
+        assert drawing.locator("g.crosswalk").count() == 4
+        stripes = sum(len(crossing["stripes"]) for crossing in geometry["crossings"])
+        assert drawing.locator("polygon.stripe").count() == stripes >= 4 * 8
+        assert drawing.locator("polygon.pedestrian-head").count() == heads
+        assert drawing.locator("polygon.walking-area").count() == 4
+        listed = page.locator("details.walks li")
+        assert [listed.nth(k).get_attribute("data-walk") for k in range(listed.count())] == [
+            w["id"] for w in walks
+        ]  # fmt: skip
+        page.locator("details.walks summary").click()  # open: the walks shown
+        first = listed.first.inner_text()
+        assert first.startswith(f"{walks[0]['id']} · {walks[0]['from']} → {walks[0]['to']}")
+        assert f"{len(walks[0]['conflicts'])} conflicting routes" in first
+        page.screenshot(path=str(SCREENSHOTS / f"ui-walks-{network}.png"), full_page=True)
+    assert external(server, requested[before:]) == []
+
+
+@pytest.fixture(scope="module")
+def walking(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, str, TestCase]]:
+    """A server of its own holding a test-case on crosswalk-stop: the ego turns left from
+    the south, car1 (level 1) comes from the east, and ped1 (level 2) walks over the south
+    crosswalk from west to east (C_c2+, 1.3 m/s, from 3 m before the curb to 3 m past the
+    far one: her trajectory ends at 14.5 s)."""
+    folder = tmp_path_factory.mktemp("ui-walking")
+    start = new_testcase("crosswalk-stop", "S2C_2:C2W_2", duration=20.0)
+    testcase = extend_testcase(start, ["E2C_2:C2S_2"], seed=0).testcase
+    intersection = load_testcase_intersection(testcase)
+    person = straight_walk(intersection, "C_c2+", testcase, added_in=2)
+    testcase = with_pedestrians(testcase, [person])
+    server = Server(folder, workers="1")
+    try:
+        store = Store(f"sqlite:///{folder.resolve()}/scengen.sqlite3", folder / "cache")
+        ident = store.add_testcase(testcase).id
+        store.close()
+        yield server, ident, testcase
+    finally:
+        server.stop()
+
+
+WALKERS_SHOWN = """() => {
+  const canvas = document.querySelector('#animation');
+  const context = canvas.getContext('2d');
+  const pixel = (x, y) => [...context.getImageData(Math.floor(x), Math.floor(y), 1, 1).data];
+  return JSON.parse(canvas.dataset.walkers).map((w) => ({...w, pixel: pixel(w.x, w.y)}));
+}"""
+CANVAS_PIXEL = """([x, y]) => [...document.querySelector('#animation').getContext('2d')
+  .getImageData(Math.floor(x), Math.floor(y), 1, 1).data]"""
+
+
+def test_a_testcase_with_a_pedestrian_shows_her_walking_over_the_crosswalk(
+    walking: tuple[Server, str, TestCase], browser_page: tuple[Page, list[str]]
+) -> None:
+    """The test-case's page lists her (id, walk, level, when she is on the crosswalk), the
+    animation draws the zebras and moves her disc along her trajectory (where the page's
+    view puts her: canvas pixels of her colour), she is gone once her trajectory ends, and
+    the time-distance panel has her dotted curve named as a pedestrian's."""
+    server, ident, testcase = walking
+    person = testcase.pedestrians[0]
+    page, requested = browser_page
+    before = len(requested)
+    geometry = server.client.get("/networks/crosswalk-stop/junctions/C/geometry").json()
+    page.goto(f"{server.url}/ui/#/testcases/{ident}")
+    page.wait_for_selector("#animation[data-walkers]")
+    row = page.locator("#pedestrians tbody tr").first.locator("td").all_inner_texts()
+    on = {e.kind.value: e.t for e in person.events}
+    assert row[:6] == ["ped1", "C_c2+", "2", f"{on['arrived']:.1f} s", f"{on['entered']:.1f} s",
+                       f"{on['exited']:.1f} s"]  # fmt: skip
+    assert "1 pedestrians" in page.locator("main p.muted").first.inner_text()
+    canvas = page.locator("#animation")
+    width, height = int(canvas.get_attribute("width")), int(canvas.get_attribute("height"))
+    xs = [p[0] for ring in geometry["area"] for p in ring]
+    ys = [p[1] for ring in geometry["area"] for p in ring]
+    half = max(max(xs) - min(xs), max(ys) - min(ys)) / 2 + 40  # Player.view
+    scale = min(width, height) / (2 * half)
+
+    def screen(x: float, y: float) -> tuple[float, float]:
+        return (width / 2 + (x - (min(xs) + max(xs)) / 2) * scale,
+                height / 2 - (y - (min(ys) + max(ys)) / 2) * scale)  # fmt: skip
+
+    colour = [*(round(255 * v) for v in to_rgb(PEDESTRIAN_COLOURS[0])), 255]
+    places = []
+    for moment in ("4", "8"):
+        page.locator("#scrub").fill(moment)
+        (shown,) = page.evaluate(WALKERS_SHOWN)
+        sample = person.trajectory[int(moment) * 10]
+        assert shown["id"] == "ped1"
+        assert (shown["x"], shown["y"]) == pytest.approx(screen(sample.x, sample.y), abs=0.1)
+        assert shown["pixel"] == colour, moment
+        places.append((shown["x"], shown["y"]))
+    assert places[1][0] - places[0][0] == pytest.approx(4 * 1.3 * scale, abs=0.2)  # east
+    bars = geometry["crossings"][0]["stripes"]  # the north zebra: nobody on it at 8 s
+    centre = [sum(p[k] for p in bars[3][:4]) / 4 for k in (0, 1)]
+    assert page.evaluate(CANVAS_PIXEL, list(screen(*centre))) == [255, 255, 255, 255]
+    gap = [(sum(p[k] for p in bars[3][:4]) + sum(p[k] for p in bars[4][:4])) / 8 for k in (0, 1)]
+    strip = [round(255 * v) for v in to_rgb(CROSSWALK)]  # 3 px between bars: blended a little
+    dark = page.evaluate(CANVAS_PIXEL, list(screen(*gap)))[:3]
+    assert max(abs(a - b) for a, b in zip(dark, strip, strict=True)) <= 30, dark
+    page.screenshot(path=str(SCREENSHOTS / "ui-pedestrian.png"), full_page=True)
+    page.locator("#scrub").fill("16")  # her trajectory ended at 14.5 s
+    assert page.evaluate(WALKERS_SHOWN) == []
+    curve = page.locator("#time-distance polyline.walker-curve[data-track='ped1']")
+    assert curve.count() == 1 and curve.get_attribute("stroke-dasharray") != "none"
+    names = page.locator("#time-distance text.curve-name").all_text_contents()
+    assert "ped1 (pedestrian)" in names and "car1" in names
+    assert "distance driven or walked (m)" in (page.locator("#time-distance").text_content() or "")
+    page.locator("details summary:has-text('Events')").click()
+    events = page.locator("details table tbody tr").all_inner_texts()
+    entered = next(e for e in person.events if e.kind.value == "entered")
+    assert f"{entered.t:.2f}\tped1\tentered\t{entered.lane}" in events
+    assert sum(row.split("\t")[1] == "ped1" for row in events) == len(person.events)
     assert external(server, requested[before:]) == []

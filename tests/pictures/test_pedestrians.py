@@ -2,10 +2,12 @@
 zebras (a group of bars per crossing), the pedestrian's id, disc and dotted path in her
 colour and her curve on the time-distance panel, labels apart; at a signal her crossing's
 heads in their colour and her row in the strip; the GIF's frames with her disc where she
-is, and none once her trajectory has ended."""
+is, and none once her trajectory has ended; the browser's colours equal to the
+pictures'."""
 
 from __future__ import annotations
 
+import json
 import re
 import xml.etree.ElementTree as ElementTree
 from collections.abc import Iterator
@@ -18,6 +20,7 @@ import pytest
 from matplotlib.colors import to_hex, to_rgb
 from PIL import Image
 
+import service.pictures
 from service.core.generator.extension import extend_testcase
 from service.core.network import Intersection
 from service.core.network.geometry import zebra_stripes
@@ -257,3 +260,11 @@ def test_the_gif_moves_the_pedestrian_over_the_zebra_and_drops_her_when_her_walk
     assert _near(frames[4], CROSSWALK, gap, reach=0)  # and the dark strip between two bars
     assert _count(frames[4].crop(inside), colour) > 20  # her disc and her id
     assert _count(frames[16].crop(inside), colour) == 0  # gone
+
+
+def test_the_browser_draws_the_pedestrians_colours() -> None:
+    """ui.js's PEDESTRIAN_COLOURS is the pictures' table."""
+    script = (Path(service.pictures.__file__).parent / "ui" / "ui.js").read_text()
+    table = re.search(r"const PEDESTRIAN_COLOURS = (\[[^\]]*\]);", script)
+    assert table
+    assert json.loads(table.group(1)) == PEDESTRIAN_COLOURS
