@@ -17,8 +17,17 @@ Decisions (tested in tests/core/network/test_crossings.py):
   junction, and SUMO's router takes the shortest way between them, over this crossing
   (the other way round the junction crosses three roads). A road the crossing crosses
   would meet its opposite direction again at the node at its far end, so SUMO could walk
-  round there. Where a walking area has no sidewalk at all (a traffic island between two
-  crossings) ``before``/``after`` is "" and Step 1 starts or ends on the walking area.
+  round there.
+- A walking area without any sidewalk is a traffic island between two crossings (a road
+  split by a median: Town05's junctions 2014 and 2328 with guessed crossings). A walk
+  that ends on an island has the crossing's own lane as ``after``: libsumo walks a person
+  from ``before``'s edge to the crossing's and she arrives on it at the island's curb
+  (arrival position: the crossing's length walking along its centreline, 0 against it);
+  SUMO refuses a walk that ends on the walking area itself ("Disconnected walk"). A walk
+  that starts on an island has no ``before`` (""): a person added on the island's walking
+  area only ever leaves it forwards, along the lane that SUMO's connections lead into
+  from there, so against the crossing's centreline SUMO walks her the other way round
+  the junction; Step 1 places such a person on the walk's path itself.
 - A walk conflicts with a vehicle route when the route's connecting lane overlaps the
   crossing's polygon in a region that holds a disc of ``SLIVER_RADIUS`` (relations.py):
   the same test as two routes, so a lane grazing the crossing's corner does not count.
@@ -127,7 +136,7 @@ def build_walks(
                 end=end,
                 path=path,
                 heading=round(heading_of(path.coords[0], path.coords[-1]), 6),
-                before=sidewalk(net, start, crossing.edges) or _lane_of(net, start),
+                before=sidewalk(net, start, crossing.edges),
                 after=sidewalk(net, end, crossing.edges) or crossing.lane,
                 conflicts=conflicts,
             )
@@ -154,10 +163,6 @@ def sidewalk(net: Any, walking_area: str, crossed: tuple[str, ...]) -> str:
         ),
     )
     return str(best.getID())
-
-
-def _lane_of(net: Any, walking_area: str) -> str:
-    return str(net.getEdge(walking_area).getLanes()[0].getID())
 
 
 def _walking_area(lane: Any) -> bool:

@@ -145,11 +145,11 @@ class Walk:
     path: LineString  # the crossing's centreline in the walking direction, curb to curb
     heading: float  # of ``path``, degrees clockwise from north
     before: str  # a sidewalk lane that leads into ``start`` (where Step 1's walk begins;
-    # on a traffic island without sidewalks, the island's walking-area lane)
+    # "" where ``start`` is a traffic island without sidewalks)
     after: str  # a sidewalk lane that leads out of ``end`` (where it ends; where ``end``
     # is a traffic island, the crossing's own lane: SUMO ends no walk on a walking area)
     # libsumo walks a person added on ``before``'s edge to ``after``'s over this crossing
-    # (service.core.network.crossings)
+    # and no other (service.core.network.crossings)
     conflicts: tuple[str, ...]  # ids of the vehicle routes whose connecting lane crosses it
 
     @property
@@ -249,7 +249,8 @@ class Intersection:
         self.exit(exit_lane)
         raise UnknownRoute(
             f"no connection from fork {fork!r} to exit {exit_lane!r} at junction "
-            f"{self.junction!r}; valid routes: {choices(self.offered_routes)}",
+            f"{self.junction!r}; valid routes: {choices(self.offered_routes)}"
+            + self._shifted_note(),
             junction=self.junction,
         )
 
@@ -258,7 +259,7 @@ class Intersection:
         if lane not in self.forks:
             raise UnknownLane(
                 f"lane {lane!r} is not a fork (incoming lane) of junction {self.junction!r}; "
-                f"valid forks: {choices(self.offered_forks)}",
+                f"valid forks: {choices(self.offered_forks)}" + self._shifted_note(),
                 junction=self.junction,
             )
         return self.forks[lane]
@@ -268,10 +269,20 @@ class Intersection:
         if lane not in self.exits:
             raise UnknownLane(
                 f"lane {lane!r} is not an exit (outgoing lane) of junction {self.junction!r}; "
-                f"valid exits: {choices(e for e in self.exits if e not in self.side_lanes)}",
+                f"valid exits: {choices(e for e in self.exits if e not in self.side_lanes)}"
+                + self._shifted_note(),
                 junction=self.junction,
             )
         return self.exits[lane]
+
+    def _shifted_note(self) -> str:
+        """What a lane id not found means on a network with guessed crossings."""
+        if not self.crossings_guessed:
+            return ""
+        return (
+            " (with guessed crossings the sidewalk is lane 0: every car lane's index is one "
+            "higher than on the network without them)"
+        )
 
     def walk(self, walk_ref: str) -> Walk:
         """The walk with id ``walk_ref``; raises UnknownWalk naming the valid walks, or
