@@ -96,8 +96,9 @@ def plot(args: argparse.Namespace) -> int:
 
     testcase = read_input(args.testcase)
     junction = testcase_intersection(testcase, args)
+    walkers = f" and {len(testcase.pedestrians)} pedestrians" if testcase.pedestrians else ""
     say(f"read {args.testcase.name}: junction {testcase.junction}, "
-        f"{len(testcase.nonegos)} cars besides the ego")  # fmt: skip
+        f"{len(testcase.nonegos)} cars besides the ego{walkers}")  # fmt: skip
     trajectory: list[PoseSample] = []
     verdict = None
     if args.controller:
