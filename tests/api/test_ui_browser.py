@@ -609,26 +609,57 @@ def test_a_network_page_lists_the_walks_and_draws_the_crosswalks(
     assert external(server, requested[before:]) == []
 
 
+Walking = tuple[Server, dict[str, str], dict[str, TestCase]]
+
+
 @pytest.fixture(scope="module")
-def walking(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Server, str, TestCase]]:
-    """A server of its own holding a test-case on crosswalk-stop: the ego turns left from
-    the south, car1 (level 1) comes from the east, and ped1 (level 2) walks over the south
-    crosswalk from west to east (C_c2+, 1.3 m/s, from 3 m before the curb to 3 m past the
-    far one: her trajectory ends at 14.5 s)."""
+def walking(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Walking]:
+    """A server of its own holding two test-cases with a pedestrian, by name: "stop", on
+    crosswalk-stop, the ego turns left from the south, car1 (level 1) comes from the east,
+    and ped1 (level 2) walks over the south crosswalk from west to east (C_c2+, 1.3 m/s,
+    from 3 m before the curb to 3 m past the far one: her trajectory ends at 14.5 s);
+    "guessed", on 4way-stop with guessed crosswalks, ped1 alone over the north one."""
     folder = tmp_path_factory.mktemp("ui-walking")
     start = new_testcase("crosswalk-stop", "S2C_2:C2W_2", duration=20.0)
     testcase = extend_testcase(start, ["E2C_2:C2S_2"], seed=0).testcase
     intersection = load_testcase_intersection(testcase)
     person = straight_walk(intersection, "C_c2+", testcase, added_in=2)
-    testcase = with_pedestrians(testcase, [person])
+    cases = {"stop": with_pedestrians(testcase, [person])}
+    guessed = new_testcase("4way-stop", "S2C_2:C2N_2", duration=20.0, guess_crossings=True)
+    person = straight_walk(load_testcase_intersection(guessed), "C_c0+", guessed)
+    cases["guessed"] = with_pedestrians(guessed, [person])
     server = Server(folder, workers="1")
     try:
         store = Store(f"sqlite:///{folder.resolve()}/scengen.sqlite3", folder / "cache")
-        ident = store.add_testcase(testcase).id
+        idents = {name: store.add_testcase(case).id for name, case in cases.items()}
         store.close()
-        yield server, ident, testcase
+        yield server, idents, cases
     finally:
         server.stop()
+
+
+def canvas_view(page: Page, geometry: dict[str, Any]) -> tuple[float, Any]:
+    """The animation's scale (pixels a metre) and where a point of the map is on its
+    canvas, as Player.view puts it: the junction's area centred, 40 m around it."""
+    canvas = page.locator("#animation")
+    width, height = (
+        int(canvas.get_attribute("width") or 0),
+        int(canvas.get_attribute("height") or 0),
+    )
+    xs = [p[0] for ring in geometry["area"] for p in ring]
+    ys = [p[1] for ring in geometry["area"] for p in ring]
+    half = max(max(xs) - min(xs), max(ys) - min(ys)) / 2 + 40
+    scale = min(width, height) / (2 * half)
+
+    def screen(x: float, y: float) -> list[float]:
+        return [width / 2 + (x - (min(xs) + max(xs)) / 2) * scale,
+                height / 2 - (y - (min(ys) + max(ys)) / 2) * scale]  # fmt: skip
+
+    return scale, screen
+
+
+def bar_centre(bar: list[list[float]]) -> tuple[float, float]:
+    return sum(p[0] for p in bar[:4]) / 4, sum(p[1] for p in bar[:4]) / 4
 
 
 WALKERS_SHOWN = """() => {
@@ -642,35 +673,27 @@ CANVAS_PIXEL = """([x, y]) => [...document.querySelector('#animation').getContex
 
 
 def test_a_testcase_with_a_pedestrian_shows_her_walking_over_the_crosswalk(
-    walking: tuple[Server, str, TestCase], browser_page: tuple[Page, list[str]]
+    walking: Walking, browser_page: tuple[Page, list[str]]
 ) -> None:
     """The test-case's page lists her (id, walk, level, when she is on the crosswalk), the
     animation draws the zebras and moves her disc along her trajectory (where the page's
     view puts her: canvas pixels of her colour), she is gone once her trajectory ends, and
     the time-distance panel has her dotted curve named as a pedestrian's."""
-    server, ident, testcase = walking
+    server, idents, cases = walking
+    ident, testcase = idents["stop"], cases["stop"]
     person = testcase.pedestrians[0]
     page, requested = browser_page
     before = len(requested)
     geometry = server.client.get("/networks/crosswalk-stop/junctions/C/geometry").json()
     page.goto(f"{server.url}/ui/#/testcases/{ident}")
     page.wait_for_selector("#animation[data-walkers]")
+    assert not any("guess_crossings" in url for url in requested[before:])  # bundled crosswalks
     row = page.locator("#pedestrians tbody tr").first.locator("td").all_inner_texts()
     on = {e.kind.value: e.t for e in person.events}
     assert row[:6] == ["ped1", "C_c2+", "2", f"{on['arrived']:.1f} s", f"{on['entered']:.1f} s",
                        f"{on['exited']:.1f} s"]  # fmt: skip
     assert "1 pedestrians" in page.locator("main p.muted").first.inner_text()
-    canvas = page.locator("#animation")
-    width, height = int(canvas.get_attribute("width")), int(canvas.get_attribute("height"))
-    xs = [p[0] for ring in geometry["area"] for p in ring]
-    ys = [p[1] for ring in geometry["area"] for p in ring]
-    half = max(max(xs) - min(xs), max(ys) - min(ys)) / 2 + 40  # Player.view
-    scale = min(width, height) / (2 * half)
-
-    def screen(x: float, y: float) -> tuple[float, float]:
-        return (width / 2 + (x - (min(xs) + max(xs)) / 2) * scale,
-                height / 2 - (y - (min(ys) + max(ys)) / 2) * scale)  # fmt: skip
-
+    scale, screen = canvas_view(page, geometry)
     colour = [*(round(255 * v) for v in to_rgb(PEDESTRIAN_COLOURS[0])), 255]
     places = []
     for moment in ("4", "8"):
@@ -682,10 +705,9 @@ def test_a_testcase_with_a_pedestrian_shows_her_walking_over_the_crosswalk(
         assert shown["pixel"] == colour, moment
         places.append((shown["x"], shown["y"]))
     assert places[1][0] - places[0][0] == pytest.approx(4 * 1.3 * scale, abs=0.2)  # east
-    bars = geometry["crossings"][0]["stripes"]  # the north zebra: nobody on it at 8 s
-    centre = [sum(p[k] for p in bars[3][:4]) / 4 for k in (0, 1)]
-    assert page.evaluate(CANVAS_PIXEL, list(screen(*centre))) == [255, 255, 255, 255]
-    gap = [(sum(p[k] for p in bars[3][:4]) + sum(p[k] for p in bars[4][:4])) / 8 for k in (0, 1)]
+    bars = [bar_centre(bar) for bar in geometry["crossings"][0]["stripes"]]  # the north
+    assert page.evaluate(CANVAS_PIXEL, screen(*bars[3])) == [255, 255, 255, 255]  # nobody there
+    gap = [(a + b) / 2 for a, b in zip(bars[3], bars[4], strict=True)]
     strip = [round(255 * v) for v in to_rgb(CROSSWALK)]  # 3 px between bars: blended a little
     dark = page.evaluate(CANVAS_PIXEL, list(screen(*gap)))[:3]
     assert max(abs(a - b) for a, b in zip(dark, strip, strict=True)) <= 30, dark
@@ -702,4 +724,15 @@ def test_a_testcase_with_a_pedestrian_shows_her_walking_over_the_crosswalk(
     entered = next(e for e in person.events if e.kind.value == "entered")
     assert f"{entered.t:.2f}\tped1\tentered\t{entered.lane}" in events
     assert sum(row.split("\t")[1] == "ped1" for row in events) == len(person.events)
+    page.goto(f"{server.url}/ui/#/testcases/{idents['guessed']}")  # 4way-stop, crosswalks guessed
+    page.wait_for_selector("#animation[data-walkers]")
+    asked = [url for url in requested[before:] if "/geometry" in url]
+    assert asked[-1].endswith("/networks/4way-stop/junctions/C/geometry?control=allway_stop"
+                              "&guess_crossings=true")  # fmt: skip
+    guessed = server.client.get(asked[-1].removeprefix(server.url)).json()
+    assert len(guessed["crossings"]) == 4
+    _, screen = canvas_view(page, guessed)
+    south = next(c for c in guessed["crossings"] if c["id"] == ":C_c2")  # nobody on it
+    assert page.evaluate(CANVAS_PIXEL, screen(*bar_centre(south["stripes"][3]))) == [255] * 4
+    assert page.locator("#pedestrians tbody td").first.inner_text() == "ped1"
     assert external(server, requested[before:]) == []

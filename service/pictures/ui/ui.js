@@ -686,8 +686,9 @@ function provenanceOf(testcase) {
   ]);
 }
 
-async function geometryOf(testcase) {
-  return get(`/networks/${encodeURIComponent(testcase.network.ref)}/junctions/${encodeURIComponent(testcase.junction)}/geometry?control=${testcase.control}`);
+async function geometryOf(testcase) { // the network the test-case runs on: with its guessed crosswalks if it has them
+  const guessed = testcase.crossings_guessed ? "&guess_crossings=true" : "";
+  return get(`/networks/${encodeURIComponent(testcase.network.ref)}/junctions/${encodeURIComponent(testcase.junction)}/geometry?control=${testcase.control}${guessed}`);
 }
 
 // ---------- a test-case ----------
