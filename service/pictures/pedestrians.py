@@ -26,9 +26,10 @@ from service.core.network.geometry import zebra_stripes
 from service.core.network.load import parsed_network
 from service.core.testcase import TestCase
 
-# magenta, teal, indigo, dark goldenrod: apart from the cars' tableau colours, the ego's
-# black and the certificates' green and red
-PEDESTRIAN_COLOURS = ["#c2007a", "#00897b", "#4527a0", "#b8860b"]
+# fuchsia, deep violet, navy, dark green: at least 30 apart (CIELAB delta E) from the
+# cars' colours here and in the browser, the ego's, the certificates' and the roads', and
+# from one another (tests/pictures/test_pedestrians.py)
+PEDESTRIAN_COLOURS = ["#ff00ff", "#6200ea", "#000080", "#1b5e20"]
 CROSSWALK = "#8a8d93"  # the strip under the zebra's bars
 STRIPE = "#ffffff"
 PAVEMENT = "#ebe6da"  # sidewalks and walking areas

@@ -7,6 +7,7 @@ pictures'."""
 
 from __future__ import annotations
 
+import itertools
 import json
 import re
 import xml.etree.ElementTree as ElementTree
@@ -109,8 +110,6 @@ def test_the_pedestrian_is_a_dotted_path_of_discs_in_her_colour_and_a_curve_on_t
     testcase, intersection = walking
     person = testcase.pedestrians[0]
     colour = PEDESTRIAN_COLOURS[0]
-    cars = [*CAR_COLOURS, *CERTIFICATE_COLOURS.values(), "black"]
-    assert not {to_hex(c) for c in PEDESTRIAN_COLOURS} & {to_hex(c) for c in cars}
     figure = draw_testcase(testcase, intersection)
     try:
         axes, panel = figure.axes[0], figure.axes[1]
@@ -262,9 +261,37 @@ def test_the_gif_moves_the_pedestrian_over_the_zebra_and_drops_her_when_her_walk
     assert _count(frames[16].crop(inside), colour) == 0  # gone
 
 
-def test_the_browser_draws_the_pedestrians_colours() -> None:
-    """ui.js's PEDESTRIAN_COLOURS is the pictures' table."""
+def _table(script: str, name: str) -> list[str]:
+    """A list of colours in ui.js, ``const NAME = [...]``."""
+    table = re.search(rf"const {name} = (\[[^\]]*\]);", script)
+    assert table, name
+    found: list[str] = json.loads(table.group(1))
+    return found
+
+
+def _lab(colour: str) -> np.ndarray:
+    """CIELAB (D65) of a matplotlib colour."""
+    rgb = np.array(to_rgb(colour))
+    linear = np.where(rgb > 0.04045, ((rgb + 0.055) / 1.055) ** 2.4, rgb / 12.92)
+    matrix = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722],
+                       [0.0193, 0.1192, 0.9505]])  # fmt: skip
+    xyz = matrix @ linear / np.array([0.95047, 1.0, 1.08883])
+    f = np.where(xyz > 0.008856, np.cbrt(xyz), 7.787 * xyz + 16.0 / 116.0)
+    return np.array([116.0 * f[1] - 16.0, 500.0 * (f[0] - f[1]), 200.0 * (f[1] - f[2])])
+
+
+def test_the_browser_draws_the_pedestrians_colours_which_no_car_has() -> None:
+    """ui.js's PEDESTRIAN_COLOURS is the pictures' table, and each is at least 30 apart
+    (CIELAB delta E: told apart at a glance) from every car's colour in the pictures and in
+    the browser, the ego's, the certificates', the roads' and the crosswalks', and from the
+    other pedestrians'."""
     script = (Path(service.pictures.__file__).parent / "ui" / "ui.js").read_text()
-    table = re.search(r"const PEDESTRIAN_COLOURS = (\[[^\]]*\]);", script)
-    assert table
-    assert json.loads(table.group(1)) == PEDESTRIAN_COLOURS
+    assert _table(script, "PEDESTRIAN_COLOURS") == PEDESTRIAN_COLOURS
+    pictures = [*CAR_COLOURS, *CERTIFICATE_COLOURS.values(), "black", "0.85", "0.9", CROSSWALK]
+    browser = [*_table(script, "CAR_COLOURS"), "#111827", "#dc2626", "#c8cace", "#d4d6da"]
+    others = pictures + browser  # the browser's ego and complexity certificate, its roads
+    for colour in PEDESTRIAN_COLOURS:
+        nearest = min(float(np.linalg.norm(_lab(colour) - _lab(o))) for o in others)
+        assert nearest >= 30.0, (colour, nearest)
+    for a, b in itertools.combinations(PEDESTRIAN_COLOURS, 2):
+        assert np.linalg.norm(_lab(a) - _lab(b)) >= 30.0, (a, b)

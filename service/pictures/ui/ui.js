@@ -9,7 +9,7 @@ const COLOURS = ["#2456a6", "#c62828", "#1a7f37", "#8e44ad", "#d97706", "#0e7490
 const CAR_COLOURS = ["#2456a6", "#8e44ad", "#d97706", "#0e7490", "#be185d", "#64748b", "#a16207", "#0f766e"];
 // people on foot: the pictures' colours (service/pictures/pedestrians.py, held equal by a
 // test), a disc each, their curves dotted
-const PEDESTRIAN_COLOURS = ["#c2007a", "#00897b", "#4527a0", "#b8860b"];
+const PEDESTRIAN_COLOURS = ["#ff00ff", "#6200ea", "#000080", "#1b5e20"];
 const CROSSWALK = { strip: "#8a8d93", stripe: "#ffffff", pavement: "#ebe6da" };
 const CONTROLLER_COLOURS = {};
 
