@@ -692,7 +692,7 @@ def test_a_testcase_with_a_pedestrian_shows_her_walking_over_the_crosswalk(
     on = {e.kind.value: e.t for e in person.events}
     assert row[:6] == ["ped1", "C_c2+", "2", f"{on['arrived']:.1f} s", f"{on['entered']:.1f} s",
                        f"{on['exited']:.1f} s"]  # fmt: skip
-    assert "1 pedestrians" in page.locator("main p.muted").first.inner_text()
+    assert " · 1 pedestrian · " in page.locator("main p.muted").first.inner_text()
     scale, screen = canvas_view(page, geometry)
     colour = [*(round(255 * v) for v in to_rgb(PEDESTRIAN_COLOURS[0])), 255]
     places = []

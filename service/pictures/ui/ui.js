@@ -720,7 +720,7 @@ async function testcasePage(id) {
   render(
     h("h1", {}, titleOf(testcase, id)),
     h("p", { class: "muted" }, `${testcase.network.ref} · junction ${testcase.junction} (${testcase.control}) · ego ${ego.fork}:${ego.exit} · ${testcase.nonegos.length} other cars`
-      + `${(testcase.pedestrians || []).length ? ` · ${testcase.pedestrians.length} pedestrians` : ""} · id ${id}`,
+      + `${(testcase.pedestrians || []).length ? ` · ${testcase.pedestrians.length} pedestrian${testcase.pedestrians.length === 1 ? "" : "s"}` : ""} · id ${id}`,
       record.parent ? [" · parent ", link(short(record.parent), `#/testcases/${record.parent}`)] : null),
     h("div", { class: "row" }, h("div", { class: "card" }, player.element,
       h("div", { class: "legend" }, player.tracks.map((t) => h("span", {}, h("span", { class: t.walker ? "swatch round" : "swatch", style: `background:${t.colour}` }), t.walker ? `${t.id} (pedestrian${t.highlight ? ", new" : ""})` : t.label)),
