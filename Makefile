@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 QC_VENV := .venv-qc
 QC_STAMP := $(QC_VENV)/.installed
-NETS := 4way-stop t-stop y-uncontrolled 4way-signal t-signal
+NETS := 4way-stop t-stop y-uncontrolled 4way-signal t-signal crosswalk-stop crosswalk-signal
 
 .PHONY: help install system-tools test lint format nets run demo openapi bench bench-api bench-jobs \
 	bench-generator bench-variety bench-reliability campaign-curve \

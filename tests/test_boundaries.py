@@ -123,6 +123,7 @@ def test_network_public_surface_is_complete() -> None:
         "geometry",
         "forks",
         "paths",
+        "crossings",
     }
     assert set(network.__all__) == public - submodules
 

@@ -123,6 +123,13 @@ class TestCaseCreate(_Body):
         strict=False,
         description="override the junction's control type (default: the network's)",
     )
+    guess_crossings: bool = Field(
+        False,
+        description="add sidewalks and pedestrian crossings (netconvert --sidewalks.guess "
+        "--crossings.guess): the junction gets walks, every car lane's index moves up by "
+        "one (the ego route names the rebuilt lanes); the test-case keeps it "
+        "(crossings_guessed)",
+    )
     start_distance: float | None = Field(
         None,
         ge=0,

@@ -1,6 +1,7 @@
 """Arguments that several commands share, defined once, and what they mean.
 
-``NETWORK`` names a junction (a network, ``--junction``, ``--control``); ``NETWORK_FILE``
+``NETWORK`` names a junction (a network, ``--junction``, ``--control``, ``--major``,
+``--guess-crossings``); ``NETWORK_FILE``
 (``--network``) finds the network of a test-case read from a file, which
 ``testcase_intersection`` loads.
 """
@@ -62,6 +63,13 @@ NETWORK = (
         "of way, the others stop (default: the network's; for a junction made priority_stop "
         "whose roads all have the same priority, the two closest to straight across)",
     ),
+    arg(
+        "--guess-crossings",
+        action="store_true",
+        help="add sidewalks and pedestrian crossings, rebuilt with netconvert "
+        "(--sidewalks.guess --crossings.guess): the junction gets walks; every car lane's "
+        "index moves up by one (S2C_1 becomes S2C_2), as the sidewalk becomes lane 0",
+    ),
 )
 
 
@@ -85,7 +93,11 @@ def signals_program(args: argparse.Namespace) -> SignalProgram | None:
     if args.signals is None:
         return None
     intersection = load_intersection(
-        args.network, args.junction, args.control, major_road=args.major
+        args.network,
+        args.junction,
+        args.control,
+        major_road=args.major,
+        guess_crossings=args.guess_crossings,
     )
     program = read_signals_file(args.signals, intersection.tls)
     with_signals(intersection, program)  # a program for another light or link count fails
@@ -165,7 +177,11 @@ def testcase_intersection(
     """The test-case's intersection, its network found by ``locate_network``."""
     path = locate_network(testcase, args, read_from)
     intersection = load_intersection(  # the hash was checked above
-        path, testcase.junction, testcase.control, major_road=testcase.major_road
+        path,
+        testcase.junction,
+        testcase.control,
+        major_road=testcase.major_road,
+        guess_crossings=testcase.crossings_guessed,
     )
     return under_testcase_signals(intersection, testcase)
 

@@ -100,6 +100,11 @@ def campaign(args: argparse.Namespace) -> int:
             "--major: a campaign takes the junction's own major road (or scengen's choice); "
             "to choose it, make the test-cases with `scengen new --major` and `extend`"
         )
+    if args.guess_crossings:
+        args.usage.error(
+            "--guess-crossings: a campaign grows cars only; to add crossings, make the "
+            "test-cases with `scengen new --guess-crossings` and `extend`"
+        )
     for name in args.controller:
         resolve_driver(name)  # a bad name fails before any work
     program = signals_program(args)  # so does a program that does not fit the junction

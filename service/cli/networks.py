@@ -15,6 +15,8 @@ from service.core.network import bundled_networks, load_intersection, with_signa
 from service.core.network.describe import describe_intersection
 from service.core.network.signals import COLOUR_WORDS
 
+WALK_WORDS = "G or g walk, y flashing don't walk (nobody starts), r don't walk"  # 21456
+
 
 @command("networks", "list the bundled networks")
 def networks(args: argparse.Namespace) -> int:
@@ -46,7 +48,13 @@ def networks(args: argparse.Namespace) -> int:
     ),
 )
 def intersection(args: argparse.Namespace) -> int:
-    junction = load_intersection(args.network, args.junction, args.control, major_road=args.major)
+    junction = load_intersection(
+        args.network,
+        args.junction,
+        args.control,
+        major_road=args.major,
+        guess_crossings=args.guess_crossings,
+    )
     program = signals_program(args)
     if program is not None:
         junction = with_signals(junction, program)
@@ -67,7 +75,11 @@ def intersection(args: argparse.Namespace) -> int:
 
 def _print_intersection(d: dict[str, Any], major_given: bool) -> None:
     overridden = " (overridden)" if d["control_overridden"] else ""
-    print(f"junction {d['junction']}  control {d['control']}{overridden}  network {d['network']}")
+    guessed = "  crossings guessed" if d["crossings_guessed"] else ""
+    print(
+        f"junction {d['junction']}  control {d['control']}{overridden}{guessed}  "
+        f"network {d['network']}"
+    )
     if d["major_road"]:
         how = "given" if major_given else "the roads closest to straight across; --major to choose"
         print(f"major road {' '.join(d['major_road'])} ({how})")
@@ -89,12 +101,54 @@ def _print_intersection(d: dict[str, Any], major_given: bool) -> None:
     for r in d["routes"]:
         rows.append([r["id"], r["turn"], " ".join(r["conflicts"]) or "-"])
     print_table(rows)
+    print()
+    _print_walks(d["walks"])
     if d.get("signals"):
         _print_signals(d["signals"], {r["id"]: r for r in d["routes"]})
+        if d["walks"]:
+            _print_walk_signals(d["walks"])
     if d["side_lanes"]:
         print()
         print("side lanes, not offered (a route on one works when named):")
         print_table([[s["lane"], s["reason"]] for s in d["side_lanes"]])
+
+
+def _print_walks(walks: list[dict[str, Any]]) -> None:
+    if not walks:
+        print(
+            "no pedestrian crossings: add sidewalks and crossings with --guess-crossings "
+            "(car lane indices then move up by one)"
+        )
+        return
+    rows = [["walk", "crossing", "from", "to", "length", "width", "conflicts"]]
+    for w in walks:
+        rows.append(
+            [
+                w["id"],
+                w["crossing"],
+                f"{w['from']} ({w['before']})",
+                f"{w['to']} ({w['after']})",
+                f"{w['length']:.2f}",
+                f"{w['width']:.2f}",
+                " ".join(w["conflicts"]) or "-",
+            ]
+        )
+    print_table(rows)
+    print("from, to: the walking areas at its ends (the sidewalk lanes before and after it)")
+
+
+def _print_walk_signals(walks: list[dict[str, Any]]) -> None:
+    print()
+    rows = [["walk", "link", "colours (from s: colour)"]]
+    for w in walks:
+        signal = w.get("signal")
+        if signal is None:
+            rows.append([w["id"], "-", "no signal"])
+            continue
+        runs = "  ".join(f"{start:g}: {colour}" for start, _, colour in signal["timeline"])
+        rows.append([w["id"], str(signal["link_index"]), runs])
+    print_table(rows)
+    print(f"pedestrian signals: {WALK_WORDS}")
 
 
 def _print_signals(signals: dict[str, Any], routes: dict[str, dict[str, Any]]) -> None:

@@ -92,6 +92,7 @@ def new(args: argparse.Namespace) -> int:
         name=args.name,
         major_road=args.major,
         signals=signals_program(args),
+        guess_crossings=args.guess_crossings,
     )
     start = testcase.ego.start.distance
     if args.start_distance is None and start < DEFAULT_START_DISTANCE:
@@ -246,7 +247,14 @@ def extend(args: argparse.Namespace) -> int:
         renamed(old, args.name)  # a name that cannot be stored fails before the search
     network_file = locate_network(old, args)
     intersection = under_testcase_signals(
-        load_intersection(network_file, old.junction, old.control, major_road=old.major_road), old
+        load_intersection(
+            network_file,
+            old.junction,
+            old.control,
+            major_road=old.major_road,
+            guess_crossings=old.crossings_guessed,
+        ),
+        old,
     )
     started = time.monotonic()
     if args.count > 1:

@@ -354,6 +354,12 @@ class TestCase(_Model):
         description="the two roads (edge ids) into a priority_stop junction that keep the "
         "right of way, as the user named them; absent: the network's, or scengen's choice",
     )
+    crossings_guessed: bool = Field(
+        False,
+        description="the network is rebuilt with guessed sidewalks and crossings (netconvert "
+        "--sidewalks.guess --crossings.guess; car lanes' indices move up by one) before use; "
+        "absent: false, the network as it is",
+    )
     rules: str
     signals: Signals | None = Field(
         None,
@@ -398,10 +404,13 @@ class TestCase(_Model):
 
     @model_serializer(mode="wrap")
     def _without_empty_pedestrians(self, handler: SerializerFunctionWrapHandler) -> Any:
-        """No ``pedestrians`` key when there are none: a version 1 document, as before."""
+        """No ``pedestrians`` key when there are none (a version 1 document, as before),
+        and no ``crossings_guessed`` key when the network is used as it is."""
         dumped = handler(self)
         if isinstance(dumped, dict) and not dumped.get("pedestrians"):
             dumped.pop("pedestrians", None)
+        if isinstance(dumped, dict) and dumped.get("crossings_guessed") is False:
+            dumped.pop("crossings_guessed")
         return dumped
 
     @property
@@ -691,6 +700,7 @@ def new_testcase(
     name: str = "",
     major_road: Sequence[str] | None = None,
     signals: SignalProgram | None = None,
+    guess_crossings: bool = False,
 ) -> TestCase:
     """An ego-only test-case; checks that the route exists and the start lies on the map.
 
@@ -701,8 +711,18 @@ def new_testcase(
     ``major_road``: two roads into a priority_stop junction that keep the right of way
     (service.core.network.load_intersection); the test-case keeps it (``major_road``), so
     every later command rebuilds the same network. ``signals``: the program of a signalized
-    junction (default: the network's, when it is fixed-time); the test-case carries it."""
-    intersection = load_intersection(network, junction, control, cache_dir, major_road=major_road)
+    junction (default: the network's, when it is fixed-time); the test-case carries it.
+    ``guess_crossings``: the network gets sidewalks and crossings (netconvert guesses them;
+    the route's lane indices are those of the rebuilt network); the test-case keeps it
+    (``crossings_guessed``) like ``major_road``."""
+    intersection = load_intersection(
+        network,
+        junction,
+        control,
+        cache_dir,
+        major_road=major_road,
+        guess_crossings=guess_crossings,
+    )
     intersection = _signalled(intersection, signals)
     route = intersection.route(ego_route)
     _check_ego_can_go(intersection, route, duration)
@@ -731,6 +751,8 @@ def new_testcase(
     }
     if major_road is not None:
         document["major_road"] = list(major_road)
+    if guess_crossings:
+        document["crossings_guessed"] = True
     if intersection.signals is not None:
         document["signals"] = intersection.signals.to_document()
     testcase = parse_testcase(document)
@@ -756,7 +778,12 @@ def load_testcase_intersection(
     test-case was read from)."""
     path, _ = find_network_file(testcase, network_file, near)
     intersection = load_intersection(
-        path, testcase.junction, testcase.control, cache_dir, major_road=testcase.major_road
+        path,
+        testcase.junction,
+        testcase.control,
+        cache_dir,
+        major_road=testcase.major_road,
+        guess_crossings=testcase.crossings_guessed,
     )
     return under_testcase_signals(intersection, testcase)
 

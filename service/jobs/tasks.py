@@ -80,23 +80,37 @@ def convert_upload(source: Path, controls: dict[str, str], cache_dir: Path) -> b
 
 
 def describe_junction(
-    network_file: Path, junction: str | None, control: str | None, cache_dir: Path
+    network_file: Path,
+    junction: str | None,
+    control: str | None,
+    cache_dir: Path,
+    guess_crossings: bool = False,
 ) -> dict[str, Any]:
     """``scengen intersection --json`` of one junction."""
     description = describe_intersection(
-        load_intersection(network_file, junction, control, cache_dir)
+        load_intersection(
+            network_file, junction, control, cache_dir, guess_crossings=guess_crossings
+        )
     )
     description.pop("network", None)  # a server-side path means nothing to a client
     return description
 
 
 def junction_geometry(
-    network_file: Path, junction: str | None, control: str | None, cache_dir: Path
+    network_file: Path,
+    junction: str | None,
+    control: str | None,
+    cache_dir: Path,
+    guess_crossings: bool = False,
 ) -> dict[str, Any]:
     """The junction's shapes for the results browser (service.core.network.geometry)."""
     from service.core.network.geometry import junction_geometry as shapes
 
-    return shapes(load_intersection(network_file, junction, control, cache_dir))
+    return shapes(
+        load_intersection(
+            network_file, junction, control, cache_dir, guess_crossings=guess_crossings
+        )
+    )
 
 
 def rule_set_laws(control: str) -> list[tuple[str, str]]:

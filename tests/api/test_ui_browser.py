@@ -97,14 +97,15 @@ def test_networks_show_their_junctions_drawn_and_say_what_they_wait_for(
     page.route("**/networks/t-stop/junctions", lambda route: held.append(route))  # held
     page.goto(f"{server.url}/ui/")
     page.wait_for_selector("text=Reading the junctions of t-stop…")
-    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 4")
+    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 6")
     assert len(held) == 1  # t-stop's junctions are still on their way
     held[0].continue_()
     page.unroute("**/networks/t-stop/junctions")
-    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 5")
+    page.wait_for_function("() => document.querySelectorAll('svg.junction-drawing').length == 7")
     assert page.locator("text=Reading the junctions").count() == 0
     drawn = (("4way-stop", 16, 0), ("t-stop", 6, 0), ("y-uncontrolled", 6, 0),
-             ("4way-signal", 16, 16), ("t-signal", 6, 6))  # fmt: skip
+             ("4way-signal", 16, 16), ("t-signal", 6, 6), ("crosswalk-stop", 16, 0),
+             ("crosswalk-signal", 16, 16))  # fmt: skip
     for network, routes, heads in drawn:
         drawing = page.locator(f".card:has(a[href='#/networks/{network}']) svg.junction-drawing")
         assert drawing.get_attribute("data-junction") == "C"

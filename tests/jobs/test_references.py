@@ -87,7 +87,7 @@ def test_each_unknown_thing_is_named_with_the_choices(store: Store, stored: str)
                                "bundled nor uploaded here")  # fmt: skip
     assert found[3] == (
         "items[3].network: no network 'Town05' (known networks: 4way-signal, 4way-stop, "
-        "t-signal, t-stop, y-uncontrolled)"
+        "crosswalk-signal, crosswalk-stop, t-signal, t-stop, y-uncontrolled)"
     )
     assert found[4].startswith("items[3].controllers: 'autopilot' is not a controller")
     assert str(refused.value).startswith("the batch names what this server does not have: ")

@@ -28,6 +28,13 @@ from service.store import NetworkRecord, network_id, safe_filename
 
 MAX_ID_LENGTH = 1000  # a junction id in a path
 
+GUESS_CROSSINGS = (
+    "the network with guessed sidewalks and crossings (netconvert --sidewalks.guess "
+    "--crossings.guess; car lanes' indices move up by one), as a test-case with "
+    "crossings_guessed uses it"
+)
+
+
 router = APIRouter(prefix="/networks", tags=["networks"])
 CONTROLS = [c.value for c in ControlType]
 CONTROLS_FIELD = (
@@ -224,17 +231,23 @@ async def list_junctions(state: State, network: str) -> list[JunctionSummary]:
     operation_id="describe_junction",
     responses=documented(*WORK_PROBLEMS),
 )
-async def describe_junction(state: State, network: str, junction: str) -> JSONResponse:
-    """The intersection: forks, exits, routes, conflicts and right-of-way relations."""
+async def describe_junction(
+    state: State,
+    network: str,
+    junction: str,
+    guess_crossings: Annotated[bool, Query(description=GUESS_CROSSINGS)] = False,
+) -> JSONResponse:
+    """The intersection: forks, exits, routes, conflicts and right-of-way relations, and
+    the walks over its pedestrian crossings."""
     record, path = await asyncio.to_thread(_network_and_file, state, network)
     control = record.controls.get(junction)
     description = await _junction_work(
         state,
         record,
         junction,
-        "description.json",
+        "description-crossings.json" if guess_crossings else "description.json",
         tasks.describe_junction,
-        (path, junction, control, state.cache_dir),
+        (path, junction, control, state.cache_dir, guess_crossings),
     )
     return JSONResponse(description)
 
@@ -281,22 +294,30 @@ async def get_junction_geometry(
     control: Annotated[
         ControlType | None, Query(description="a control type override (default: the stored)")
     ] = None,
+    guess_crossings: Annotated[bool, Query(description=GUESS_CROSSINGS)] = False,
 ) -> JSONResponse:
-    """The junction's shapes for drawing: roads, area, paths, stop lines, signal heads (m)."""
+    """The junction's shapes for drawing: roads, area, paths, stop lines, signal heads,
+    pedestrian crossings and walking areas (m)."""
     record = await asyncio.to_thread(state.network_or_404, network)
     chosen = control.value if control else record.controls.get(junction)
-    return JSONResponse(await junction_geometry(state, record, junction, chosen))
+    return JSONResponse(await junction_geometry(state, record, junction, chosen, guess_crossings))
 
 
 async def junction_geometry(
-    state: AppState, record: NetworkRecord, junction: str, control: str | None
+    state: AppState,
+    record: NetworkRecord,
+    junction: str,
+    control: str | None,
+    guess_crossings: bool = False,
 ) -> Any:
-    """The junction's shapes under ``control`` (None: the map's own), computed once per
-    network, junction and control, then answered from the cache."""
+    """The junction's shapes under ``control`` (None: the map's own), with guessed
+    crossings or not, computed once per network, junction, control and that choice, then
+    answered from the cache."""
     path = await asyncio.to_thread(state.store.network_file, record.id)
+    name = f"geometry-{control or 'own'}{'-crossings' if guess_crossings else ''}.json"
     return await _junction_work(
-        state, record, junction, f"geometry-{control or 'own'}.json", tasks.junction_geometry,
-        (path, junction, control, state.cache_dir),
+        state, record, junction, name, tasks.junction_geometry,
+        (path, junction, control, state.cache_dir, guess_crossings),
     )  # fmt: skip
 
 

@@ -72,4 +72,21 @@ def describe_intersection(
         "side_lanes": [
             {"lane": lane, "reason": reason} for lane, reason in intersection.side_lanes.items()
         ],
+        "crossings_guessed": intersection.crossings_guessed,
+        "walks": [
+            {
+                "id": walk.id,
+                "crossing": walk.crossing,
+                "from": walk.start,
+                "to": walk.end,
+                "before": walk.before,
+                "after": walk.after,
+                "heading": round(walk.heading, 2),
+                "length": round(walk.length, 2),
+                "width": round(intersection.crossings[walk.crossing].width, 2),
+                "conflicts": [c for c in walk.conflicts if c in routes],
+                "signal": signal(intersection.crossings[walk.crossing].link_index),
+            }
+            for walk in intersection.walks.values()
+        ],
     }

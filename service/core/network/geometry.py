@@ -2,8 +2,11 @@
 
 Coordinates are SUMO's network coordinates in metres, rounded to centimetres. Roads are
 the whole lanes of the junction's incoming and outgoing edges (cars start far up them),
-the junction's area, the paths through it, each fork's stop line, and at a signalized
-junction each signal head (``signal_heads``: where the pictures draw a link's colour).
+the junction's area, the paths through it, each fork's stop line, at a signalized
+junction each signal head (``signal_heads``: where the pictures draw a link's colour), and
+the pedestrian crossings (``crossings``: each strip with its centreline and its signal's
+link) with the walking areas at their ends (``walking_areas``; both empty without
+crossings).
 """
 
 from __future__ import annotations
@@ -102,10 +105,21 @@ def _rings(shape: BaseGeometry) -> list[list[list[float]]]:
     return [_points(part.exterior) for part in parts if isinstance(part, Polygon)]
 
 
+def _outline(lane: Any) -> BaseGeometry:
+    """A walking area's surface: SUMO writes its outline as the lane's shape."""
+    points = [(float(x), float(y)) for x, y, *_ in lane.getShape()]
+    if len(points) < 3:
+        return Polygon()
+    shape = Polygon(points)
+    return shape if shape.is_valid else shape.buffer(0)
+
+
 def junction_geometry(intersection: Intersection) -> dict[str, Any]:
-    """Roads, junction area, connecting paths, stop lines and signal heads of
-    ``intersection`` (each head: its fork, link index, routes, turn and its bar's corners;
-    the colour is the test-case's program's at the moment drawn)."""
+    """Roads, junction area, connecting paths, stop lines, signal heads, crossings and
+    walking areas of ``intersection`` (each head: its fork, link index, routes, turn and
+    its bar's corners; the colour is the test-case's program's at the moment drawn; each
+    crossing: its id, lane, the roads it crosses, its signal's link index or -1, its
+    centreline and its polygon; each walking area: its id and polygon)."""
     net = read_network(intersection.network_file)
     edges = {f.edge for f in intersection.forks.values()} | {
         e.edge for e in intersection.exits.values()
@@ -142,6 +156,16 @@ def junction_geometry(intersection: Intersection) -> dict[str, Any]:
          "turn": head.turn, "polygon": _points(LineString(head.corners))}
         for head in signal_heads(intersection)
     ]  # fmt: skip
+    crossings = [
+        {"id": crossing.id, "lane": crossing.lane, "edges": list(crossing.edges),
+         "link_index": crossing.link_index, "line": _points(crossing.centreline),
+         "polygon": _rings(crossing.polygon)}
+        for crossing in intersection.crossings.values()
+    ]  # fmt: skip
+    areas = sorted({end for crossing in intersection.crossings.values() for end in crossing.ends})
+    walking_areas = [
+        {"id": area, "polygon": _rings(_outline(net.getEdge(area).getLanes()[0]))} for area in areas
+    ]
     every = [p for road in roads for ring in road["polygon"] for p in ring]
     every += [p for ring in _rings(intersection.polygon) for p in ring]
     xs, ys = [p[0] for p in every], [p[1] for p in every]
@@ -153,5 +177,7 @@ def junction_geometry(intersection: Intersection) -> dict[str, Any]:
         "stop_lines": stop_lines,
         "paths": paths,
         "signal_heads": heads,
+        "crossings": crossings,
+        "walking_areas": walking_areas,
         "bounds": [min(xs), min(ys), max(xs), max(ys)],
     }

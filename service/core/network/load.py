@@ -19,6 +19,7 @@ from service.core.errors import (
     choices,
 )
 from service.core.network.convert import convert_network, source_format
+from service.core.network.crossings import build_crossings, build_walks
 from service.core.network.forks import Limit, build_exit, build_fork, fork_limit
 from service.core.network.lanes import (
     is_internal,
@@ -36,7 +37,7 @@ from service.core.network.model import (
     Route,
     Turn,
 )
-from service.core.network.override import rebuild_with_control
+from service.core.network.override import rebuild_network
 from service.core.network.paths import connecting_lane, junction_area
 from service.core.network.relations import (
     SLIVER_RADIUS,
@@ -212,6 +213,7 @@ def load_intersection(
     cache_dir: Path | None = None,
     sliver_radius: float = SLIVER_RADIUS,
     major_road: Sequence[str] | None = None,
+    guess_crossings: bool = False,
 ) -> Intersection:
     """Build the intersection model of ``junction`` (default: the only junction with 3 or
     more approaches, of a supported type unless ``control`` is given).
@@ -220,8 +222,12 @@ def load_intersection(
     (the rebuilt network is cached in ``cache_dir``). ``major_road``: the two roads into a
     ``priority_stop`` junction that keep the right of way (rebuilt too); by default the
     network's, or for a junction made priority_stop whose roads all have the same
-    priority, the pair closest to straight across. A node that is not a junction (fewer
-    than three approaches, no two routes that cross or merge) is UnsupportedIntersection.
+    priority, the pair closest to straight across. ``guess_crossings``: the network gets
+    sidewalks and crossings (netconvert --sidewalks.guess --crossings.guess, in the same
+    rebuild): every road's car lanes then move up by one lane index, and a signalized
+    junction gets a program with its crossings' links. A node that is not a junction
+    (fewer than three approaches, no two routes that cross or merge) is
+    UnsupportedIntersection.
     """
     source = resolve_network(network)
     wanted = _parse_control(control)
@@ -234,9 +240,17 @@ def load_intersection(
     target = wanted.value if wanted is not None else current
     major = choose_major_road(net, node, target, current, major_road)
     effective = source
-    if target != current or major_road is not None:
+    retyped = target != current or major_road is not None
+    if retyped or guess_crossings:
         priorities = lifted_priorities(node, major) if major else None
-        effective = rebuild_with_control(source, junction_id, target, cache_dir, priorities)
+        effective = rebuild_network(
+            source,
+            junction_id if retyped else None,
+            target if retyped else None,
+            cache_dir,
+            priorities,
+            guess_crossings,
+        )
         net = parsed_network(effective)
         current = net.getNode(junction_id).getType()
     if current not in SUPPORTED:
@@ -248,7 +262,9 @@ def load_intersection(
     intersection = _model(
         source, effective, _version(effective), junction_id, ControlType(current), sliver_radius
     )
-    return dataclasses.replace(intersection, major_road=major) if major else intersection
+    return dataclasses.replace(
+        intersection, overridden=retyped, crossings_guessed=guess_crossings, major_road=major
+    )
 
 
 @functools.lru_cache(maxsize=32)
@@ -341,12 +357,13 @@ def _build(
         forks[lane_id] = build_fork(net, lane, junction, routes, limit, area)
     right, opposite, same = fork_relations(forks)
     tls, links, program, refused = _traffic_light(net, junction, control, lights)
+    crossings = build_crossings(net, node, effective, tls)
     return Intersection(
         network_file=effective,
         source_file=source,
         junction=junction,
         control=control,
-        overridden=effective != source,
+        overridden=False,  # load_intersection says whether it retyped the junction
         polygon=area,
         forks=forks,
         exits=exits,
@@ -361,6 +378,8 @@ def _build(
         tls_links=links,
         signals=program,
         signals_refused=refused,
+        crossings=crossings,
+        walks=build_walks(net, crossings, routes, lanes, sliver_radius),
     )
 
 

@@ -144,8 +144,12 @@ class Walk:
     end: str  # the walking area it goes to
     path: LineString  # the crossing's centreline in the walking direction, curb to curb
     heading: float  # of ``path``, degrees clockwise from north
-    before: str  # a sidewalk lane that leads into ``start`` (where Step 1's walk begins)
-    after: str  # a sidewalk lane that leads out of ``end`` (where it ends)
+    before: str  # a sidewalk lane that leads into ``start`` (where Step 1's walk begins;
+    # "" where ``start`` is a traffic island without sidewalks)
+    after: str  # a sidewalk lane that leads out of ``end`` (where it ends; where ``end``
+    # is a traffic island, the crossing's own lane: SUMO ends no walk on a walking area)
+    # libsumo walks a person added on ``before``'s edge to ``after``'s over this crossing
+    # and no other (service.core.network.crossings)
     conflicts: tuple[str, ...]  # ids of the vehicle routes whose connecting lane crosses it
 
     @property
@@ -172,7 +176,7 @@ class Intersection:
     source_file: Path  # the network the caller named
     junction: str
     control: ControlType
-    overridden: bool  # the control type was changed with netconvert
+    overridden: bool  # the control type (or the major road) was changed with netconvert
     polygon: Polygon
     forks: dict[str, Fork]
     exits: dict[str, Exit]
@@ -198,6 +202,8 @@ class Intersection:
     # on a network without sidewalks and crossings: netconvert --crossings.guess adds them)
     crossings: dict[str, Crossing] = field(default_factory=dict)
     walks: dict[str, Walk] = field(default_factory=dict)
+    # the network was rebuilt with guessed sidewalks and crossings (--guess-crossings)
+    crossings_guessed: bool = False
 
     def signal_colour(self, route: Route, t: float) -> str | None:
         """The SUMO colour of ``route``'s signal at time ``t``; None without a signal."""
@@ -243,7 +249,8 @@ class Intersection:
         self.exit(exit_lane)
         raise UnknownRoute(
             f"no connection from fork {fork!r} to exit {exit_lane!r} at junction "
-            f"{self.junction!r}; valid routes: {choices(self.offered_routes)}",
+            f"{self.junction!r}; valid routes: {choices(self.offered_routes)}"
+            + self._shifted_note(),
             junction=self.junction,
         )
 
@@ -252,7 +259,7 @@ class Intersection:
         if lane not in self.forks:
             raise UnknownLane(
                 f"lane {lane!r} is not a fork (incoming lane) of junction {self.junction!r}; "
-                f"valid forks: {choices(self.offered_forks)}",
+                f"valid forks: {choices(self.offered_forks)}" + self._shifted_note(),
                 junction=self.junction,
             )
         return self.forks[lane]
@@ -262,10 +269,20 @@ class Intersection:
         if lane not in self.exits:
             raise UnknownLane(
                 f"lane {lane!r} is not an exit (outgoing lane) of junction {self.junction!r}; "
-                f"valid exits: {choices(e for e in self.exits if e not in self.side_lanes)}",
+                f"valid exits: {choices(e for e in self.exits if e not in self.side_lanes)}"
+                + self._shifted_note(),
                 junction=self.junction,
             )
         return self.exits[lane]
+
+    def _shifted_note(self) -> str:
+        """What a lane id not found means on a network with guessed crossings."""
+        if not self.crossings_guessed:
+            return ""
+        return (
+            " (with guessed crossings the sidewalk is lane 0: every car lane's index is one "
+            "higher than on the network without them)"
+        )
 
     def walk(self, walk_ref: str) -> Walk:
         """The walk with id ``walk_ref``; raises UnknownWalk naming the valid walks, or

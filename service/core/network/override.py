@@ -47,35 +47,71 @@ def rebuild_with_control(
     ``edge_priorities`` gives roads new priorities (how a ``priority_stop`` junction gets
     the major road the user or service.core.network.major chose); they are part of what the
     copy is cached by."""
+    return rebuild_network(network_file, junction, control, cache_dir, edge_priorities)
+
+
+GUESS_CROSSINGS = ["--sidewalks.guess", "true", "--crossings.guess", "true"]
+
+
+def rebuild_network(
+    network_file: Path,
+    junction: str | None = None,
+    control: str | None = None,
+    cache_dir: Path | None = None,
+    edge_priorities: Mapping[str, int] | None = None,
+    guess_crossings: bool = False,
+) -> Path:
+    """A copy of ``network_file`` rebuilt with netconvert, built once and cached by what
+    was asked: ``junction`` gets type ``control`` (None: its own), ``edge_priorities`` give
+    roads new priorities, and with ``guess_crossings`` every road gets a sidewalk (lane 0:
+    the car lanes' indices move up by one) and every junction crossings
+    (``--sidewalks.guess --crossings.guess``; a network that has them keeps its own)."""
     cache = cache_dir or default_cache_dir()
     cache.mkdir(parents=True, exist_ok=True)
     priorities = sorted((edge_priorities or {}).items())
     lifted = ",".join(f"{edge}={value}" for edge, value in priorities)
-    identity = f"{file_sha256(network_file)}|{junction}|{control}"
+    retyped = junction is not None and control is not None
+    identity = file_sha256(network_file)
+    if retyped:
+        identity += f"|{junction}|{control}"
     identity += f"|{lifted}" if lifted else ""  # without: the key of a plain override
+    identity += "|crossings" if guess_crossings else ""
     key = hashlib.sha256(identity.encode()).hexdigest()
     target = cache / f"{network_file.name.removesuffix('.net.xml')}-{key[:16]}.net.xml"
     if target.exists():
         return target
-    doing = f"give junction {junction!r} control type {control!r}"
-    if priorities:
-        doing += " with major road " + ",".join(edge for edge, _ in priorities)
+    doing = " and ".join(
+        [
+            *([f"give junction {junction!r} control type {control!r}"] if retyped else []),
+            *(["make " + ",".join(edge for edge, _ in priorities) + " the major road"]
+              if priorities else []),
+            *(["guess sidewalks and crossings"] if guess_crossings else []),
+        ]
+    ) or "rebuild the network"  # fmt: skip
     with tempfile.TemporaryDirectory(dir=cache) as work:
         nodes, edges = Path(work) / "override.nod.xml", Path(work) / "override.edg.xml"
-        nodes.write_text(
-            f"<nodes>\n    <node id={quoteattr(junction)} type={quoteattr(control)}/>\n</nodes>\n"
-        )
-        arguments = ["--sumo-net-file", str(network_file), "--node-files", str(nodes)]
+        arguments = ["--sumo-net-file", str(network_file)]
+        if retyped:
+            nodes.write_text(
+                f"<nodes>\n    <node id={quoteattr(str(junction))} "
+                f"type={quoteattr(str(control))}/>\n</nodes>\n"
+            )
+            arguments += ["--node-files", str(nodes)]
         if priorities:
             edges.write_text("<edges>\n" + "".join(
                 f"    <edge id={quoteattr(edge)} priority=\"{value:d}\"/>\n"
                 for edge, value in priorities
             ) + "</edges>\n")  # fmt: skip
             arguments += ["--edge-files", str(edges)]
+        if guess_crossings:
+            arguments += GUESS_CROSSINGS
         output = Path(work) / "rebuilt.net.xml"
         failed = run_netconvert([*arguments, "--output-file", str(output)], output, doing, junction)
         if failed is not None:
-            raise NetworkBuildFailed(f"netconvert failed to {doing}: {failed}", junction=junction)
+            raise NetworkBuildFailed(
+                f"netconvert failed to {doing}: {failed}",
+                **({"junction": junction} if junction else {}),
+            )
         output.replace(target)
     return target
 

@@ -278,12 +278,17 @@ def test_sumo_stops_every_car_at_its_forks_limit_line(
     assert _check_stops(intersections, stops) >= 2 * counted
 
 
-@pytest.mark.parametrize("network", ["4way-stop", "t-stop", "4way-signal", "t-signal"])
+@pytest.mark.parametrize(
+    "network", ["4way-stop", "t-stop", "4way-signal", "t-signal", "crosswalk-signal"]
+)
 def test_sumo_stops_at_the_limit_line_of_the_bundled_junctions(
     network: str, tmp_path: Path
 ) -> None:
-    """An all-way stop, a T with a stop sign and two signals: the fork's end is the limit
-    line and the entry area is the junction's polygon."""
+    """An all-way stop, a T with a stop sign and two signals, one of them with crosswalks
+    (SUMO's driver stops before the crosswalk): the fork's end is the limit line and the
+    entry area is the junction's polygon. (crosswalk-stop is left out: there SUMO's driver
+    on S2C_1 slows to 0.1 m/s 1 m before the line and drives on without standing still;
+    test_crossings.py holds its limit lines to the crosswalks.)"""
     intersection = load_intersection(network)
     stops = sumo_stops(intersection.network_file, [intersection], tmp_path)
     assert _check_stops([intersection], stops) >= 1

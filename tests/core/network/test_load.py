@@ -26,13 +26,15 @@ from service.core.network import (
 from tests.conftest import TOWN05, TOWN07
 
 
-def test_bundled_networks_are_the_five_documented_ones() -> None:
+def test_bundled_networks_are_the_seven_documented_ones() -> None:
     assert set(bundled_networks()) == {
         "4way-stop",
         "t-stop",
         "y-uncontrolled",
         "4way-signal",
         "t-signal",
+        "crosswalk-stop",
+        "crosswalk-signal",
     }
 
 
@@ -42,6 +44,8 @@ def test_bundled_networks_are_the_five_documented_ones() -> None:
         ("4way-stop", ControlType.ALLWAY_STOP, 4),
         ("t-stop", ControlType.PRIORITY_STOP, 3),
         ("y-uncontrolled", ControlType.RIGHT_BEFORE_LEFT, 3),
+        ("crosswalk-stop", ControlType.ALLWAY_STOP, 4),
+        ("crosswalk-signal", ControlType.TRAFFIC_LIGHT, 4),
     ],
 )
 def test_load_bundled_network_control_and_arms(name: str, control: ControlType, arms: int) -> None:
@@ -52,7 +56,9 @@ def test_load_bundled_network_control_and_arms(name: str, control: ControlType, 
     assert len({fork.edge for fork in intersection.forks.values()}) == arms
 
 
-@pytest.mark.parametrize("name", ["4way-stop", "t-stop", "y-uncontrolled"])
+@pytest.mark.parametrize(
+    "name", ["4way-stop", "t-stop", "y-uncontrolled", "crosswalk-stop", "crosswalk-signal"]
+)
 def test_bundled_roads_are_long_enough(name: str) -> None:
     net = sumolib.net.readNet(str(bundled_networks()[name]))
     for edge in net.getEdges():
@@ -250,7 +256,10 @@ def test_unknown_junction_lists_candidates() -> None:
 
 
 def test_unknown_network_lists_bundled() -> None:
-    with pytest.raises(UnknownNetwork, match="4way-signal, 4way-stop, t-signal, t-stop, y-unc"):
+    with pytest.raises(
+        UnknownNetwork,
+        match="4way-signal, 4way-stop, crosswalk-signal, crosswalk-stop, t-signal, t-sto",
+    ):
         load_intersection("5way-stop")
 
 
