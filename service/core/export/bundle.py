@@ -7,20 +7,20 @@ to run it:
   types and every car's route and departure: the replay of ``scengen evaluate``, the same
   code on the same files, so it gives the same ego trajectory and verdict;
 - ``testcase.sumocfg`` for the plain ``sumo`` binary: the ego's route file and the
-  non-egos' trajectories as SUMO FCD for SUMO's fcd-replay device, with that device's
-  limits written in the README.
+  non-egos' and pedestrians' trajectories as SUMO FCD for SUMO's fcd-replay device
+  (service.core.export.fcd), with that device's limits written in the README.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
+from service.core.export.fcd import fcd_text
 from service.core.files import write_atomically
-from service.core.motion.poses import centre_to_front
 from service.core.network import Intersection, bundled_networks
 from service.core.sim.controllers import BUILT_IN
+from service.core.sim.pedestrians import walkers
 from service.core.sim.replay import (
     ROUTES_FILE,
     SIGNALS_FILE,
@@ -45,31 +45,6 @@ from service.core.testcase import (
 NAME = "testcase"
 
 
-def fcd_text(testcase: TestCase, nonegos: Sequence[Departure]) -> str:
-    """The non-egos' trajectories as SUMO FCD: front bumper, angle, speed, per time step,
-    while the car is on the map (a car that drives on past the end of its road has left
-    it, as SUMO would remove it there)."""
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<fcd-export>"]
-    steps = round(testcase.duration / testcase.timestep)
-    roads = {car.id: car.road for car in nonegos}
-    for k in range(steps + 1):
-        lines.append(f'    <timestep time="{k * testcase.timestep:.2f}">')
-        for nonego in testcase.nonegos:
-            if k >= len(nonego.trajectory):
-                continue
-            s = nonego.trajectory[k]
-            if s.distance - nonego.trajectory[0].distance > roads[nonego.id]:
-                continue
-            x, y = centre_to_front(s.x, s.y, s.heading, nonego.length)
-            lines.append(
-                f'        <vehicle id={quoteattr(nonego.id)} x="{x:.3f}" y="{y:.3f}" '
-                f'angle="{s.heading:.3f}" type="type_{nonego.id}" speed="{s.speed:.3f}"/>'
-            )
-        lines.append("    </timestep>")
-    lines.append("</fcd-export>")
-    return "\n".join(lines) + "\n"
-
-
 def sumocfg_text(testcase: TestCase, network: str, signals: bool = False) -> str:
     """The plain-sumo configuration; ``signals``: load the test-case's signal program
     (after the network's, so it is the active one)."""
@@ -92,7 +67,9 @@ def sumocfg_text(testcase: TestCase, network: str, signals: bool = False) -> str
         <time-to-teleport value="-1"/>
         <collision.check-junctions value="true"/>
         <collision.action value="warn"/>
+        <intermodal-collision.action value="warn"/>
         <default.action-step-length value="{testcase.timestep:g}"/>
+        <insertion-checks value="none"/>
     </processing>
     <devices>
         <device.fcd-replay.file value="{NAME}.fcd.xml"/>
@@ -232,7 +209,7 @@ def export_bundle(
     ]
     files = {
         f"{NAME}.rou.xml": xml_file("routes", vehicle_lines([ego])),
-        f"{NAME}.fcd.xml": fcd_text(testcase, others),
+        f"{NAME}.fcd.xml": fcd_text(testcase, others, junction, walkers(testcase, junction)),
         f"{NAME}.sumocfg": sumocfg_text(testcase, network, junction.signals is not None),
         f"{NAME}.json": dump_testcase(with_network_path(testcase, local, folder)),
         "README.md": readme_text(testcase, [ego, *others], list(networks)),
