@@ -33,7 +33,7 @@ from service.core.sim.replay import (
 )
 from service.core.sumo import rss_guard
 from service.core.sumo import run as sumo_run
-from service.core.sumo.rss_guard import GUARD_FILE
+from service.core.sumo.rss_guard import GUARD_FILE, WORLD_FILE
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -138,7 +138,8 @@ replayed car is off its trajectory by one step's travel.
 
 Files: {NAME}.json (the test-case), run.py and {sumo_run.PLAN_FILE} (the runner and its
 plan: time step, every car's start and distance per step, the certificates, the
-controllers, what the RSS guard needs of the junction), {GUARD_FILE} (the RSS guard),
+controllers, what the RSS guard needs of the junction), {GUARD_FILE} and {WORLD_FILE} (the
+RSS guard and its ad-rss scenes),
 {TYPES_FILE} (vehicle types: the cars' sizes, the ego's driver settings), {ROUTES_FILE}
 (every car's route, depart lane, position and speed), {NAME}.rou.xml (the ego's route and
 start), {NAME}.fcd.xml (the non-egos' trajectories), {NAME}.sumocfg, and
@@ -197,13 +198,17 @@ def export_bundle(
         write_atomically(folder / name, source.read_bytes())
     write_atomically(folder / "run.py", Path(sumo_run.__file__).read_bytes())
     write_atomically(folder / GUARD_FILE, Path(rss_guard.__file__).read_bytes())
+    write_atomically(
+        folder / WORLD_FILE, Path(rss_guard.__file__).with_name(WORLD_FILE).read_bytes()
+    )
     local = None  # the file that the bundle's test-case finds its network by
     if testcase.network.ref not in bundled_networks():
         local = folder / local_network_name(testcase.network.ref)
     ego, others = departures(testcase, junction)
     # the runner's files: types (also the .sumocfg's: the fcd-replay device reads its file,
     # and needs the non-egos' types, before the route files are loaded), every car's route
-    written = [*(folder / name for name in networks), folder / "run.py", folder / GUARD_FILE]
+    written = [*(folder / name for name in networks), folder / "run.py", folder / GUARD_FILE,
+               folder / WORLD_FILE]  # fmt: skip
     written += [
         folder / name for name in write_run_files(testcase, ego, others, folder, network, junction)
     ]

@@ -267,18 +267,32 @@ def _observe(
     traci: Any, plan: dict[str, Any], guard: Any, step: int, row: Row, present: set[str]
 ) -> None:
     """Tell the guard where every car is: its front's metres from its own stop line (the
-    ego's from its odometer, a non-ego's from its trajectory) and its speed."""
-    cars = (plan.get("rss") or {}).get("cars", {})
+    ego's from its odometer, a non-ego's from its trajectory) and its speed; where every
+    pedestrian in the ego's path is (her front's metres along her walk, her speed, her
+    centre and heading); and where the ego is in the plane (its centre and heading)."""
+    rss = plan.get("rss") or {}
+    cars = rss.get("cars", {})
     others = {}
     for car in plan["nonegos"]:
         name = car["id"]
         if name in present and name in cars and step < len(car["distances"]):
             front = car["distances"][step] - cars[name]["stop_line"]
             others[name] = (front, traci.vehicle.getSpeed(name))
+    walkers = rss.get("pedestrians", {})
+    sizes = {person["id"]: float(person["length"]) for person in plan.get("pedestrians") or []}
+    people = {}
+    for name, (x, y, heading, speed) in people_at(
+        traci, plan.get("pedestrians") or [], step
+    ).items():
+        if name in walkers:
+            cx, cy = front_to_centre(x, y, heading, sizes[name])
+            people[name] = (walkers[name]["places"][step], speed, cx, cy, heading)
     ego = (row["odometer"] - float(plan["ego"]["start_distance"]), row["speed"])
+    pose = (*front_to_centre(row["x"], row["y"], row["angle"], float(plan["ego"]["length"])),
+            row["angle"])  # fmt: skip
     signals = plan.get("signals")
     colours = traci.trafficlight.getRedYellowGreenState(signals["tls"]) if signals else None
-    guard.step(row["t"], ego, others, colours)
+    guard.step(row["t"], ego, others, colours, people, pose)
 
 
 def _cap(traci: Any, guard: Any, row: Row, timestep: float, capped: bool, resume: float) -> bool:
