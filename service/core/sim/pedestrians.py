@@ -14,13 +14,22 @@ What SUMO 1.28 needs for that, found by driving its own driver at a replayed per
   walking area; a person without a walking stage over the crossing (a waiting stage) is
   never on it for SUMO's junctions.
 - Three walking stages, not one: up to the curb, the crossing alone, and from the far
-  curb on; the runner moves her on to the next stage (``person.removeStage(id, 0)``) when
-  her pose does. ``moveToXY`` guesses a person's direction on an edge from the next edge
-  of her stage, and on a crossing followed by a walking area it always guesses "along the
-  crossing's lane": a pedestrian walking a crossing against its lane (a ``-`` walk) was then
-  seen by SUMO's drivers only once she stood in their path, and they drove on in front of
-  her as she came. On a stage of the crossing alone SUMO takes her direction from where
-  she enters it and where the stage ends (its far curb), and keeps it.
+  curb on; the runner moves her on to the next stage (``person.removeStage(id, 0)``).
+  ``moveToXY`` guesses a person's direction on an edge from the next edge of her stage,
+  and on a crossing followed by a walking area it always guesses "along the crossing's
+  lane": a pedestrian walking a crossing against its lane (a ``-`` walk) was then seen by
+  SUMO's drivers only once she stood in their path, and they drove on in front of her as
+  she came. On a stage of the crossing alone SUMO takes her direction from where she
+  enters it and where the stage ends (its far curb), and keeps it.
+- The runner moves her on SWITCH metres before she reaches the crossing's strip (its far
+  curb). SUMO moves a person on to her next stage by itself once her place on a walking
+  area passes the end of SUMO's path across it, a few tenths of a metre before her front
+  reaches the strip, and puts her where the next stage begins: for one step up to the
+  crossing's length off her pose. Moved on earlier, she is in the crossing's stage while
+  her front is still on the walking area, and SUMO has her at the crossing's curb for
+  the steps of her last metre to it. On sidewalks and on the crossing she is exactly at
+  her pose; on a walking area SUMO keeps a person near its own path across it, within
+  2 m of her pose (measured for straight walks that cut a skewed corner).
 
 SUMO, like a car's, reports a person's front: every pose here is the front of the
 rectangle (``centre_to_front`` of the recorded centre and heading). A pose is on the map
@@ -44,6 +53,8 @@ from service.core.network.lanes import dedupe, shape_2d
 from service.core.testcase import Pedestrian, TestCase
 
 ON_MAP = 0.5  # metres: how far off her route's lanes a pedestrian's front may be
+SWITCH = 1.0  # metres before the crossing's strip (before its far curb) where the runner
+# moves her on to the crossing's stage (the stage after it): before SUMO would by itself
 
 
 @dataclass(frozen=True)
@@ -58,17 +69,12 @@ class Walker:
     depart_pos: float  # on the first stage's first edge: her first pose's nearest place
     poses: tuple[tuple[float, float, float, float], ...]  # per step while she is on the
     # map: her front (x, y), heading (degrees clockwise from north), speed (m/s)
-    on: tuple[tuple[int, int], ...]  # per pose, her stage and the edge in it she is on
-
-    @property
-    def edges(self) -> tuple[str, ...]:
-        """Every edge she walks, from the one she departs on."""
-        return tuple(edge for edges, _ in self.stages for edge in edges)
+    on: tuple[tuple[int, int], ...]  # per pose, her stage in SUMO and the edge in it
+    edges_at: tuple[str, ...]  # per pose, the edge her front is on
 
     def edge_at(self, step: int) -> str:
-        """The edge she is on at ``step`` (one of her poses)."""
-        stage, edge = self.on[step]
-        return self.stages[stage][0][edge]
+        """The edge her front is on at ``step`` (one of her poses)."""
+        return self.edges_at[step]
 
 
 @dataclass(frozen=True)
@@ -102,6 +108,8 @@ def _walker(person: Pedestrian, intersection: Intersection) -> Walker:
             break  # she has left the map
         poses.append((x, y, sample.heading % 360.0, sample.speed))
         at.append(where)
+    staged = [_stage_stretch(route, crossing, along, Point(pose[:2]), k)
+              for pose, k in zip(poses, at, strict=True)]  # fmt: skip
     # her stages: up to the curb, the crossing, from the far curb (none before or after a
     # traffic island), each as (first stretch, end)
     bounds = [(a, b) for a, b in ((0, crossing), (crossing, crossing + 1),
@@ -126,8 +134,32 @@ def _walker(person: Pedestrian, intersection: Intersection) -> Walker:
         stages=stages,
         depart_pos=round(depart, 3),
         poses=tuple(poses),
-        on=tuple((stage_of[k] - skipped, k - begins[stage_of[k]]) for k in at),
+        on=tuple((stage_of[k] - skipped, k - begins[stage_of[k]]) for k in staged),
+        edges_at=tuple(route[k].edge for k in at),
     )
+
+
+def _stage_stretch(
+    route: Sequence[_Stretch], crossing: int, along: bool, front: Point, at: int
+) -> int:
+    """The stretch whose stage she is in at a pose on stretch ``at``: its own, but within
+    SWITCH metres of the crossing's strip the crossing's, and within SWITCH metres of its far
+    curb the far walking area's. SUMO moves a person on to her next stage by itself when
+    her place on a walking area (on the crossing) passes the end of its path (of her
+    stage's arrival), a few tenths of a metre before her front gets there, and starts
+    the next stage where that begins (on a crossing walked against its lane, its far end):
+    a step metres off her pose; the runner moves her on before that can happen, and SUMO
+    keeps her on the nearest place of the new stage's edge (the curb) until she is on it."""
+    strip = route[crossing]
+    if at == crossing - 1 and strip.area.distance(front) < SWITCH:
+        return crossing
+    if at == crossing and crossing + 1 < len(route):
+        assert strip.line is not None
+        place = float(strip.line.project(front))
+        walked = place if along else strip.length - place
+        if walked > strip.length - SWITCH:
+            return crossing + 1
+    return at
 
 
 def _route(intersection: Intersection, walk_id: str) -> tuple[list[_Stretch], int, bool]:
@@ -144,7 +176,8 @@ def _route(intersection: Intersection, walk_id: str) -> tuple[list[_Stretch], in
         stretches.append(_sidewalk(net.getLane(walk.before)))
     stretches.append(_walking_area(net, walk.start))
     index = len(stretches)
-    stretches.append(_Stretch(crossing.id, crossing.polygon, crossing.centreline, crossing.length))
+    length = float(net.getLane(crossing.lane).getLength())  # SUMO's, not the shape's
+    stretches.append(_Stretch(crossing.id, crossing.polygon, crossing.centreline, length))
     if walk.after != crossing.lane:
         stretches.append(_walking_area(net, walk.end))
         stretches.append(_sidewalk(net.getLane(walk.after)))

@@ -8,17 +8,19 @@ controller's settings, or replays a certificate, or is left to a caller's ``on_s
 user controller). Cars that start inside an upstream junction depart just before it and are
 moved onto their start (``vehicle.moveTo``) right after the first step.
 
-Pedestrians (the plan's ``pedestrians``) are persons with a walking stage over their walk's
-edges (sidewalk, walking area, crossing, walking area, sidewalk), added before the first
-step on the edge nearest their first pose, and placed at their recorded pose every step
-after it with ``person.moveToXY(..., keepRoute=1)``: mapped onto the nearest edge of that
-route, so that SUMO has them on the crossing's lane while they are on it and its drivers
-yield to them. At t = 0 SUMO has a person at its departure place (a lane's centreline, up
-to half a sidewalk's width from the pose, or the end of the sidewalk before a walking
-area); from the first step on at its pose. A person leaves when its trajectory ends (the
-test-case's, or where it left its route's lanes: the map). Collisions with persons are
-SUMO's to report, not to act on: ``--intermodal-collision.action none`` (the checker
-judges them). The test ends with
+Pedestrians (the plan's ``pedestrians``) are persons walking their walk's edges in three
+walking stages (up to the curb, the crossing alone, from the far curb: SUMO keeps a
+person's direction on a crossing only on a stage of the crossing alone), added before the
+first step on the edge nearest their first pose, and placed at their recorded pose every
+step after it with ``person.moveToXY(..., keepRoute=1)``: mapped onto the nearest edge of
+their stage, so that SUMO has them on the crossing's lane while they are on it and its
+drivers yield to them; the runner moves a person on to her next stage when her pose comes
+near it (``removeStage``). At t = 0 SUMO has a person at its departure place (a lane's
+centreline, up to half a sidewalk's width from the pose, or the end of the sidewalk before
+a walking area); from the first step on at its pose (service.core.sim.pedestrians says how
+near, where). A person leaves when its trajectory ends (the test-case's, or where it left
+its route's lanes: the map). Collisions with persons are SUMO's to report, not to act on:
+``--intermodal-collision.action none`` (the checker judges them). The test ends with
 the ego's goal: the ego leaves the simulation at the end of its route, the first step past
 its goal (``plan["ego"]["goal"]``, metres from its start), rather than driving on and
 standing where a non-ego that follows its trajectory runs into it. (The route file ends its
