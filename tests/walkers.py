@@ -4,11 +4,19 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Sequence
 
-from shapely.geometry import Polygon
+from shapely.geometry import Point, Polygon
 
+from service.core.motion.poses import PoseSample
 from service.core.network import Intersection
-from service.core.testcase import TestCase, dump_testcase, parse_testcase
+from service.core.testcase import (
+    TestCase,
+    dump_testcase,
+    load_testcase_intersection,
+    new_testcase,
+    parse_testcase,
+)
 
 PACE = 1.3  # m/s
 
@@ -67,3 +75,44 @@ def rectangle(x: float, y: float, heading: float, length: float, width: float) -
         (x - fx * hl - rx * hw, y - fy * hl - ry * hw),
         (x - fx * hl + rx * hw, y - fy * hl + ry * hw),
     ])  # fmt: skip
+
+
+def on_crossing_times(
+    testcase: TestCase, junction: Intersection, ego: Sequence[PoseSample]
+) -> list[float]:
+    """The times the ego's rectangle overlaps the pedestrian's crosswalk."""
+    crossing = junction.crossings[junction.walk(testcase.pedestrians[0].walk).crossing].polygon
+    size = testcase.ego.length, testcase.ego.width
+    return [s.t for s in ego if rectangle(s.x, s.y, s.heading, *size).intersects(crossing)]
+
+
+def in_path_times(testcase: TestCase, junction: Intersection) -> list[float]:
+    """The times she is in the ego's path (docs/pedestrians.md): on the crosswalk and not
+    yet past the far side of the ego's connecting lane (her rear along her walk)."""
+    person = testcase.pedestrians[0]
+    walk = junction.walk(person.walk)
+    crossing = junction.crossings[walk.crossing].polygon
+    lane = junction.connecting_lane_of(junction.route(testcase.ego.route.id)).polygon
+    far = max(walk.path.project(Point(p)) for p in lane.intersection(crossing).exterior.coords)
+    times = []
+    for s in person.trajectory:
+        rad = math.radians(s.heading)
+        rear = Point(
+            s.x - math.sin(rad) * person.length / 2, s.y - math.cos(rad) * person.length / 2
+        )
+        body = rectangle(s.x, s.y, s.heading, person.length, person.width)
+        if body.intersects(crossing) and walk.path.project(rear) <= far:
+            times.append(s.t)
+    return times
+
+
+def crosswalk_scene(
+    route: str, walk: str, lead: float, wait: float, duration: float = 25.0, name: str = ""
+) -> tuple[TestCase, TestCase, Intersection]:
+    """On crosswalk-stop (an all-way stop whose east arm leaves 25 degrees off, a crosswalk
+    over every arm that drivers yield on): the ego on ``route`` alone, the same with
+    ``ped1`` walking straight over ``walk`` (``straight_walk``), and the junction."""
+    alone = new_testcase("crosswalk-stop", route, duration=duration, name=name)
+    junction = load_testcase_intersection(alone)
+    samples = straight_walk(junction, walk, duration, lead=lead, wait=wait)
+    return alone, with_pedestrians(alone, {"ped1": (walk, samples)}), junction

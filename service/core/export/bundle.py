@@ -142,12 +142,42 @@ controllers, what the RSS guard needs of the junction), {GUARD_FILE} and {WORLD_
 RSS guard and its ad-rss scenes),
 {TYPES_FILE} (vehicle types: the cars' sizes, the ego's driver settings), {ROUTES_FILE}
 (every car's route, depart lane, position and speed), {NAME}.rou.xml (the ego's route and
-start), {NAME}.fcd.xml (the non-egos' trajectories), {NAME}.sumocfg, and
-{network}.
+start), {NAME}.fcd.xml (the non-egos' trajectories: each car's row with its lane and
+position on it, each pedestrian's with her edge), {NAME}.sumocfg, and {network}.
 """
         + _signals_note(testcase)
+        + _pedestrians_note(testcase)
         + _inside_note(cars)
     )
+
+
+def _pedestrians_note(testcase: TestCase) -> str:
+    """What both ways of running do with the test-case's pedestrians."""
+    if not testcase.pedestrians:
+        return ""
+    names = ", ".join(f"`{p.id}` ({p.walk})" for p in testcase.pedestrians)
+    against = [p.id for p in testcase.pedestrians if p.walk.endswith("-")]
+    limit = (
+        f" Here {', '.join(against)} walk{'s' if len(against) == 1 else ''} a crosswalk "
+        "against its lane."
+        if against
+        else ""
+    )
+    return f"""
+Pedestrians: {names}. `run.py` (like `scengen evaluate`) adds each as a SUMO person walking
+her walk's sidewalk, corner, crosswalk and the sidewalk after it, and puts her at her
+recorded pose every step (TraCI `person.moveToXY`), so that SUMO has her on the crosswalk
+while she is on it and its drivers yield to her; she leaves when her trajectory ends or
+where she walks off her walk's lanes (off the map). Controllers see her in
+`observation.pedestrians`. Collisions with her are reported, not acted on (the checker
+judges them). In {NAME}.fcd.xml she is a `<person>` row (her front, heading, speed and
+edge) that the fcd-replay device replays for plain `sumo`, with its limits: SUMO has no
+place for a replayed person at t = 0 (from the first step on she is at her poses); it
+walks her at her first row's speed, so that row gives her fastest; and it takes her to
+walk every crosswalk along its lane, so one who walks it against its lane (a walk ending
+in `-`) is seen by SUMO's drivers only once she is in their path, and plain `sumo` can
+drive on in front of her where `run.py` waits.{limit}
+"""
 
 
 def _signals_note(testcase: TestCase) -> str:

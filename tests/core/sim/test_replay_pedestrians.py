@@ -10,14 +10,12 @@ from functools import cache
 from pathlib import Path
 
 import pytest
-from shapely.geometry import Point
 
-from service.core.motion.poses import PoseSample
 from service.core.network import Intersection
 from service.core.sim.pedestrians import walkers
 from service.core.sim.replay import evaluate
-from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
-from tests.walkers import rectangle, straight_walk, with_pedestrians
+from service.core.testcase import TestCase
+from tests.walkers import crosswalk_scene, in_path_times, on_crossing_times
 
 # crosswalk-stop: an all-way stop whose east arm leaves 25 degrees off, a crosswalk over
 # every arm that drivers yield on. (ego route, walk, metres before the curb, seconds she
@@ -37,37 +35,7 @@ DURATION = 25.0
 def _scene(name: str) -> tuple[TestCase, TestCase, Intersection]:
     """The ego alone, the ego with the pedestrian ``ped1``, and the junction."""
     route, walk, lead, wait = SCENES[name]
-    alone = new_testcase("crosswalk-stop", route, duration=DURATION, name=name)
-    junction = load_testcase_intersection(alone)
-    samples = straight_walk(junction, walk, DURATION, lead=lead, wait=wait)
-    return alone, with_pedestrians(alone, {"ped1": (walk, samples)}), junction
-
-
-def _on_crossing(testcase: TestCase, junction: Intersection, ego: list[PoseSample]) -> list[float]:
-    """The times the ego's rectangle overlaps the pedestrian's crosswalk."""
-    crossing = junction.crossings[junction.walk(testcase.pedestrians[0].walk).crossing].polygon
-    size = testcase.ego.length, testcase.ego.width
-    return [s.t for s in ego if rectangle(s.x, s.y, s.heading, *size).intersects(crossing)]
-
-
-def _in_path(testcase: TestCase, junction: Intersection) -> list[float]:
-    """The times she is in the ego's path (docs/pedestrians.md): on the crosswalk and not
-    yet past the far side of the ego's connecting lane (her rear along her walk)."""
-    person = testcase.pedestrians[0]
-    walk = junction.walk(person.walk)
-    crossing = junction.crossings[walk.crossing].polygon
-    lane = junction.connecting_lane_of(junction.route(testcase.ego.route.id)).polygon
-    far = max(walk.path.project(Point(p)) for p in lane.intersection(crossing).exterior.coords)
-    times = []
-    for s in person.trajectory:
-        rad = math.radians(s.heading)
-        rear = Point(
-            s.x - math.sin(rad) * person.length / 2, s.y - math.cos(rad) * person.length / 2
-        )
-        body = rectangle(s.x, s.y, s.heading, person.length, person.width)
-        if body.intersects(crossing) and walk.path.project(rear) <= far:
-            times.append(s.t)
-    return times
+    return crosswalk_scene(route, walk, lead, wait, DURATION, name)
 
 
 @pytest.mark.parametrize("controller", ["sumo", "sumo+rss"])
@@ -78,13 +46,15 @@ def test_the_ego_waits_for_a_pedestrian_on_the_crosswalk(scene: str, controller:
     and reaches its goal. Without her it would have been on the crosswalk then. Under the
     guard, ad-rss's pedestrian scenes are what slowed it."""
     alone, testcase, junction = _scene(scene)
-    in_path = _in_path(testcase, junction)
+    in_path = in_path_times(testcase, junction)
     assert len(in_path) > 20  # she is in its path for seconds
-    without = _on_crossing(testcase, junction, evaluate(alone, controller, junction).trajectory)
+    without = on_crossing_times(
+        testcase, junction, evaluate(alone, controller, junction).trajectory
+    )
     assert any(in_path[0] <= t <= in_path[-1] for t in without)  # the scene is a real one
     evaluation = evaluate(testcase, controller, junction)
     assert evaluation.verdict.goal_reached and evaluation.error is None
-    entered = _on_crossing(testcase, junction, evaluation.trajectory)
+    entered = on_crossing_times(testcase, junction, evaluation.trajectory)
     assert entered and not set(entered) & set(in_path)
     assert entered[0] > in_path[-1] and entered[0] > without[0] + 1.0
     guard = evaluation.verdict.guard
