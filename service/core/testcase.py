@@ -95,7 +95,7 @@ def check_name(value: str) -> str:
 class WalkingParams(_Model):
     """Bounds of the pedestrians' walking (Step 3's speed profiles, the plausibility of a
     document): people on foot walk at most a brisk 2.5 m/s, speed up and slow down gently,
-    and may stand (at or below ``Params.v_stop``), at the curb or anywhere else."""
+    and may stand (at or below `Params.v_stop`), at the curb or anywhere else."""
 
     v_max: float = Field(2.0, gt=0.2, le=2.5, description="fastest walking speed (m/s)")
     a_max: float = Field(1.0, ge=0.1, le=3.0, description="strongest speeding up (m/s^2)")

@@ -155,6 +155,47 @@ def test_every_junction_works_or_is_refused_with_a_reason(
     assert outcomes["forks at their limit line"] >= 3 * outcomes["intersection worked"]
 
 
+@pytest.mark.parametrize(
+    ("town", "node", "control"),
+    [(TOWN05, "1126", None), (TOWN05, "2014", None), (TOWN07, "358", "right_before_left")],
+    ids=["Town05-1126", "Town05-2014", "Town07-358"],
+)
+def test_guessed_crossings_on_real_junctions(
+    town: Path,
+    node: str,
+    control: str | None,
+    private_cache: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A four-way light, a light whose median splits two roads (traffic islands) and a Y:
+    with --guess-crossings every junction gets walks, its routes keep their turns on lanes
+    one index up, and its limit lines still hold (before the crosswalks)."""
+    flags = [str(town), "--junction", node, *(["--control", control] if control else [])]
+    assert cli.main(["intersection", *flags, "--json"]) == 0
+    plain = json.loads(capsys.readouterr().out)
+    assert plain["walks"] == []
+    assert cli.main(["intersection", *flags, "--guess-crossings", "--json"]) == 0
+    guessed = json.loads(capsys.readouterr().out)
+    assert guessed["crossings_guessed"] and len(guessed["walks"]) >= 6
+    assert all(walk["conflicts"] for walk in guessed["walks"])
+    turns = {(_up(r["fork"]), _up(r["exit"]), r["turn"]) for r in plain["routes"]}
+    assert {(r["fork"], r["exit"], r["turn"]) for r in guessed["routes"]} == turns
+    route = guessed["routes"][0]["id"]
+    longer = ["--duration", f"{guessed['signals']['cycle'] + 1:g}"] if guessed["signals"] else []
+    made = private_cache / "t.json"
+    assert cli.main(["new", *flags, "--guess-crossings", f"--ego={route}", *longer,
+                     "-o", str(made)]) == 0  # fmt: skip
+    assert json.loads(made.read_text())["crossings_guessed"] is True
+    intersection = load_intersection(town, node, control, guess_crossings=True)
+    for fork in intersection.forks.values():
+        assert not entered(fork, 0.3) and entered(fork, -0.2), (node, fork.lane)
+
+
+def _up(lane: str) -> str:
+    edge, _, index = lane.rpartition("_")
+    return f"{edge}_{int(index) + 1}"
+
+
 def _limit_lines(town: Path, node: str, control: str | None) -> int:
     """Every fork's limit line is its own end (no light of either town controls the node
     before a fork), and the model's entry is at it: a car 0.3 m before the line has not
