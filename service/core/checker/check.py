@@ -1,17 +1,20 @@
 """The pass-fail checker: judge an ego trajectory against a test-case.
 
 The ego passes when it reaches its exit lane, fully out of the junction, within the
-duration; collides with no non-ego; and violates no traffic rule and no non-ego's
-right-of-way under the rule set of the junction's control type. The judgement ends with
-the goal: at the moment the ego is on its exit lane and its rectangle has left the
-junction for good (its rear is out: every event of the ego at the junction comes before),
-or at the duration when it never gets there. A collision that starts later, and a
+duration; collides with no non-ego, car or pedestrian; and violates no traffic rule and no
+non-ego's right-of-way (a car's, or a pedestrian's: ``other`` is the pedestrian) under the
+rule set of the junction's control type. The judgement ends with the goal: at the moment
+the ego is on its exit lane and its rectangle has left the junction for good (its rear is
+out: every event of the ego at the junction comes before), or at the duration when it
+never gets there. A collision that starts later, and a
 violation whose ego events all come later, are kept in the verdict as information (its
 ``after_goal_*``); they do not fail the ego. The criticality measures end there too.
-Events of every car are computed from its trajectory (service.core.motion.events), their
+Events of every car are computed from its trajectory (service.core.motion.events), a
+pedestrian's and a car's at the crosswalks too (service.core.checker.pedestrians), their
 perceptible order from the numbers with one m (service.core.checker.rules), and the
-rules decide. With all orders given, the rule program is stratified, so the check is
-bounded: it runs in the caller's process.
+rules decide. The rules a pedestrian breaks (21950 (b), 21456) are not the ego's: the
+verdict keeps them as information (``pedestrians_broke``). With all orders given, the rule
+program is stratified, so the check is bounded: it runs in the caller's process.
 """
 
 from __future__ import annotations
@@ -23,11 +26,13 @@ from dataclasses import dataclass
 import numpy as np
 from shapely.geometry import Point
 
+from service.core.checker.pedestrians import Walker, walker, with_crossing_events
 from service.core.checker.rules import (
     REQUESTED_LANE,
     TimedEvent,
     event_facts,
     geometry_facts,
+    pedestrian_facts,
     perceptible_order,
     phase_facts,
     signal_facts,
@@ -36,9 +41,11 @@ from service.core.checker.rules import (
 )
 from service.core.checker.verdict import (
     CROSSING,
+    PEDESTRIAN,
     REAR_END,
     CollisionRecord,
     EventRef,
+    RoadUserViolation,
     Verdict,
     Violation,
 )
@@ -54,7 +61,13 @@ from service.core.motion.poses import (
 )
 from service.core.motion.queues import QueueCar, follows, line_distance
 from service.core.network import Intersection
-from service.core.testcase import NonEgo, TestCase, load_testcase_intersection, readable_name
+from service.core.testcase import (
+    NonEgo,
+    Pedestrian,
+    TestCase,
+    load_testcase_intersection,
+    readable_name,
+)
 
 EGO = "ego"
 START_TOLERANCE = 2.0  # metres between the trajectory's first front bumper and the start
@@ -98,8 +111,8 @@ def check_testcase(
 
 
 class Judge:
-    """The checker for one test-case: the non-egos' events are computed once, then any
-    number of ego trajectories are judged against them."""
+    """The checker for one test-case: the non-egos' events (cars' and pedestrians') are
+    computed once, then any number of ego trajectories are judged against them."""
 
     def __init__(
         self,
@@ -119,6 +132,12 @@ class Judge:
         ]
         self.queued: dict[tuple[str, float], Car] = {}
         self.nonegos = self._in_queues(self.nonegos)
+        walking = {w.id: w for w in known.pedestrians} if known is not None else {}
+        kept_walking = {p.id: p for p in known.testcase.pedestrians} if known is not None else {}
+        self.pedestrians: list[Walker] = [
+            walking[p.id] if kept_walking.get(p.id) == p else _walker(testcase, self.junction, p)
+            for p in testcase.pedestrians
+        ]
 
     def _in_queues(self, cars: Sequence[Car]) -> list[Car]:
         """The cars with the arrivals of those in a queue: a car behind another on its fork
@@ -161,9 +180,10 @@ class Judge:
         car = cars[0]
         goal_time = _goal_time(self.testcase, self.junction, car)
         end = goal_time if goal_time is not None else self.testcase.duration
-        collisions = _collisions(cars)
-        violations = _violations(self.junction, cars, self.testcase.params.m,
-                                 self.testcase.duration)  # fmt: skip
+        collisions = _collisions(cars, self.pedestrians)
+        broken = _violations(self.junction, cars, self.pedestrians, self.testcase.params.m,
+                             self.testcase.duration)  # fmt: skip
+        violations = broken.get(EGO, [])
         measures = self.criticality(cars, end) if criticality else None
         return Verdict(
             testcase=testcase_label(self.testcase),
@@ -177,6 +197,9 @@ class Judge:
             criticality=measures,
             after_goal_collisions=tuple(c for c in collisions if c.t > end),
             after_goal_violations=tuple(v for v in violations if _ego_time(v) > end),
+            pedestrians_broke=tuple(
+                RoadUserViolation(p.id, v) for p in self.pedestrians for v in broken.get(p.id, [])
+            ),
         )
 
     def criticality(self, cars: Sequence[Car], end: float = math.inf) -> Criticality:
@@ -193,9 +216,10 @@ class Judge:
 
     def rules_broken_by(self, car_id: str) -> list[Violation]:
         """The traffic rules (not right-of-way) that non-ego ``car_id`` breaks, among the
-        non-egos: at a signalized junction a generated car obeys its signal."""
-        found = _violations(self.junction, self.nonegos, self.testcase.params.m,
-                            self.testcase.duration, of=car_id)  # fmt: skip
+        non-egos: at a signalized junction a generated car obeys its signal. A pedestrian's
+        id gives the rules of the pedestrian it breaks (21950 (b) against the cars, 21456)."""
+        found = _violations(self.junction, self.nonegos, self.pedestrians, self.testcase.params.m,
+                            self.testcase.duration).get(car_id, [])  # fmt: skip
         return [v for v in found if v.other is None]
 
 
@@ -208,6 +232,7 @@ def _car(
         samples, length, width, junction, fork,
         testcase.params.arrival_distance, testcase.params.v_stop, not_before,
     )  # fmt: skip
+    events = with_crossing_events(junction, samples, length, width, events)
     line = line_distance(samples, length, junction.fork(fork), events) if samples else 0.0
     return Car(car_id, fork, lane, length, width, samples, tuple(events), line)
 
@@ -226,6 +251,13 @@ def _nonego_car(testcase: TestCase, junction: Intersection, nonego: NonEgo) -> C
                 samples, testcase, junction)  # fmt: skip
 
 
+def _walker(testcase: TestCase, junction: Intersection, person: Pedestrian) -> Walker:
+    samples = [PoseSample(**s.model_dump()) for s in person.trajectory]
+    walking = testcase.params.walk
+    return walker(junction, person.id, person.walk, person.length, person.width, samples,
+                  walking.arrival_distance, testcase.params.v_stop)  # fmt: skip
+
+
 def _check_start(testcase: TestCase, junction: Intersection, ego: Sequence[PoseSample]) -> None:
     if len(ego) < 2:
         raise InvalidTrajectory("the ego trajectory needs at least 2 samples")
@@ -242,18 +274,26 @@ def _check_start(testcase: TestCase, junction: Intersection, ego: Sequence[PoseS
         )
 
 
-def _timed(cars: Sequence[Car]) -> list[TimedEvent]:
-    """Events the rules can use: those on the requested lanes, each with a time symbol."""
-    relevant = {car.lane for car in cars}
+LANE_KINDS = (EventKind.ENTERED_LANE, EventKind.LEFT_LANE)
+
+
+def _timed(cars: Sequence[Car], people: Sequence[Walker] = ()) -> list[TimedEvent]:
+    """Events the rules can use, each with a time symbol: a car's on the requested lanes
+    (its own, the other cars', the pedestrians' crossings), without ``exited``; a
+    pedestrian's on the cars' lanes, with ``exited`` (when it leaves its crossing)."""
+    car_lanes = {car.lane for car in cars}
+    relevant = car_lanes | {person.lane for person in people}
     timed = []
     for car in cars:
-        lane_kinds = (EventKind.ENTERED_LANE, EventKind.LEFT_LANE)
         chosen = [
             e
             for e in car.events
-            if e.kind is not EventKind.EXITED and (e.kind not in lane_kinds or e.lane in relevant)
+            if e.kind is not EventKind.EXITED and (e.kind not in LANE_KINDS or e.lane in relevant)
         ]
         timed += [TimedEvent(car.id, time_symbol(car.id, k), e) for k, e in enumerate(chosen)]
+    for person in people:
+        chosen = [e for e in person.events if e.kind not in LANE_KINDS or e.lane in car_lanes]
+        timed += [TimedEvent(person.id, time_symbol(person.id, k), e) for k, e in enumerate(chosen)]
     return timed
 
 
@@ -261,34 +301,48 @@ VERDICT_ATOMS = (("law", 2), ("violatesRightOfForRuleAt", 4), ("violatesRuleAt",
 
 
 def _violations(
-    junction: Intersection, cars: Sequence[Car], m: float, duration: float, of: str = EGO
-) -> list[Violation]:
-    """The rules car ``of`` breaks among ``cars`` (the ego's, by default)."""
-    timed = _timed(cars)
+    junction: Intersection,
+    cars: Sequence[Car],
+    people: Sequence[Walker],
+    m: float,
+    duration: float,
+) -> dict[str, list[Violation]]:
+    """The rules each road user breaks among ``cars`` and ``people``, by its id (one
+    violation of a rule against one other, the earliest; ordered by time)."""
+    timed = _timed(cars, people)
     facts = geometry_facts(junction) + perceptible_order(timed, m)
     facts += signal_facts(junction, duration) + phase_facts(junction, timed, duration)
     for car in cars:
         facts.append(REQUESTED_LANE(car.id, car.lane))
         facts += event_facts(car.id, car.fork, [t for t in timed if t.car == car.id])
+    for person in people:
+        facts += pedestrian_facts(person.id, person.lane, [t for t in timed if t.car == person.id])
     atoms = solve_rules(junction.control, facts, VERDICT_ATOMS)
     by_symbol = {t.symbol: t for t in timed}
     laws = {str(a.arguments[0]): a.arguments[1].string for a in atoms if a.name == "law"}
-    found: dict[tuple[str, str | None], Violation] = {}
+    found: dict[tuple[str, str, str | None], Violation] = {}
     for atom in atoms:
         name, arguments = atom.name, atom.arguments
-        if name == "violatesRightOfForRuleAt" and arguments[0].string == of:
+        if name == "violatesRightOfForRuleAt":
             other: str | None = arguments[1].string
             rule, times = arguments[2], arguments[3]
-        elif name == "violatesRuleAt" and arguments[0].string == of:
+        elif name == "violatesRuleAt":
             other, rule, times = None, arguments[1], arguments[2]
         else:
             continue
+        by = arguments[0].string
         events = tuple(_ref(by_symbol[s]) for s in times.arguments)
         candidate = Violation(str(rule), laws[str(rule)], other, events)
-        key = (candidate.rule, other)
+        key = (by, candidate.rule, other)
         if key not in found or _earlier(candidate, found[key]):
             found[key] = candidate
-    return sorted(found.values(), key=lambda v: (v.events[0].t, v.rule, v.other or ""))
+    broken: dict[str, list[Violation]] = {}
+    for (by, _, _), violation in found.items():
+        broken.setdefault(by, []).append(violation)
+    return {
+        by: sorted(found, key=lambda v: (v.events[0].t, v.rule, v.other or ""))
+        for by, found in broken.items()
+    }
 
 
 def _ego_time(violation: Violation) -> float:
@@ -329,16 +383,20 @@ def _refs(car: Car) -> list[EventRef]:
     return [EventRef(car.id, e.kind.value, e.lane, round(e.time, 6)) for e in car.events]
 
 
-def _collisions(cars: Sequence[Car]) -> list[CollisionRecord]:
-    """The ego's first collision with each car; between two cars of one fork it is a
-    rear-end collision (one drove into the other on their common lane)."""
+def _collisions(cars: Sequence[Car], people: Sequence[Walker] = ()) -> list[CollisionRecord]:
+    """The ego's first collision with each car and each pedestrian; between two cars of one
+    fork it is a rear-end collision (one drove into the other on their common lane)."""
     ego, others = cars[0], cars[1:]
     ego_motion = Motion(ego.samples, ego.length, ego.width)
     found = []
-    for other in others:
+    road_users: list[Car | Walker] = [*others, *people]
+    for other in road_users:
         hit = first_collision(ego_motion, Motion(other.samples, other.length, other.width))
         if hit is not None:
-            kind = REAR_END if other.fork == ego.fork else CROSSING
+            if isinstance(other, Walker):
+                kind = PEDESTRIAN
+            else:
+                kind = REAR_END if other.fork == ego.fork else CROSSING
             found.append(CollisionRecord(other.id, round(hit.time, 6), hit.x, hit.y, kind))
     return found
 

@@ -4,7 +4,9 @@ Facts are built through the helpers below, never as free text, so a renamed pred
 breaks a test (tests/core/checker/test_rules.py checks every input predicate against the
 files).
 Every identifier from a network or a test-case (car ids, lane ids) is an ASP string, so ids
-such as ``-35_0`` or ``:C_11_0`` need no escaping. Time symbols are ``t(Car, K)``.
+such as ``-35_0`` or ``:C_11_0`` need no escaping. Time symbols are ``t(Car, K)``, a
+pedestrian's too. A crossing is named by its lane (``:C_c0_0``) in every fact, as a car's
+route by its connecting lane (docs/pedestrians.md, "The rules on an event trace").
 """
 
 from __future__ import annotations
@@ -76,6 +78,14 @@ IS_OPPOSITE_OF = Predicate("isOppositeOf", 2)
 SAME_DIRECTION = Predicate("sameDirection", 2)
 HAS_STOP_SIGN = Predicate("hasStopSign", 1)
 REQUESTED_LANE = Predicate("requestedLane", 2)
+# People on foot (pedestrians.lp)
+PEDESTRIAN = Predicate("pedestrian", 1)
+CROSSING_LANE = Predicate("crossingLane", 1)
+CROSSING_AT_FORK = Predicate("crossingAtFork", 2)
+ARRIVED_AT_CURB = Predicate("arrivedAtCurbAtTime", 3)
+STOPPED_AT_CURB = Predicate("stoppedAtCurbAtTime", 3)
+ENTERED_CROSSING = Predicate("enteredCrossingAtTime", 3)
+LEFT_CROSSING = Predicate("leftCrossingAtTime", 3)
 # Signals (signals.lp)
 SIGNAL_LANE = Predicate("signalLane", 1)
 LANE_COLOUR = Predicate("laneColour", 3)
@@ -97,7 +107,8 @@ INPUT_PREDICATES = (
     IS_FORK, LANE_FROM_FORK, LANE_TURN, OVERLAPS, IS_TO_THE_RIGHT_OF, IS_OPPOSITE_OF,
     SAME_DIRECTION, HAS_STOP_SIGN, REQUESTED_LANE, ARRIVED_AT_FORK, STOPPED_AT_FORK,
     ENTERED_FORK, ENTERED_LANE, LEFT_LANE, TIME, EQUAL, LESS_THAN, REAL_LTE, SIGNAL_LANE,
-    LANE_COLOUR, PHASE_SPAN, PHASE_AT,
+    LANE_COLOUR, PHASE_SPAN, PHASE_AT, PEDESTRIAN, CROSSING_LANE, CROSSING_AT_FORK,
+    ARRIVED_AT_CURB, STOPPED_AT_CURB, ENTERED_CROSSING, LEFT_CROSSING,
 )  # fmt: skip
 
 
@@ -106,7 +117,7 @@ def time_symbol(car: str, index: int) -> clingo.Symbol:
 
 
 def geometry_facts(intersection: Intersection) -> list[Fact]:
-    """The intersection model as facts (geometry.lp)."""
+    """The intersection model as facts (geometry.lp), with its crossings (crossing_facts)."""
     facts = [IS_FORK(f) for f in intersection.forks]
     facts += [HAS_STOP_SIGN(f.lane) for f in intersection.forks.values() if f.stop_sign]
     for fork, others in intersection.to_its_right.items():
@@ -120,30 +131,59 @@ def geometry_facts(intersection: Intersection) -> list[Fact]:
         facts += [LANE_FROM_FORK(lane, route.fork), LANE_TURN(lane, constant(route.turn.value))]
         for other in sorted(intersection.conflicts[route.id]):
             facts.append(OVERLAPS(lane, intersection.routes[other].connecting_lane))
+    return facts + crossing_facts(intersection)
+
+
+def crossing_facts(intersection: Intersection) -> list[Fact]:
+    """The crossings of the junction as facts (pedestrians.lp): each crossing's lane, the
+    car connecting lanes that cross it (its walks' conflicts: route ids) and the forks whose
+    road it crosses (just past their limit line); none without crossings."""
+    facts = []
+    for crossing in intersection.crossings.values():
+        facts.append(CROSSING_LANE(crossing.lane))
+        conflicts = {
+            intersection.routes[route].connecting_lane
+            for walk in intersection.walks.values()
+            if walk.crossing == crossing.id
+            for route in walk.conflicts
+        }
+        facts += [OVERLAPS(crossing.lane, lane) for lane in sorted(conflicts)]
+        facts += [
+            CROSSING_AT_FORK(crossing.lane, fork.lane)
+            for fork in intersection.forks.values()
+            if fork.edge in crossing.edges
+        ]
     return facts
 
 
 def signal_facts(intersection: Intersection, horizon: float) -> list[Fact]:
     """The signal program over [0, horizon] s as facts (signals.lp): the phase instances
-    and every signalled lane's colour in each; none for a junction without signals."""
+    and every signalled lane's colour in each, a crossing's lane showing its pedestrian
+    signal (its link); none for a junction without signals."""
     program = intersection.signals
     if program is None:
         return []
-    signalled = [r for r in intersection.routes.values() if r.link_index >= 0]
-    facts = [SIGNAL_LANE(r.connecting_lane) for r in signalled]
+    signalled = [
+        (r.connecting_lane, r.link_index) for r in intersection.routes.values() if r.link_index >= 0
+    ]
+    signalled += [
+        (c.lane, c.link_index) for c in intersection.crossings.values() if c.link_index >= 0
+    ]
+    facts = [SIGNAL_LANE(lane) for lane, _ in signalled]
     for instance in program.instances(horizon):
         low, high = math.floor(instance.start * 1000), math.floor(instance.end * 1000)
         facts.append(PHASE_SPAN(instance.index, low, high))
-        for route in signalled:
-            colour = constant(RULE_COLOURS[instance.state[route.link_index]])
-            facts.append(LANE_COLOUR(route.connecting_lane, instance.index, colour))
+        for lane, link in signalled:
+            colour = constant(RULE_COLOURS[instance.state[link]])
+            facts.append(LANE_COLOUR(lane, instance.index, colour))
     return facts
 
 
 def phase_facts(
     intersection: Intersection, timed: Iterable[TimedEvent], horizon: float
 ) -> list[Fact]:
-    """phaseAt for every entry into the junction, from its number (signals.lp)."""
+    """phaseAt for every entry into the junction, and every pedestrian's step onto its
+    crossing (an ``entered`` event too), from its number (signals.lp)."""
     program = intersection.signals
     if program is None:
         return []
@@ -179,6 +219,29 @@ def event_facts(car: str, fork: str, events: Iterable[TimedEvent]) -> list[Fact]
             facts.append(ENTERED_LANE(car, event.lane, symbol))
         elif event.kind is EventKind.LEFT_LANE:
             facts.append(LEFT_LANE(car, event.lane, symbol))
+    return facts
+
+
+def pedestrian_facts(person: str, crossing_lane: str, events: Iterable[TimedEvent]) -> list[Fact]:
+    """A pedestrian as facts (pedestrians.lp): who it is, the crossing it walks (by its
+    lane) and its events. ``arrived``, ``stopped``, ``entered`` and ``exited`` name the
+    crossing whatever their ``lane`` says (the crossing's id); ``entered_lane`` and
+    ``left_lane`` the lane they name (a car's connecting lane, or the crossing's lane)."""
+    facts = [PEDESTRIAN(person), REQUESTED_LANE(person, crossing_lane)]
+    for timed in events:
+        event, symbol = timed.event, timed.symbol
+        if event.kind is EventKind.ARRIVED:
+            facts.append(ARRIVED_AT_CURB(person, crossing_lane, symbol))
+        elif event.kind is EventKind.STOPPED:
+            facts.append(STOPPED_AT_CURB(person, crossing_lane, symbol))
+        elif event.kind is EventKind.ENTERED:
+            facts.append(ENTERED_CROSSING(person, crossing_lane, symbol))
+        elif event.kind is EventKind.EXITED:
+            facts.append(LEFT_CROSSING(person, crossing_lane, symbol))
+        elif event.kind is EventKind.ENTERED_LANE:
+            facts.append(ENTERED_LANE(person, event.lane, symbol))
+        elif event.kind is EventKind.LEFT_LANE:
+            facts.append(LEFT_LANE(person, event.lane, symbol))
     return facts
 
 

@@ -4,7 +4,8 @@ A test-case's judgement ends when the ego has reached its goal (on its exit lane
 rectangle out of the junction), or at the duration when it never does: ``judged_until``.
 Collisions and rule violations after that moment are kept apart (``after_goal_*``, in the
 JSON ``after_goal``), as information: they are not reasons, never fail the ego, and JUnit
-reports them nowhere as failures.
+reports them nowhere as failures. So are the rules a pedestrian breaks (21950 (b), 21456:
+``pedestrians_broke``, in the JSON only when there are some): they are not the ego's.
 """
 
 from __future__ import annotations
@@ -30,9 +31,23 @@ class EventRef:
     t: float
 
 
+# The rules that give a pedestrian the right-of-way (asp/laws: cvc21950.lp, cvc21951.lp,
+# and the signal laws cvc21451.lp, cvc21453.lp): their ``other`` is a person on foot.
+RIGHTS_OF_PEDESTRIANS = frozenset(
+    {
+        "yieldToPedestrian",
+        "passesCarStoppedForPedestrian",
+        "yieldToPedestrianOnGreen",
+        "yieldToPedestrianOnArrow",
+        "yieldToPedestrianOnRightOnRed",
+    }
+)
+
+
 @dataclass(frozen=True)
 class Violation:
-    """A rule the ego broke; ``other`` is the car whose right-of-way it violated, if any."""
+    """A rule the ego broke; ``other`` is the car, or the pedestrian (a rule of
+    RIGHTS_OF_PEDESTRIANS), whose right-of-way it violated, if any."""
 
     rule: str
     law: str  # California Vehicle Code section, e.g. "21800(a)"
@@ -41,12 +56,26 @@ class Violation:
 
     def describe(self) -> str:
         times = ", ".join(f"{e.car} {e.kind} {e.lane} at {e.t:.2f} s" for e in self.events)
-        against = f" of {self.other}" if self.other else ""
+        whose = "pedestrian " if self.rule in RIGHTS_OF_PEDESTRIANS else ""
+        against = f" of {whose}{self.other}" if self.other else ""
         return f"violated CVC {self.law} ({self.rule}){against}: {times}"
+
+
+@dataclass(frozen=True)
+class RoadUserViolation:
+    """A rule a pedestrian broke (a rule of the pedestrian: ``violation.other`` is None):
+    information in the ego's verdict, never its failure."""
+
+    by: str
+    violation: Violation
+
+    def describe(self) -> str:
+        return f"pedestrian {self.by} (not the ego's failure) {self.violation.describe()}"
 
 
 REAR_END = "rear-end"
 CROSSING = "crossing"
+PEDESTRIAN = "pedestrian"  # the ego and a person on foot
 
 
 @dataclass(frozen=True)
@@ -55,10 +84,13 @@ class CollisionRecord:
     t: float
     x: float
     y: float
-    kind: str = CROSSING  # REAR_END: two cars of one fork, one drove into the other
+    kind: str = CROSSING  # REAR_END: two cars of one fork, one drove into the other;
+    # PEDESTRIAN: the ego and a person on foot
 
     def describe(self) -> str:
-        what = "rear-end collision with" if self.kind == REAR_END else "collided with"
+        what = {REAR_END: "rear-end collision with", PEDESTRIAN: "collided with pedestrian"}.get(
+            self.kind, "collided with"
+        )
         return f"{what} {self.other} at {self.t:.2f} s at ({self.x:.1f}, {self.y:.1f})"
 
 
@@ -84,6 +116,8 @@ class Verdict:
     # after the judgement ended (the goal): information, not failures (module docstring)
     after_goal_collisions: tuple[CollisionRecord, ...] = ()
     after_goal_violations: tuple[Violation, ...] = ()
+    # the rules the test-case's pedestrians broke: information, not the ego's failure
+    pedestrians_broke: tuple[RoadUserViolation, ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -102,7 +136,8 @@ class Verdict:
         records = [c.describe() for c in self.after_goal_collisions]
         records += [v.describe() for v in self.after_goal_violations]
         when = "after its goal" if self.goal_reached else "after the duration"
-        return [f"{when} (not judged): {record}" for record in records]
+        found = [f"{when} (not judged): {record}" for record in records]
+        return found + [broken.describe() for broken in self.pedestrians_broke]
 
     @property
     def reasons(self) -> list[str]:
@@ -124,6 +159,8 @@ class Verdict:
             "collisions": data.pop("after_goal_collisions"),
             "violations": data.pop("after_goal_violations"),
         }
+        if not self.pedestrians_broke:
+            del data["pedestrians_broke"]  # as before pedestrians: no key
         data["reasons"] = self.reasons
         data["information"] = self.information
         data["criticality"] = None if self.criticality is None else self.criticality.to_dict()
@@ -163,6 +200,10 @@ class Verdict:
                 CollisionRecord(**item) for item in after.get("collisions", ())
             ),
             after_goal_violations=violations(after.get("violations", ())),
+            pedestrians_broke=tuple(
+                RoadUserViolation(item["by"], violations([item["violation"]])[0])
+                for item in data.get("pedestrians_broke", ())
+            ),
         )
 
     def to_junit(self) -> str:

@@ -86,6 +86,14 @@ def test_the_rule_set_names_each_signal_section(four_way: Intersection) -> None:
         "stopBeforeRightOnRed": "21453(b)",
         "yieldOnRightOnRed": "21453(b)",
         "stopAtRedArrow": "21453(c)",
+        # people on foot (tests/core/checker/test_pedestrian_rules.py)
+        "yieldToPedestrianOnGreen": "21451(a)",
+        "yieldToPedestrianOnArrow": "21451(b)",
+        "yieldToPedestrianOnRightOnRed": "21453(b)",
+        "yieldToPedestrian": "21950(a)",
+        "leavesCurbIntoHazard": "21950(b)",
+        "passesCarStoppedForPedestrian": "21951",
+        "walkAgainstSignal": "21456(a)(3)",
     }
 
 
