@@ -54,6 +54,8 @@ def test_the_ego_waits_for_a_pedestrian_on_the_crosswalk(scene: str, controller:
     assert any(in_path[0] <= t <= in_path[-1] for t in without)  # the scene is a real one
     evaluation = evaluate(testcase, controller, junction)
     assert evaluation.verdict.goal_reached and evaluation.error is None
+    # and the checker, judging her right-of-way (CVC 21950 (a)), passes it
+    assert evaluation.verdict.passed, evaluation.verdict.reasons
     entered = on_crossing_times(testcase, junction, evaluation.trajectory)
     assert entered and not set(entered) & set(in_path)
     assert entered[0] > in_path[-1] and entered[0] > without[0] + 1.0
