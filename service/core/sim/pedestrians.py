@@ -10,9 +10,9 @@ lane while she is on it and its drivers yield to her (``jmCrossingGap``).
 
 What SUMO 1.28 needs for that, found by driving its own driver at a replayed person:
 
-- keepRoute 1. keepRoute 0, 2 and 4 (free mapping) crash SUMO when the pose reaches a
-  walking area; a person without a walking stage over the crossing (a waiting stage) is
-  never on it for SUMO's junctions.
+- keepRoute 1. With keepRoute 0, 2, 4 or 6 SUMO crashed (a segmentation fault; with 0 at
+  the step her pose reached the walking area past the crossing); a person without a
+  walking stage over the crossing (a waiting stage) is never on it for SUMO's junctions.
 - Three walking stages, not one: up to the curb, the crossing alone, and from the far
   curb on; the runner moves her on to the next stage (``person.removeStage(id, 0)``).
   ``moveToXY`` guesses a person's direction on an edge from the next edge of her stage,

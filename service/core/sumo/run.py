@@ -294,7 +294,10 @@ def _observe(
             row["angle"])  # fmt: skip
     signals = plan.get("signals")
     colours = traci.trafficlight.getRedYellowGreenState(signals["tls"]) if signals else None
-    guard.step(row["t"], ego, others, colours, people, pose)
+    if rss.get("pedestrians"):
+        guard.step(row["t"], ego, others, colours, people, pose)
+    else:  # as before pedestrians: a guard of one's own with the old step keeps working
+        guard.step(row["t"], ego, others, colours)
 
 
 def _cap(traci: Any, guard: Any, row: Row, timestep: float, capped: bool, resume: float) -> bool:
