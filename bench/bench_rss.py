@@ -30,7 +30,7 @@ from service.core.network import load_intersection
 from service.core.sim.controllers import resolve_driver
 from service.core.sim.replay import controller_spec, departures, write_run_files
 from service.core.sumo import run as sumo_run
-from service.core.sumo.rss_guard import CarState, Restriction, RssGuard
+from service.core.sumo.rss_guard import CarState, Restriction, RssGuard, WalkerState
 from service.core.testcase import TestCase, new_testcase
 
 LEVELS = 5
@@ -46,10 +46,16 @@ class TimedGuard(RssGuard):
         self.wall: list[float] = []
 
     def step(
-        self, t: float, ego: CarState, others: dict[str, CarState], signals: str | None
+        self,
+        t: float,
+        ego: CarState,
+        others: dict[str, CarState],
+        signals: str | None,
+        pedestrians: dict[str, WalkerState] | None = None,
+        ego_pose: tuple[float, float, float] | None = None,
     ) -> Restriction | None:
         cpu, wall = time.process_time(), time.perf_counter()
-        found = super().step(t, ego, others, signals)
+        found = super().step(t, ego, others, signals, pedestrians, ego_pose)
         self.cpu.append(time.process_time() - cpu)
         self.wall.append(time.perf_counter() - wall)
         return found

@@ -91,12 +91,14 @@ def plot(args: argparse.Namespace) -> int:
         )
     say = progress(time.monotonic())
     from service.pictures.animation import animate_testcase  # matplotlib: on use
-    from service.pictures.plot import draw_testcase, save
+    from service.pictures.junction import save
+    from service.pictures.plot import draw_testcase
 
     testcase = read_input(args.testcase)
     junction = testcase_intersection(testcase, args)
+    walkers = f" and {len(testcase.pedestrians)} pedestrians" if testcase.pedestrians else ""
     say(f"read {args.testcase.name}: junction {testcase.junction}, "
-        f"{len(testcase.nonegos)} cars besides the ego")  # fmt: skip
+        f"{len(testcase.nonegos)} cars besides the ego{walkers}")  # fmt: skip
     trajectory: list[PoseSample] = []
     verdict = None
     if args.controller:

@@ -62,7 +62,7 @@ def intersection(args: argparse.Namespace) -> int:
         print(f"scengen: note: {junction.signals_refused}", file=sys.stderr)
     description = describe_intersection(junction, args.duration)
     if args.plot:
-        from service.pictures.plot import plot_intersection
+        from service.pictures.junction import plot_intersection
 
         with output_file(args.plot) as picture:
             plot_intersection(junction, picture)

@@ -147,7 +147,7 @@ def drive(args: argparse.Namespace) -> int:
         testcase.params.v_stop,
     )
     if args.plot:
-        from service.pictures.plot import plot_intersection
+        from service.pictures.junction import plot_intersection
 
         with output_file(args.plot) as picture:
             plot_intersection(intersection, picture, [route.id], track.samples)

@@ -59,10 +59,15 @@ REAR_END_LAW = "21703"  # CVC: following too closely
 # What ends a chain before its depth: no more complex test-case exists, none was found
 # within the search's counts, or the level's budget ran out (the message says which).
 CHAIN_ENDS = (NoMoreComplexTestCase, NoneFound, BudgetExceeded)
-# Rules of the ego alone (no other car's right-of-way): a complexity certificate passes the
-# old test-case, so it keeps them, and no new car can make a test-case test them. They are
-# the rules asp/laws/ states as violatesRuleAt(V, Rule, ...) (tests/core/test_campaign.py).
-EGO_ONLY_RULES = frozenset({"stopAtSign", "stopAtRed", "stopAtRedArrow", "stopBeforeRightOnRed"})
+# Rules of one road user alone (no one else's right-of-way): the ego's stops, which a
+# complexity certificate keeps since it passes the old test-case, and a pedestrian's own
+# (21950 (b), 21456), which no ego can break; no new road user makes a test-case test them.
+# They are the rules asp/laws/ states as violatesRuleAt(V, Rule, ...)
+# (tests/core/test_campaign.py).
+EGO_ONLY_RULES = frozenset(
+    {"stopAtSign", "stopAtRed", "stopAtRedArrow", "stopBeforeRightOnRed",
+     "leavesCurbIntoHazard", "walkAgainstSignal"}
+)  # fmt: skip
 
 
 @dataclass(frozen=True)

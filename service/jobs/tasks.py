@@ -131,7 +131,7 @@ def plot_junction(
     suffix: str,
 ) -> bytes:
     """The junction's picture (PNG or SVG) with the given routes highlighted."""
-    from service.pictures.plot import plot_intersection
+    from service.pictures.junction import plot_intersection
 
     intersection = load_intersection(network_file, junction, control, cache_dir)
     for route in routes:

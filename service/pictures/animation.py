@@ -1,5 +1,6 @@
-"""A test-case's cars moving, as a GIF: the map of the static picture with each car's
-rectangle and id, and each signal head in its colour, a frame every half second."""
+"""A test-case's road users moving, as a GIF: the map of the static picture with each
+car's rectangle and id, each pedestrian's disc and id, and each signal head in its
+colour, a frame every half second."""
 
 from __future__ import annotations
 
@@ -25,15 +26,20 @@ from service.core.motion.poses import PoseSample
 from service.core.network import Intersection
 from service.core.network.signals import COLOUR_WORDS
 from service.core.testcase import TestCase
-from service.pictures.labels import LabelPlacer
+from service.pictures.junction import STOP_LINE, draw_roads, draw_stop_lines, frame_map
+from service.pictures.labels import GAP, LabelPlacer, Spot
+from service.pictures.pedestrians import (
+    GIF_DISC,
+    crosswalk_handles,
+    draw_crosswalks,
+    draw_pavements,
+    walker_artist,
+    walkers,
+)
 from service.pictures.plot import (
     CAR_COLOURS,
-    STOP_LINE,
     DrawnPath,
     car_spot,
-    draw_roads,
-    draw_stop_lines,
-    frame_map,
     normal,
     picture_title,
     queue_leaders,
@@ -81,18 +87,23 @@ def draw_animation(
     """The animation's figure (the map, its axes first, framed with every start in view and
     stop lines drawn as in the static picture; the legend below it names the car each
     starts behind on a shared fork) and the function that draws a frame: each car's
-    rectangle and its id beside it, inside the map and over no other id, car or signal
-    head; a car out of view has no id; at a signalized junction each head in its colour at
-    the frame's time (over the cars) and the ego's signal beside the clock. The artists
-    that change are animated: a frame draws only them."""
+    rectangle and each pedestrian's disc (crosswalks drawn as in the static picture), with
+    its id beside it, inside the map and over no other id, road user or signal head; one
+    out of view has no id, one whose trajectory has ended is gone; at a signalized junction
+    each head in its colour at the frame's time (over the road users) and the ego's signal
+    beside the clock. The artists that change are animated: a frame draws only them."""
     cars = _animated_cars(testcase, intersection, ego, ego_label)
+    people = walkers(testcase)
     queues = queue_leaders(testcase, intersection)
     figure, axes = plt.subplots(figsize=(7.5, 8.2), dpi=DPI)
     draw_roads(axes, intersection)
+    draw_pavements(axes, intersection)
+    draw_crosswalks(axes, intersection)
     draw_stop_lines(axes, intersection)
     if any(fork.stop_sign for fork in intersection.forks.values()):
         axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
-    frame_map(axes, intersection, [samples[0] for _, _, _, samples, _, _ in cars if samples])
+    starts = [samples[0] for _, _, _, samples, _, _ in cars if samples]
+    frame_map(axes, intersection, starts + [p.samples[0] for p in people if p.samples])
     patches = []
     for car, name, colour, _, _, _ in cars:
         ahead = queues.get(car)
@@ -103,14 +114,19 @@ def draw_animation(
                               fontsize=8, color=colour, zorder=6, ha="center", va="center",
                               annotation_clip=False, visible=False, animated=True)  # fmt: skip
         patches.append((outline, label))
+    discs = []
+    for person in people:
+        label = axes.annotate(person.id, (0.0, 0.0), xytext=(0.0, 0.0), fontsize=8,
+                              textcoords="offset points", color=person.colour, zorder=6,
+                              ha="center", va="center", annotation_clip=False, visible=False,
+                              animated=True)  # fmt: skip
+        discs.append((walker_artist(axes, person), label))
     heads = SignalHeads(axes, intersection, animated=True)
-    if heads.heads:  # the signals' colours after the cars
-        handles, labels = axes.get_legend_handles_labels()
-        more, words = colour_handles(heads.colours_used())
-        axes.legend(handles + more, labels + words, loc="upper center",
-                    bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=7)  # fmt: skip
-    else:
-        axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=7)
+    handles, labels = axes.get_legend_handles_labels()
+    walking, names = crosswalk_handles(intersection)
+    more, words = colour_handles(heads.colours_used())  # the signals' colours last
+    axes.legend(handles + walking + more, labels + names + words, loc="upper center",
+                bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=7)  # fmt: skip
     axes.set_title(picture_title(testcase), pad=20)
     ego_route = intersection.route(testcase.ego.route.id)
     lit = heads.points()
@@ -134,9 +150,22 @@ def draw_animation(
             rect = rectangles(np.array([s.x]), np.array([s.y]), np.array([s.heading]),
                               length, width)[0]  # fmt: skip
             outline.set_xy(np.array(rect.exterior.coords))
-            shown.append((label, s, length, width, _covering(s, length, width)))
+            spot = car_spot(s, length, width, "left")
+            shown.append((label, s, spot, _covering(s, length, width)))
+        for (disc, label), person in zip(discs, people, strict=True):
+            label.set_visible(False)
+            if frame >= len(person.samples):  # her trajectory has ended: she is gone
+                disc.set_data([], [])
+                continue
+            s = person.samples[frame]
+            disc.set_data([s.x], [s.y])
+            spot = car_spot(s, person.length, person.width, "left")
+            spot = Spot(spot.anchor, spot.directions, [0.0] * len(spot.metres),
+                        GAP + GIF_DISC / 2.0)  # fmt: skip
+            shown.append((label, s, spot, np.array([[s.x, s.y]])))
         _place_car_labels(axes, shown, lit)
-        return [clock, *(p for pair in patches for p in pair), *lights]  # lights over cars
+        moving = [p for pair in [*patches, *discs] for p in pair]
+        return [clock, *moving, *lights]  # lights over road users
 
     return figure, draw
 
@@ -153,24 +182,25 @@ def _covering(sample: PoseSample, length: float, width: float) -> np.ndarray:
     return points
 
 
-Shown = tuple[Annotation, PoseSample, float, float, np.ndarray]  # label, pose, size, cover
+Shown = tuple[Annotation, PoseSample, Spot, np.ndarray]  # label, pose, where, cover
 
 
 def _place_car_labels(axes: Axes, shown: Sequence[Shown], lights: np.ndarray) -> None:
-    """Each car's id beside its rectangle where the car is in view and there is room,
-    over no other car and no signal head (``lights``: points that cover the heads)."""
+    """Each road user's id beside it (``Spot``) where it is in view and there is room,
+    over no other road user and no signal head (``lights``: points that cover the
+    heads)."""
     low_x, high_x = axes.get_xlim()
     low_y, high_y = axes.get_ylim()
     covered = np.vstack([points for *_, points in shown]) if shown else None
     if len(lights):  # a signal head is not to be hidden either
         covered = lights if covered is None else np.vstack([covered, lights])
     placer = LabelPlacer(axes, covered)
-    for label, s, length, width, _ in shown:
+    for label, s, spot, _ in shown:
         if not (low_x <= s.x <= high_x and low_y <= s.y <= high_y):
             continue  # out of view: its id would hang over the axis numbers
         label.xy = (s.x, s.y)
         label.set_visible(True)  # an invisible text has no size to place
-        label.set_visible(placer.place(label, car_spot(s, length, width, "left")))
+        label.set_visible(placer.place(label, spot))
 
 
 def animate_testcase(

@@ -1,4 +1,6 @@
-"""Pictures of an intersection, its routes and a car's drive (matplotlib, no display)."""
+"""A test-case's picture: the junction with every road user's path, and the
+time-distance panel with the events, the verdict and, at a signal, each car's signal
+under it (matplotlib, no display)."""
 
 from __future__ import annotations
 
@@ -6,7 +8,7 @@ import math
 import textwrap
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, Literal
+from typing import Literal
 
 import matplotlib
 import numpy as np
@@ -16,7 +18,6 @@ import matplotlib.pyplot as plt
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.text import Annotation
-from shapely.geometry import Polygon
 
 from service.core.checker.check import EGO, Judge, until_goal
 from service.core.checker.verdict import Verdict
@@ -25,7 +26,18 @@ from service.core.motion.poses import PoseSample
 from service.core.motion.queues import QueueCar, follows
 from service.core.network import Intersection
 from service.core.testcase import TestCase, readable_name, testcase_level
-from service.pictures.labels import LabelPlacer, Spot
+from service.pictures.junction import STOP_LINE, draw_roads, draw_stop_lines, frame_map, save
+from service.pictures.labels import GAP, LabelPlacer, Spot
+from service.pictures.pedestrians import (
+    DISC,
+    PEDESTRIAN_COLOURS,
+    Walker,
+    crosswalk_handles,
+    draw_crosswalks,
+    draw_pavements,
+    draw_walker,
+    walkers,
+)
 from service.pictures.signals import (
     STRIP_ROW,
     SignalHeads,
@@ -33,45 +45,6 @@ from service.pictures.signals import (
     draw_signal_strip,
     signal_rows,
 )
-
-TURN_COLOURS = {"left": "tab:red", "right": "tab:green", "straight": "tab:blue"}
-
-
-def _fill(axes: Axes, polygon: Polygon, **style: Any) -> None:
-    for part in getattr(polygon, "geoms", [polygon]):
-        xs, ys = part.exterior.xy
-        axes.fill(xs, ys, **style)
-
-
-def draw_roads(axes: Axes, intersection: Intersection) -> None:
-    _fill(axes, intersection.polygon, color="0.85", zorder=0)
-    for fork in intersection.forks.values():
-        _fill(axes, fork.approach.buffer(fork.width / 2, cap_style="flat"), color="0.9", zorder=0)
-    for exit_lane in intersection.exits.values():
-        road = exit_lane.departure.buffer(exit_lane.width / 2, cap_style="flat")
-        _fill(axes, road, color="0.93", zorder=0)
-
-
-STOP_LINE = "firebrick"  # a stop sign's line; other forks' lines are grey
-
-
-def draw_stop_lines(axes: Axes, intersection: Intersection) -> None:
-    """Each fork's line across its lane at the junction: red with a stop sign, else grey
-    (lines, so that they clash with no event marker)."""
-    for fork in intersection.forks.values():
-        x, y = fork.stop_line
-        heading = math.radians(fork.heading)  # degrees clockwise from north
-        dx, dy = math.cos(heading) * fork.width / 2, -math.sin(heading) * fork.width / 2
-        colour, width = (STOP_LINE, 2.2) if fork.stop_sign else ("0.45", 1.0)
-        axes.plot([x - dx, x + dx], [y - dy, y + dy], color=colour, linewidth=width,
-                  solid_capstyle="butt", zorder=4)  # fmt: skip
-
-
-def _back_along(line: Any, metres: float, from_end: bool = True) -> tuple[float, float]:
-    """The point ``metres`` from the end (or the start) of a line, along it."""
-    length = line.length
-    at = line.interpolate(max(length - metres, 0.0) if from_end else min(metres, length))
-    return at.x, at.y
 
 
 def _arrow(axes: Axes, samples: Sequence[PoseSample], colour: str) -> None:
@@ -82,104 +55,6 @@ def _arrow(axes: Axes, samples: Sequence[PoseSample], colour: str) -> None:
     tail = moved[-1]
     axes.annotate("", xy=(samples[-1].x, samples[-1].y), xytext=(tail.x, tail.y), zorder=5,
                   arrowprops={"arrowstyle": "-|>", "color": colour, "lw": 1.4})  # fmt: skip
-
-
-def plot_intersection(
-    intersection: Intersection,
-    path: Path,
-    highlight: Sequence[str] = (),
-    track: Sequence[PoseSample] = (),
-    car: tuple[float, float] = (5.0, 1.8),
-) -> None:
-    """Draw the junction, every connecting lane (coloured by turn), forks with their names,
-    the highlighted routes, the signal heads at t = 0 s of the junction's program, and
-    optionally a car's rectangles every second."""
-    figure, axes = plt.subplots(figsize=(8, 8))
-    draw_roads(axes, intersection)
-    for route in intersection.routes.values():
-        lane = intersection.connecting_lanes[route.connecting_lane]
-        chosen = route.id in highlight
-        xs, ys = lane.centreline.xy
-        axes.plot(
-            xs, ys, color=TURN_COLOURS[route.turn.value],
-            linewidth=2.5 if chosen else 0.8, alpha=1.0 if chosen else 0.5, zorder=2,
-        )  # fmt: skip
-        if chosen:
-            _fill(axes, lane.polygon, color=TURN_COLOURS[route.turn.value], alpha=0.15, zorder=1)
-        xs, ys = lane.centreline.xy
-        axes.annotate("", xy=(xs[-1], ys[-1]), xytext=(xs[-2], ys[-2]), zorder=2,
-                      arrowprops={"arrowstyle": "-|>", "color": TURN_COLOURS[route.turn.value],
-                                  "lw": 0.8, "alpha": 1.0 if chosen else 0.6})  # fmt: skip
-    draw_stop_lines(axes, intersection)
-    heads = SignalHeads(axes, intersection)
-    heads.show(0.0)
-    if heads.heads and heads.program is not None:
-        handles, labels = colour_handles(heads.colours_used())
-        axes.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.04), ncol=3,
-                    fontsize=7, title="signals at t = 0 s", title_fontsize=7)  # fmt: skip
-    for fork in intersection.forks.values():
-        sign = " (stop)" if fork.stop_sign else ""
-        _label_outward(axes, f"{fork.lane}{sign}", _back_along(fork.approach, 1.5), fork.approach)
-    for exit_lane in intersection.exits.values():
-        start = _back_along(exit_lane.departure, 1.5, from_end=False)
-        _label_outward(axes, f"{exit_lane.lane} (exit)", start, exit_lane.departure, True)
-    if track:
-        step = max(1, round(1.0 / max(track[1].t - track[0].t, 1e-9))) if len(track) > 1 else 1
-        shown = list(track[::step])
-        rects = rectangles(
-            np.array([s.x for s in shown]), np.array([s.y for s in shown]),
-            np.array([s.heading for s in shown]), car[0], car[1],
-        )  # fmt: skip
-        for rect in rects:
-            xs, ys = rect.exterior.xy
-            axes.plot(xs, ys, color="black", linewidth=0.6, zorder=3)
-        axes.plot([s.x for s in track], [s.y for s in track], "k:", linewidth=0.8, zorder=3)
-    minx, miny, maxx, maxy = intersection.polygon.bounds
-    margin = 20.0
-    axes.set_xlim(minx - margin, maxx + margin)
-    axes.set_ylim(miny - margin, maxy + margin)
-    axes.set_aspect("equal")
-    axes.set_title(
-        f"junction {intersection.junction} ({intersection.control.value}): "
-        "left red, right green, straight blue" + _heads_title(heads)
-    )
-    save(figure, path)
-
-
-def _heads_title(heads: SignalHeads) -> str:
-    """What a junction's picture says of its signal heads (nothing without any)."""
-    if not heads.heads:
-        return ""
-    if heads.program is None:
-        return "\nsignal heads past the stop lines, grey: the network's program is not fixed-time"
-    return "\nsignal heads past the stop lines at t = 0 s"
-
-
-def save(figure: Figure, path: Path) -> None:
-    """Write a figure (the legend below a map included) and close it: the same picture
-    gives the same bytes (an SVG's ids from a fixed salt, no date in its metadata)."""
-    metadata = {"Date": None} if path.suffix.lower() == ".svg" else None
-    with matplotlib.rc_context({"svg.hashsalt": "scengen"}):
-        figure.savefig(path, dpi=110, bbox_inches="tight", metadata=metadata)
-    plt.close(figure)
-
-
-def _label_outward(
-    axes: Any, text: str, at: tuple[float, float], line: Any, outward: bool = False
-) -> None:
-    """A label that runs from ``at`` away from the junction along a lane (an approach ends
-    at the junction; a departure, ``outward``, starts there): labels of lanes side by side
-    on one arm stay apart, and none is upside down."""
-    (x0, y0), (x1, y1) = line.coords[0], line.coords[-1]
-    if outward:
-        (x0, y0), (x1, y1) = (x1, y1), (x0, y0)
-    angle = math.degrees(math.atan2(y0 - y1, x0 - x1))
-    flipped = not -90.0 <= angle <= 90.0
-    axes.text(
-        at[0], at[1], text, fontsize=7, zorder=4,
-        rotation=angle + 180.0 if flipped else angle, rotation_mode="anchor",
-        ha="right" if flipped else "left", va="center",
-    )  # fmt: skip
 
 
 CAR_COLOURS = ["tab:blue", "tab:orange", "tab:purple", "tab:brown", "tab:pink", "tab:olive",
@@ -339,7 +214,10 @@ def _draw_starts(axes: Axes, paths: Sequence[DrawnPath], queues: dict[str, str |
 
 
 def _map_labels(
-    paths: Sequence[DrawnPath], every: int, queues: dict[str, str | None]
+    paths: Sequence[DrawnPath],
+    every: int,
+    queues: dict[str, str | None],
+    people: Sequence[Walker] = (),
 ) -> list[tuple[str, str, float, Spot]]:
     """The map's labels in the order they are placed (text, colour, font size, spot): each
     car's id at its start (once: the certificates start together) with the car it starts
@@ -359,8 +237,23 @@ def _map_labels(
                 continue
             spot = car_spot(sample, length, width, "right")
             times.append((-1.0 if rank < 0 else sample.t, rank, text, colour, spot))
+    for k, person in enumerate(people, start=len(paths)):
+        spot = walker_spot(person, person.samples[0], "left")
+        starts.append((person.id, person.colour, START_FONT, spot))
+        for sample, text in time_labels(list(person.samples[::every]), near=WALKER_NEAR):
+            times.append((sample.t, k, text, person.colour, walker_spot(person, sample, "right")))
     times.sort(key=lambda item: (item[0], item[1]))
     return starts + [(text, colour, TIME_FONT, spot) for _, _, text, colour, spot in times]
+
+
+WALKER_NEAR = 0.5  # m: a pedestrian's discs this close share a time label (she waits)
+
+
+def walker_spot(person: Walker, sample: PoseSample, sides: Literal["right", "left"]) -> Spot:
+    """The places beside a pedestrian's disc at ``sample``, as car_spot's beside a car,
+    clear of the disc (DISC points across)."""
+    spot = car_spot(sample, person.length, person.width, sides)
+    return Spot(spot.anchor, spot.directions, [0.0] * len(spot.directions), GAP + DISC / 2.0)
 
 
 def place_map_labels(
@@ -394,25 +287,31 @@ def draw_testcase(
     panel (the third axes). ``progress`` hears of each stage."""
     say = progress or (lambda message: None)
     paths = _testcase_paths(testcase, intersection, ego, ego_label)
+    people = walkers(testcase)
     rows = signal_rows(
         testcase, intersection, [(drawn[2], drawn[3]) for drawn in paths if drawn[0] == EGO],
         [CAR_COLOURS[k % len(CAR_COLOURS)] for k in range(len(testcase.nonegos))],
+        [person.colour for person in people],
     )  # fmt: skip
     figure, axes, panel, strip = _figure(len(rows))
     draw_roads(axes, intersection)
+    draw_pavements(axes, intersection)
+    draw_crosswalks(axes, intersection)
     draw_stop_lines(axes, intersection)
     if any(fork.stop_sign for fork in intersection.forks.values()):
         axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
     heads = SignalHeads(axes, intersection)
     heads.show(0.0)  # the moment of the starts' markers; the strip has the rest
     step = max(1, round(2.0 / testcase.timestep))
-    say(f"drawing {len(paths)} paths")
+    say(f"drawing {len(paths)} paths" + (f" and {len(people)} pedestrians" if people else ""))
     obstacles = [_draw_path(axes, panel, drawn, step) for drawn in paths]
+    obstacles += [draw_walker(axes, panel, person, step) for person in people]
     queues = queue_leaders(testcase, intersection)
     _draw_starts(axes, paths, queues)
     _draw_events(panel, testcase, verdict, ego)
-    frame_map(axes, intersection, [drawn[3][0] for drawn in paths if drawn[3]])
-    _map_legend(axes, heads)
+    starts = [drawn[3][0] for drawn in paths if drawn[3]]
+    frame_map(axes, intersection, starts + [p.samples[0] for p in people if p.samples])
+    _map_legend(axes, heads, intersection)
     figure.suptitle(picture_title(testcase), fontsize=13)
     signals = "; signals at t = 0 s" if heads.heads else ""
     axes.set_title(f"junction {testcase.junction} ({intersection.control.value}), "
@@ -422,7 +321,7 @@ def draw_testcase(
         panel.tick_params(labelbottom=False)  # the strip under it has the times
     else:
         panel.set_xlabel("time (s)")
-    panel.set_ylabel("distance travelled (m)")
+    panel.set_ylabel("distance travelled or walked (m)" if people else "distance travelled (m)")
     panel.grid(alpha=0.3)
     panel.legend(loc="upper left", fontsize=7)
     figure.tight_layout()
@@ -430,7 +329,7 @@ def draw_testcase(
         _fit_verdict(figure, panel, verdict)
     else:
         panel.set_title("distance over time; markers: events")
-    labels = _map_labels(paths, step, queues)
+    labels = _map_labels(paths, step, queues, people)
     say(f"placing {len(labels)} labels")
     if heads.heads:
         obstacles.append(heads.points())
@@ -457,10 +356,13 @@ def _figure(strip_rows: int) -> tuple[Figure, Axes, Axes, Axes | None]:
     return figure, axes, panel, strip
 
 
-def _map_legend(axes: Axes, heads: SignalHeads) -> None:
-    """The map's legend below it: the paths, starts and stop lines, then the signals'
-    colours (those the heads show at some time: the strip's colours too)."""
+def _map_legend(axes: Axes, heads: SignalHeads, intersection: Intersection) -> None:
+    """The map's legend below it: the paths (the pedestrians' among them), starts and stop
+    lines, the crosswalks and sidewalks, then the signals' colours (those the heads show
+    at some time: the strip's colours too)."""
     handles, labels = axes.get_legend_handles_labels()
+    walking, names = crosswalk_handles(intersection)
+    handles, labels = handles + walking, labels + names
     more, words = colour_handles(heads.colours_used())
     axes.legend(handles + more, labels + words, loc="upper center",
                 bbox_to_anchor=(0.5, -0.08), ncol=3, fontsize=7)  # fmt: skip
@@ -469,10 +371,14 @@ def _map_legend(axes: Axes, heads: SignalHeads) -> None:
 def _draw_events(
     panel: Axes, testcase: TestCase, verdict: Verdict | None, ego: Sequence[PoseSample]
 ) -> None:
-    """The non-egos' events in their colours and an evaluated ego's in black, on the panel."""
-    for k, nonego in enumerate(testcase.nonegos):
-        colour = CAR_COLOURS[k % len(CAR_COLOURS)]
-        for event in nonego.events:
+    """The non-egos' events in their colours and an evaluated ego's in black, on the panel;
+    a pedestrian's (at the curb, onto and off her crossing) in hers."""
+    users = [(nonego.events, CAR_COLOURS[k % len(CAR_COLOURS)])
+             for k, nonego in enumerate(testcase.nonegos)]  # fmt: skip
+    users += [(person.events, PEDESTRIAN_COLOURS[k % len(PEDESTRIAN_COLOURS)])
+              for k, person in enumerate(testcase.pedestrians)]  # fmt: skip
+    for events, colour in users:
+        for event in events:
             if event.kind.value in EVENT_MARKERS:
                 panel.plot([event.t], [event.distance], EVENT_MARKERS[event.kind.value],
                            color=colour, ms=6)  # fmt: skip
@@ -481,8 +387,9 @@ def _draw_events(
             if ref.kind in EVENT_MARKERS:
                 at = min(ego, key=lambda s: abs(s.t - ref.t))
                 panel.plot([ref.t], [at.distance], EVENT_MARKERS[ref.kind], color="black", ms=6)
+    whose = "road user's" if testcase.pedestrians else "car's"
     for kind, marker in EVENT_MARKERS.items():
-        panel.plot([], [], marker, color="0.3", label=f"{kind} (in the car's colour)")
+        panel.plot([], [], marker, color="0.3", label=f"{kind} (in the {whose} colour)")
 
 
 def verdict_lines(verdict: Verdict, columns: int) -> list[str]:
@@ -536,21 +443,6 @@ def plot_testcase(
     if progress is not None:
         progress(f"writing {path}")
     save(figure, path)
-
-
-def frame_map(axes: Axes, intersection: Intersection, starts: Sequence[PoseSample]) -> None:
-    """The junction with a margin, every start in view, metres on both axes."""
-    minx, miny, maxx, maxy = intersection.polygon.bounds
-    margin = 25.0
-    low_x = min([minx - margin, *(s.x - 6.0 for s in starts)])  # every start in view
-    low_y = min([miny - margin, *(s.y - 6.0 for s in starts)])
-    high_x = max([maxx + margin, *(s.x + 6.0 for s in starts)])
-    high_y = max([maxy + margin, *(s.y + 6.0 for s in starts)])
-    axes.set_xlim(low_x, high_x)
-    axes.set_ylim(low_y, high_y)
-    axes.set_aspect("equal")
-    axes.set_xlabel("x (m)")
-    axes.set_ylabel("y (m)")
 
 
 EVENT_MARKERS = {"arrived": "o", "entered": "^", "exited": "s"}

@@ -52,10 +52,14 @@ def evaluations_path(testcase: str) -> str:
 
 def geometry_path(document: dict[str, Any]) -> str:
     """Where the browser asks for the picture data of a test-case's junction (quoted as
-    JavaScript's encodeURIComponent quotes: the page looks its answers up by this path)."""
+    JavaScript's encodeURIComponent quotes: the page looks its answers up by this path),
+    on its network with guessed crosswalks where the test-case has them (ui.js's
+    geometryOf)."""
     network = quote(document["network"]["ref"], safe=URI_COMPONENT_SAFE)
     junction = quote(document["junction"], safe=URI_COMPONENT_SAFE)
-    return f"/networks/{network}/junctions/{junction}/geometry?control={document['control']}"
+    guessed = "&guess_crossings=true" if document.get("crossings_guessed") else ""
+    query = f"control={document['control']}{guessed}"
+    return f"/networks/{network}/junctions/{junction}/geometry?{query}"
 
 
 def campaign_title(outcome: dict[str, Any]) -> str:

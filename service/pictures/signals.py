@@ -1,6 +1,7 @@
 """Traffic lights in pictures: a head for each signalized link (a bar just past its fork's
-stop line, service.core.network.geometry) in the colour its program shows at a moment,
-and a strip under the time-distance panel with each car's signal over the test-case.
+stop line, and a pedestrian signal's bar at each end of its crossing, inside the strip:
+service.core.network.geometry) in the colour its program shows at a moment, and a strip
+under the time-distance panel with each road user's signal over the test-case.
 
 Colours of SUMO's signal states: ``G`` (protected green) dark green, ``g`` (permissive
 green) light green, ``y`` amber, ``r`` and ``u`` (red-yellow: still red) red, ``s`` (right
@@ -25,7 +26,8 @@ from service.core.checker.check import EGO
 from service.core.motion.events import EventKind, compute_events
 from service.core.motion.poses import PoseSample
 from service.core.network import Intersection, SignalProgram
-from service.core.network.geometry import HEAD_DEPTH, SignalHead, signal_heads
+from service.core.network.geometry import HEAD_DEPTH, pedestrian_heads, signal_heads
+from service.core.network.model import Point
 from service.core.network.signals import COLOUR_WORDS
 from service.core.testcase import TestCase
 
@@ -56,7 +58,8 @@ def legend_words(colour: str) -> str:
 
 @dataclass
 class _Head:
-    head: SignalHead
+    link_index: int
+    corners: tuple[Point, Point, Point, Point]
     bar: PolygonPatch
     dot: Circle
 
@@ -64,50 +67,56 @@ class _Head:
 class SignalHeads:
     """The heads of ``intersection``'s signalized links on a map, recoloured by ``show``:
     drawn once, as the animation needs (``animated``: drawn only when a frame asks). Each
-    bar's SVG id is ``signal-head-FORK-LINK``, its dot's ``signal-dot-FORK-LINK``."""
+    bar's SVG id is ``signal-head-FORK-LINK``, its dot's ``signal-dot-FORK-LINK``; a
+    pedestrian signal's ``pedestrian-head-WALK`` and ``pedestrian-dot-WALK`` (the walk that
+    starts at it, its + or - as ``plus`` or ``minus``: ``C_c0-plus``)."""
 
     def __init__(self, axes: Axes, intersection: Intersection, animated: bool = False) -> None:
         self.program: SignalProgram | None = intersection.signals
         self.heads: list[_Head] = []
-        for head in signal_heads(intersection):
-            name = f"{head.fork}-{head.link_index}"
+        found = [(f"signal-%s-{h.fork}-{h.link_index}", h.link_index, h.corners)
+                 for h in signal_heads(intersection)]  # fmt: skip
+        found += [(f"pedestrian-%s-{walk_name(h.walk)}", h.link_index, h.corners)
+                  for h in pedestrian_heads(intersection)]  # fmt: skip
+        for name, link, corners in found:
             bar = PolygonPatch(
-                head.corners, closed=True, facecolor=UNKNOWN, edgecolor=HEAD_EDGE,
-                linewidth=0.4, zorder=4.5, animated=animated, gid=f"signal-head-{name}",
+                corners, closed=True, facecolor=UNKNOWN, edgecolor=HEAD_EDGE, linewidth=0.4,
+                zorder=4.5, animated=animated, gid=name % "head",
             )  # fmt: skip
-            xs, ys = zip(*head.corners, strict=True)
+            xs, ys = zip(*corners, strict=True)
             centre = (sum(xs) / 4.0, sum(ys) / 4.0)
-            width = min(_side(head.corners[0], head.corners[1]), HEAD_DEPTH)
+            width = min(_side(corners[0], corners[1]), _side(corners[1], corners[2]), HEAD_DEPTH)
             dot = Circle(centre, width * 0.3, facecolor=MARK, edgecolor="none", zorder=4.6,
-                         visible=False, animated=animated, gid=f"signal-dot-{name}")  # fmt: skip
+                         visible=False, animated=animated, gid=name % "dot")  # fmt: skip
             axes.add_patch(bar)
             axes.add_patch(dot)
-            self.heads.append(_Head(head, bar, dot))
-
-    def colour(self, head: SignalHead, t: float) -> str | None:
-        """The SUMO colour of ``head`` at ``t``; None without a program."""
-        return None if self.program is None else self.program.colour(head.link_index, t)
+            self.heads.append(_Head(link, corners, bar, dot))
 
     def show(self, t: float) -> list[Artist]:
         """Every head in its colour at time ``t`` (s); the artists, dots after bars."""
         for drawn in self.heads:
-            colour = self.colour(drawn.head, t)
+            colour = None if self.program is None else self.program.colour(drawn.link_index, t)
             drawn.bar.set_facecolor(SIGNAL_COLOURS.get(colour or "", UNKNOWN))
             drawn.dot.set_visible(colour == MARKED)
         return [h.bar for h in self.heads] + [h.dot for h in self.heads]
 
     def points(self) -> np.ndarray:
         """Points that cover the heads (corners and centres): labels keep off them."""
-        found = [(x, y) for h in self.heads for x, y in (*h.head.corners, h.dot.center)]
+        found = [(x, y) for h in self.heads for x, y in (*h.corners, h.dot.center)]
         return np.array(found, dtype=float).reshape(-1, 2)
 
     def colours_used(self) -> list[str]:
         """The colours any of the heads shows at some time, in the legend's order."""
         if self.program is None:
             return []
-        links = {h.head.link_index for h in self.heads}
+        links = {h.link_index for h in self.heads}
         seen = {p.state[link] for p in self.program.phases for link in links}
         return [c for c in COLOUR_ORDER if c in seen]
+
+
+def walk_name(walk: str) -> str:
+    """A walk's id as an SVG id takes it: ``C_c0+`` as ``C_c0-plus``."""
+    return walk[:-1] + ("-plus" if walk.endswith("+") else "-minus")
 
 
 def _side(a: tuple[float, float], b: tuple[float, float]) -> float:
@@ -130,12 +139,14 @@ def colour_handles(colours: Sequence[str]) -> tuple[list[Any], list[str]]:
 @dataclass(frozen=True)
 class StripRow:
     """One row of the signal strip: a car, its colour, its route's link, and the times
-    it entered the junction (a triangle each, in ``marks``' colours)."""
+    it entered the junction (a triangle each, in ``marks``' colours); or a pedestrian, her
+    crossing's link, and the times she stepped onto it."""
 
     label: str
     colour: str
     link: int
     entries: tuple[tuple[float, str], ...]  # (time, colour of the triangle)
+    walker: bool = False  # a pedestrian's row: her crossing's signal
 
 
 STRIP_ROW = 0.26  # inches a row of the strip takes
@@ -166,8 +177,12 @@ def draw_signal_strip(
     strip.set_ylim(-0.6, len(rows) - 0.4)
     strip.tick_params(axis="y", length=0)
     strip.set_xlabel("time (s)")
-    strip.set_title("each car's signal (colours: the map's legend); ▲ entered the junction",
-                    fontsize=8, loc="left")  # fmt: skip
+    if any(row.walker for row in rows):
+        title = ("each road user's signal (colours: the map's legend); ▲ entered the junction "
+                 "or stepped onto the crossing")  # fmt: skip
+    else:
+        title = "each car's signal (colours: the map's legend); ▲ entered the junction"
+    strip.set_title(title, fontsize=8, loc="left")
 
 
 def signal_rows(
@@ -175,11 +190,13 @@ def signal_rows(
     intersection: Intersection,
     egos: Sequence[tuple[str, Sequence[PoseSample]]],
     colours: Sequence[str],
+    walker_colours: Sequence[str] = (),
 ) -> list[StripRow]:
     """The strip's rows: the ego, then each non-ego (in ``colours``) whose route has a
     signal, with the times they entered the junction: each drawn ego path's (``egos``:
     its colour and samples), computed as the checker computes events; the non-egos' from
-    their events. None without a program."""
+    their events; then each pedestrian (in ``walker_colours``) whose crossing has a signal,
+    with the times she stepped onto it. None without a program."""
     if intersection.signals is None:
         return []
     rows = []
@@ -199,4 +216,10 @@ def signal_rows(
         if link >= 0:
             entered = [(e.t, colour) for e in nonego.events if e.kind.value == EventKind.ENTERED]
             rows.append(StripRow(nonego.id, colour, link, tuple(entered)))
+    for person, colour in zip(testcase.pedestrians, walker_colours, strict=True):
+        walk = intersection.walks.get(person.walk)
+        link = -1 if walk is None else intersection.crossings[walk.crossing].link_index
+        if link >= 0:
+            entered = [(e.t, colour) for e in person.events if e.kind.value == EventKind.ENTERED]
+            rows.append(StripRow(person.id, colour, link, tuple(entered), walker=True))
     return rows

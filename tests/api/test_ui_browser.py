@@ -9,7 +9,9 @@ evaluation. The report `scengen report JOB --server` writes works from a file, o
 A campaign whose verdicts carry criticality (hand-made ones: the measures are tested
 where they are computed) plots each measure by level beside the failure rate.
 On a server of its own, a signalized test-case's animation draws each signal head in the
-colour its program shows at the moment on the slider.
+colour its program shows at the moment on the slider; on another, a test-case with a
+pedestrian lists her, draws the crosswalks and moves her over one; a network's page
+lists its walks under each junction drawn with its zebras.
 Screenshots go to build/screenshots/ui-*.png (look at them)."""
 
 from __future__ import annotations
@@ -28,12 +30,22 @@ from playwright.sync_api import Page
 
 from service.core.campaign import run_campaign
 from service.core.checker.check import until_goal
+from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import PoseSample
-from service.core.testcase import Signals, load_testcase_intersection, parse_testcase
+from service.core.testcase import (
+    Signals,
+    TestCase,
+    load_testcase_intersection,
+    new_testcase,
+    parse_testcase,
+)
+from service.pictures.pedestrians import CROSSWALK, PEDESTRIAN_COLOURS
 from service.pictures.report import report_html
 from service.pictures.signals import SIGNAL_COLOURS
+from service.store import Store
 from tests.api.test_docs_browser import SCREENSHOTS, external, opened_page
 from tests.core.test_campaign import RULES, FakeSteps, plan
+from tests.pictures.crossings import straight_walk, with_pedestrians
 from tests.servers import Server
 
 pytestmark = pytest.mark.slow
@@ -561,4 +573,166 @@ def test_the_animation_draws_each_signal_head_in_its_colour_at_that_moment(
     shown = {s["head"]: s["colour"] for s in page.evaluate(SIGNALS_SHOWN)}
     assert shown == {head: program.colour(link, 13.0) for head, link in heads.items()}
     assert page.locator("#signal-legend").count() == 1
+    assert external(server, requested[before:]) == []
+
+
+def test_a_network_page_lists_the_walks_and_draws_the_crosswalks(
+    served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
+) -> None:
+    """A network with crosswalks: each junction drawn with its zebras (the bars the API's
+    geometry gives) and, under it, its walks as `scengen intersection` describes them; at a
+    signal, a walk signal at each curb."""
+    server, _, _ = served
+    page, requested = browser_page
+    before = len(requested)
+    for network, heads in (("crosswalk-stop", 0), ("crosswalk-signal", 8)):
+        geometry = server.client.get(f"/networks/{network}/junctions/C/geometry").json()
+        walks = server.client.get(f"/networks/{network}/junctions/C").json()["walks"]
+        assert len(walks) == 8 and len(geometry["crossings"]) == 4
+        page.goto(f"{server.url}/ui/#/networks/{network}")
+        page.wait_for_selector("details.walks li", state="attached")
+        drawing = page.locator("svg.junction-drawing[data-junction='C']")
+        assert drawing.locator("g.crosswalk").count() == 4
+        stripes = sum(len(crossing["stripes"]) for crossing in geometry["crossings"])
+        assert drawing.locator("polygon.stripe").count() == stripes >= 4 * 8
+        assert drawing.locator("polygon.pedestrian-head").count() == heads
+        assert drawing.locator("polygon.walking-area").count() == 4
+        listed = page.locator("details.walks li")
+        assert [listed.nth(k).get_attribute("data-walk") for k in range(listed.count())] == [
+            w["id"] for w in walks
+        ]  # fmt: skip
+        page.locator("details.walks summary").click()  # open: the walks shown
+        first = listed.first.inner_text()
+        assert first.startswith(f"{walks[0]['id']} · {walks[0]['from']} → {walks[0]['to']}")
+        assert f"{len(walks[0]['conflicts'])} conflicting routes" in first
+        page.screenshot(path=str(SCREENSHOTS / f"ui-walks-{network}.png"), full_page=True)
+    assert external(server, requested[before:]) == []
+
+
+Walking = tuple[Server, dict[str, str], dict[str, TestCase]]
+
+
+@pytest.fixture(scope="module")
+def walking(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Walking]:
+    """A server of its own holding two test-cases with a pedestrian, by name: "stop", on
+    crosswalk-stop, the ego turns left from the south, car1 (level 1) comes from the east,
+    and ped1 (level 2) walks over the south crosswalk from west to east (C_c2+, 1.3 m/s,
+    from 3 m before the curb to 3 m past the far one: her trajectory ends at 14.5 s);
+    "guessed", on 4way-stop with guessed crosswalks, ped1 alone over the north one."""
+    folder = tmp_path_factory.mktemp("ui-walking")
+    start = new_testcase("crosswalk-stop", "S2C_2:C2W_2", duration=20.0)
+    testcase = extend_testcase(start, ["E2C_2:C2S_2"], seed=0).testcase
+    intersection = load_testcase_intersection(testcase)
+    person = straight_walk(intersection, "C_c2+", testcase, added_in=2)
+    cases = {"stop": with_pedestrians(testcase, [person])}
+    guessed = new_testcase("4way-stop", "S2C_2:C2N_2", duration=20.0, guess_crossings=True)
+    person = straight_walk(load_testcase_intersection(guessed), "C_c0+", guessed)
+    cases["guessed"] = with_pedestrians(guessed, [person])
+    server = Server(folder, workers="1")
+    try:
+        store = Store(f"sqlite:///{folder.resolve()}/scengen.sqlite3", folder / "cache")
+        idents = {name: store.add_testcase(case).id for name, case in cases.items()}
+        store.close()
+        yield server, idents, cases
+    finally:
+        server.stop()
+
+
+def canvas_view(page: Page, geometry: dict[str, Any]) -> tuple[float, Any]:
+    """The animation's scale (pixels a metre) and where a point of the map is on its
+    canvas, as Player.view puts it: the junction's area centred, 40 m around it."""
+    canvas = page.locator("#animation")
+    width, height = (
+        int(canvas.get_attribute("width") or 0),
+        int(canvas.get_attribute("height") or 0),
+    )
+    xs = [p[0] for ring in geometry["area"] for p in ring]
+    ys = [p[1] for ring in geometry["area"] for p in ring]
+    half = max(max(xs) - min(xs), max(ys) - min(ys)) / 2 + 40
+    scale = min(width, height) / (2 * half)
+
+    def screen(x: float, y: float) -> list[float]:
+        return [width / 2 + (x - (min(xs) + max(xs)) / 2) * scale,
+                height / 2 - (y - (min(ys) + max(ys)) / 2) * scale]  # fmt: skip
+
+    return scale, screen
+
+
+def bar_centre(bar: list[list[float]]) -> tuple[float, float]:
+    return sum(p[0] for p in bar[:4]) / 4, sum(p[1] for p in bar[:4]) / 4
+
+
+WALKERS_SHOWN = """() => {
+  const canvas = document.querySelector('#animation');
+  const context = canvas.getContext('2d');
+  const pixel = (x, y) => [...context.getImageData(Math.floor(x), Math.floor(y), 1, 1).data];
+  return JSON.parse(canvas.dataset.walkers).map((w) => ({...w, pixel: pixel(w.x, w.y)}));
+}"""
+CANVAS_PIXEL = """([x, y]) => [...document.querySelector('#animation').getContext('2d')
+  .getImageData(Math.floor(x), Math.floor(y), 1, 1).data]"""
+
+
+def test_a_testcase_with_a_pedestrian_shows_her_walking_over_the_crosswalk(
+    walking: Walking, browser_page: tuple[Page, list[str]]
+) -> None:
+    """The test-case's page lists her (id, walk, level, when she is on the crosswalk), the
+    animation draws the zebras and moves her disc along her trajectory (where the page's
+    view puts her: canvas pixels of her colour), she is gone once her trajectory ends, and
+    the time-distance panel has her dotted curve named as a pedestrian's."""
+    server, idents, cases = walking
+    ident, testcase = idents["stop"], cases["stop"]
+    person = testcase.pedestrians[0]
+    page, requested = browser_page
+    before = len(requested)
+    geometry = server.client.get("/networks/crosswalk-stop/junctions/C/geometry").json()
+    page.goto(f"{server.url}/ui/#/testcases/{ident}")
+    page.wait_for_selector("#animation[data-walkers]")
+    assert not any("guess_crossings" in url for url in requested[before:])  # bundled crosswalks
+    row = page.locator("#pedestrians tbody tr").first.locator("td").all_inner_texts()
+    on = {e.kind.value: e.t for e in person.events}
+    assert row[:6] == ["ped1", "C_c2+", "2", f"{on['arrived']:.1f} s", f"{on['entered']:.1f} s",
+                       f"{on['exited']:.1f} s"]  # fmt: skip
+    assert " · 1 pedestrian · " in page.locator("main p.muted").first.inner_text()
+    scale, screen = canvas_view(page, geometry)
+    colour = [*(round(255 * v) for v in to_rgb(PEDESTRIAN_COLOURS[0])), 255]
+    places = []
+    for moment in ("4", "8"):
+        page.locator("#scrub").fill(moment)
+        (shown,) = page.evaluate(WALKERS_SHOWN)
+        sample = person.trajectory[int(moment) * 10]
+        assert shown["id"] == "ped1"
+        assert (shown["x"], shown["y"]) == pytest.approx(screen(sample.x, sample.y), abs=0.1)
+        assert shown["pixel"] == colour, moment
+        places.append((shown["x"], shown["y"]))
+    assert places[1][0] - places[0][0] == pytest.approx(4 * 1.3 * scale, abs=0.2)  # east
+    bars = [bar_centre(bar) for bar in geometry["crossings"][0]["stripes"]]  # the north
+    assert page.evaluate(CANVAS_PIXEL, screen(*bars[3])) == [255, 255, 255, 255]  # nobody there
+    gap = [(a + b) / 2 for a, b in zip(bars[3], bars[4], strict=True)]
+    strip = [round(255 * v) for v in to_rgb(CROSSWALK)]  # 3 px between bars: blended a little
+    dark = page.evaluate(CANVAS_PIXEL, list(screen(*gap)))[:3]
+    assert max(abs(a - b) for a, b in zip(dark, strip, strict=True)) <= 30, dark
+    page.screenshot(path=str(SCREENSHOTS / "ui-pedestrian.png"), full_page=True)
+    page.locator("#scrub").fill("16")  # her trajectory ended at 14.5 s
+    assert page.evaluate(WALKERS_SHOWN) == []
+    curve = page.locator("#time-distance polyline.walker-curve[data-track='ped1']")
+    assert curve.count() == 1 and curve.get_attribute("stroke-dasharray") != "none"
+    names = page.locator("#time-distance text.curve-name").all_text_contents()
+    assert "ped1 (pedestrian)" in names and "car1" in names
+    assert "distance driven or walked (m)" in (page.locator("#time-distance").text_content() or "")
+    page.locator("details summary:has-text('Events')").click()
+    events = page.locator("details table tbody tr").all_inner_texts()
+    entered = next(e for e in person.events if e.kind.value == "entered")
+    assert f"{entered.t:.2f}\tped1\tentered\t{entered.lane}" in events
+    assert sum(row.split("\t")[1] == "ped1" for row in events) == len(person.events)
+    page.goto(f"{server.url}/ui/#/testcases/{idents['guessed']}")  # 4way-stop, crosswalks guessed
+    page.wait_for_selector("#animation[data-walkers]")
+    asked = [url for url in requested[before:] if "/geometry" in url]
+    assert asked[-1].endswith("/networks/4way-stop/junctions/C/geometry?control=allway_stop"
+                              "&guess_crossings=true")  # fmt: skip
+    guessed = server.client.get(asked[-1].removeprefix(server.url)).json()
+    assert len(guessed["crossings"]) == 4
+    _, screen = canvas_view(page, guessed)
+    south = next(c for c in guessed["crossings"] if c["id"] == ":C_c2")  # nobody on it
+    assert page.evaluate(CANVAS_PIXEL, screen(*bar_centre(south["stripes"][3]))) == [255] * 4
+    assert page.locator("#pedestrians tbody td").first.inner_text() == "ped1"
     assert external(server, requested[before:]) == []

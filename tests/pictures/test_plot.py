@@ -32,11 +32,10 @@ from service.core.testcase import (
     renamed,
 )
 from service.pictures.animation import animate_testcase, draw_animation
+from service.pictures.junction import STOP_LINE, plot_intersection
 from service.pictures.plot import (
-    STOP_LINE,
     TIME_FONT,
     draw_testcase,
-    plot_intersection,
     plot_testcase,
     queue_leaders,
     start_label,

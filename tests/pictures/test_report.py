@@ -24,3 +24,5 @@ def test_geometry_paths_are_quoted_as_the_browser_quotes_them() -> None:
     assert geometry_path(document) == (
         "/networks/my%20net%25/junctions/cluster_1_%232more/geometry?control=allway_stop"
     )
+    guessed = {**document, "crossings_guessed": True}  # the network rebuilt with crosswalks
+    assert geometry_path(guessed) == geometry_path(document) + "&guess_crossings=true"

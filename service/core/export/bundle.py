@@ -7,20 +7,20 @@ to run it:
   types and every car's route and departure: the replay of ``scengen evaluate``, the same
   code on the same files, so it gives the same ego trajectory and verdict;
 - ``testcase.sumocfg`` for the plain ``sumo`` binary: the ego's route file and the
-  non-egos' trajectories as SUMO FCD for SUMO's fcd-replay device, with that device's
-  limits written in the README.
+  non-egos' and pedestrians' trajectories as SUMO FCD for SUMO's fcd-replay device
+  (service.core.export.fcd), with that device's limits written in the README.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
+from service.core.export.fcd import fcd_text
 from service.core.files import write_atomically
-from service.core.motion.poses import centre_to_front
 from service.core.network import Intersection, bundled_networks
 from service.core.sim.controllers import BUILT_IN
+from service.core.sim.pedestrians import walkers
 from service.core.sim.replay import (
     ROUTES_FILE,
     SIGNALS_FILE,
@@ -33,7 +33,7 @@ from service.core.sim.replay import (
 )
 from service.core.sumo import rss_guard
 from service.core.sumo import run as sumo_run
-from service.core.sumo.rss_guard import GUARD_FILE
+from service.core.sumo.rss_guard import GUARD_FILE, WORLD_FILE
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -43,31 +43,6 @@ from service.core.testcase import (
 )
 
 NAME = "testcase"
-
-
-def fcd_text(testcase: TestCase, nonegos: Sequence[Departure]) -> str:
-    """The non-egos' trajectories as SUMO FCD: front bumper, angle, speed, per time step,
-    while the car is on the map (a car that drives on past the end of its road has left
-    it, as SUMO would remove it there)."""
-    lines = ['<?xml version="1.0" encoding="UTF-8"?>', "<fcd-export>"]
-    steps = round(testcase.duration / testcase.timestep)
-    roads = {car.id: car.road for car in nonegos}
-    for k in range(steps + 1):
-        lines.append(f'    <timestep time="{k * testcase.timestep:.2f}">')
-        for nonego in testcase.nonegos:
-            if k >= len(nonego.trajectory):
-                continue
-            s = nonego.trajectory[k]
-            if s.distance - nonego.trajectory[0].distance > roads[nonego.id]:
-                continue
-            x, y = centre_to_front(s.x, s.y, s.heading, nonego.length)
-            lines.append(
-                f'        <vehicle id={quoteattr(nonego.id)} x="{x:.3f}" y="{y:.3f}" '
-                f'angle="{s.heading:.3f}" type="type_{nonego.id}" speed="{s.speed:.3f}"/>'
-            )
-        lines.append("    </timestep>")
-    lines.append("</fcd-export>")
-    return "\n".join(lines) + "\n"
 
 
 def sumocfg_text(testcase: TestCase, network: str, signals: bool = False) -> str:
@@ -92,7 +67,9 @@ def sumocfg_text(testcase: TestCase, network: str, signals: bool = False) -> str
         <time-to-teleport value="-1"/>
         <collision.check-junctions value="true"/>
         <collision.action value="warn"/>
+        <intermodal-collision.action value="warn"/>
         <default.action-step-length value="{testcase.timestep:g}"/>
+        <insertion-checks value="none"/>
     </processing>
     <devices>
         <device.fcd-replay.file value="{NAME}.fcd.xml"/>
@@ -161,15 +138,46 @@ replayed car is off its trajectory by one step's travel.
 
 Files: {NAME}.json (the test-case), run.py and {sumo_run.PLAN_FILE} (the runner and its
 plan: time step, every car's start and distance per step, the certificates, the
-controllers, what the RSS guard needs of the junction), {GUARD_FILE} (the RSS guard),
+controllers, what the RSS guard needs of the junction), {GUARD_FILE} and {WORLD_FILE} (the
+RSS guard and its ad-rss scenes),
 {TYPES_FILE} (vehicle types: the cars' sizes, the ego's driver settings), {ROUTES_FILE}
 (every car's route, depart lane, position and speed), {NAME}.rou.xml (the ego's route and
-start), {NAME}.fcd.xml (the non-egos' trajectories), {NAME}.sumocfg, and
-{network}.
+start), {NAME}.fcd.xml (the non-egos' trajectories: each car's row with its lane and
+position on it, each pedestrian's with her edge), {NAME}.sumocfg, and {network}.
 """
         + _signals_note(testcase)
+        + _pedestrians_note(testcase)
         + _inside_note(cars)
     )
+
+
+def _pedestrians_note(testcase: TestCase) -> str:
+    """What both ways of running do with the test-case's pedestrians."""
+    if not testcase.pedestrians:
+        return ""
+    names = ", ".join(f"`{p.id}` ({p.walk})" for p in testcase.pedestrians)
+    against = [p.id for p in testcase.pedestrians if p.walk.endswith("-")]
+    limit = (
+        f" Here {', '.join(against)} walk{'s' if len(against) == 1 else ''} a crosswalk "
+        "against its lane."
+        if against
+        else ""
+    )
+    return f"""
+Pedestrians: {names}. `run.py` (like `scengen evaluate`) adds each as a SUMO person walking
+her walk's sidewalk, corner, crosswalk and the sidewalk after it, and puts her at her
+recorded pose every step (TraCI `person.moveToXY`), so that SUMO has her on the crosswalk
+while she is on it and its drivers yield to her; she leaves when her trajectory ends or
+where she walks off her walk's lanes (off the map). Controllers see her in
+`observation.pedestrians`. Collisions with her are reported, not acted on (the checker
+judges them). In {NAME}.fcd.xml she is a `<person>` row (her front, heading, speed and
+edge) that the fcd-replay device replays for plain `sumo`, with its limits: SUMO has no
+place for a replayed person at t = 0 (from the first step on she is at her poses); it
+walks her at her first row's speed, so that row gives her fastest; and it takes her to
+walk every crosswalk along its lane, so one who walks it against its lane (a walk ending
+in `-`) is seen by SUMO's drivers only once she is in their path, and plain `sumo` can
+drive on in front of her where `run.py` waits.{limit}
+"""
 
 
 def _signals_note(testcase: TestCase) -> str:
@@ -220,19 +228,23 @@ def export_bundle(
         write_atomically(folder / name, source.read_bytes())
     write_atomically(folder / "run.py", Path(sumo_run.__file__).read_bytes())
     write_atomically(folder / GUARD_FILE, Path(rss_guard.__file__).read_bytes())
+    write_atomically(
+        folder / WORLD_FILE, Path(rss_guard.__file__).with_name(WORLD_FILE).read_bytes()
+    )
     local = None  # the file that the bundle's test-case finds its network by
     if testcase.network.ref not in bundled_networks():
         local = folder / local_network_name(testcase.network.ref)
     ego, others = departures(testcase, junction)
     # the runner's files: types (also the .sumocfg's: the fcd-replay device reads its file,
     # and needs the non-egos' types, before the route files are loaded), every car's route
-    written = [*(folder / name for name in networks), folder / "run.py", folder / GUARD_FILE]
+    written = [*(folder / name for name in networks), folder / "run.py", folder / GUARD_FILE,
+               folder / WORLD_FILE]  # fmt: skip
     written += [
         folder / name for name in write_run_files(testcase, ego, others, folder, network, junction)
     ]
     files = {
         f"{NAME}.rou.xml": xml_file("routes", vehicle_lines([ego])),
-        f"{NAME}.fcd.xml": fcd_text(testcase, others),
+        f"{NAME}.fcd.xml": fcd_text(testcase, others, junction, walkers(testcase, junction)),
         f"{NAME}.sumocfg": sumocfg_text(testcase, network, junction.signals is not None),
         f"{NAME}.json": dump_testcase(with_network_path(testcase, local, folder)),
         "README.md": readme_text(testcase, [ego, *others], list(networks)),

@@ -3,14 +3,9 @@
 The folder holds:
 
 - ``testcase.xodr``: the junction's network (the one SUMO runs, with the control override
-  applied) written by ``netconvert --opendrive-output``. netconvert keeps SUMO's network
-  coordinates (the network offset already applied), so a SUMO x, y is an OpenDRIVE x, y;
-  the header's ``<offset>`` (OpenDRIVE 1.5, the negated netOffset) leads back to the
-  projected coordinates of the map, so the file is declared OpenDRIVE 1.5. A stop sign
-  (signal 206, CARLA's catalogue) stands at the end of every road into a stop line. At a
-  signalized junction every link of its traffic light has a signal head at the stop line
-  of its lane, id ``<tls>_<link index>``, as netconvert writes them; scengen checks them
-  and makes the junction name their controller (``openscenario_signals``).
+  applied) written by ``netconvert --opendrive-output``, in SUMO's network coordinates,
+  with what scengen adds: stop signs, and at a signalized junction the controller of its
+  signal heads (``opendrive``, ``openscenario_signals``).
 - ``testcase.xosc``: every non-ego follows its trajectory (``FollowTrajectoryAction`` over
   a time-stamped ``Polyline`` of ``WorldPosition`` vertices, one per time step, absolute
   time, ``followingMode="position"``), placed at its first pose by a ``TeleportAction``;
@@ -25,7 +20,7 @@ The folder holds:
   certificates): the same scenario with the ego following that certificate.
 - ``verdict-rules.md``: the pass-fail criteria that scengen applies (OpenSCENARIO cannot
   state right-of-way criteria); at a signalized junction also the program, which head is
-  which route, the colour words and the signal rules.
+  which route, the colour words and the signal rules (``verdict_rules``).
 
 Conventions: a vehicle's reference point is the centre of its footprint (its bounding box
 is centred on it), where scengen's samples are; heading h = radians(90 - SUMO angle), SUMO's
@@ -40,39 +35,31 @@ Its signal states name no red-yellow (CARLA's lights have none: ``u`` is ``red``
 
 from __future__ import annotations
 
-import datetime
 import math
 import re
-import tempfile
-import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from pathlib import Path
 
 from scenariogeneration import xosc
 from shapely.geometry import LineString
 
-from service.core.checker.rules import rule_set_file, solve_rules
-from service.core.errors import InvalidInput, NetworkBuildFailed
-from service.core.export import FLAVOURS, Flavour
-from service.core.export.openscenario_signals import (
-    complete_signal_heads,
-    headed_links,
-    signal_controller,
-    signal_rules_text,
-)
+from service.core.errors import InvalidInput
+from service.core.export import Flavour, check_flavour
+from service.core.export.opendrive import CREATED, NAME, opendrive_text
+from service.core.export.openscenario_signals import signal_controller
+from service.core.export.verdict_rules import RULES_FILE, rules_text
 from service.core.files import replacing, write_atomically
 from service.core.motion.poses import CLEARANCE, interpolate_heading, start_front
-from service.core.network import ControlType, Fork, Intersection, parsed_network
+from service.core.network import Intersection, parsed_network
 from service.core.network.lanes import departure_polyline
-from service.core.network.override import run_netconvert
 from service.core.sumo.run import front_to_centre
-from service.core.testcase import Sample, TestCase, load_testcase_intersection
+from service.core.testcase import Pedestrian, Sample, TestCase, load_testcase_intersection
 
-NAME = "testcase"
 CARLA_STEP = 0.05  # s: CARLA's fixed 20 Hz
 HEIGHT = 1.5  # m: a car's height (scengen has none)
-CREATED = datetime.datetime(2026, 1, 1)  # a fixed header date: the same test-case, the same bytes
-RULES_FILE = "verdict-rules.md"
+PEDESTRIAN_HEIGHT = 1.75  # m: an adult's height (scengen has none)
+PEDESTRIAN_MASS = 80.0  # kg
+CARLA_WALKER = "walker.pedestrian.0001"  # ScenarioRunner's walker for a pedestrian entity
 
 
 def heading_of(angle: float) -> float:
@@ -84,90 +71,6 @@ def heading_of(angle: float) -> float:
 def angle_of(heading: float) -> float:
     """The inverse of ``heading_of``: SUMO's angle in [0, 360)."""
     return (90.0 - math.degrees(heading)) % 360.0
-
-
-def opendrive_text(intersection: Intersection) -> str:
-    """The junction's network as OpenDRIVE, by netconvert."""
-    with tempfile.TemporaryDirectory() as work:
-        output = Path(work) / f"{NAME}.xodr"
-        failed = run_netconvert(
-            ["--sumo-net-file", str(intersection.network_file), "--opendrive-output", str(output)],
-            output, "write OpenDRIVE", intersection.junction,
-        )  # fmt: skip
-        if failed is not None:
-            raise NetworkBuildFailed(
-                f"netconvert could not write OpenDRIVE: {failed}", junction=intersection.junction
-            )
-        text = output.read_text()
-    # netconvert declares OpenDRIVE 1.4 but writes 1.5's <offset> (where the network has an
-    # offset): the file is valid 1.5 either way
-    text = re.sub(r'<header revMajor="1" revMinor="4"', '<header revMajor="1" revMinor="5"', text)
-    text = re.sub(r' date="[^"]*"', f' date="{CREATED.isoformat()}"', text, count=1)
-    return _with_additions(text, intersection)
-
-
-def _road_of(roads: Sequence[ET.Element], start: tuple[float, float], heading: float) -> ET.Element:
-    """The road netconvert wrote for a SUMO edge: its reference line starts at the edge's
-    left border, in the edge's direction (``heading``, radians from the x axis)."""
-
-    def miss(road: ET.Element) -> float:
-        first = road.find("planView/geometry")
-        if first is None:
-            return math.inf
-        x, y = float(first.get("x", "nan")), float(first.get("y", "nan"))
-        turn = abs((float(first.get("hdg", "nan")) - heading + math.pi) % (2 * math.pi) - math.pi)
-        return math.hypot(x - start[0], y - start[1]) if turn < math.pi / 6 else math.inf
-
-    best = min(roads, key=miss)
-    if miss(best) > 0.5:
-        raise NetworkBuildFailed(f"no OpenDRIVE road of netconvert starts at the edge {start}")
-    return best
-
-
-def _with_additions(text: str, intersection: Intersection) -> str:
-    """netconvert's text with what scengen adds: the stop signs, and the junction's
-    reference to its traffic light's controller (``openscenario_signals``); the text as
-    netconvert wrote it (the same bytes) where there is nothing to add."""
-    forks = [f for f in intersection.forks.values() if f.stop_sign]
-    if not forks and not headed_links(intersection):
-        return text
-    root = ET.fromstring(text)
-    _add_stop_signs(root, intersection, forks)
-    complete_signal_heads(root, intersection)
-    ET.indent(root, space="    ")
-    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
-
-
-def _add_stop_signs(root: ET.Element, intersection: Intersection, forks: Sequence[Fork]) -> None:
-    """A stop sign (OpenDRIVE signal, German catalogue 206 as CARLA reads it) at the end of
-    every road whose lanes meet a stop line of the junction (``forks``)."""
-    if not forks:
-        return
-    roads = [r for r in root.iter("road") if r.get("junction") == "-1"]
-    path = intersection.network_file
-    net = parsed_network(path)
-    signed: dict[str, ET.Element] = {}
-    for fork in forks:
-        edge = net.getLane(fork.lane).getEdge()
-        if edge.getID() in signed:
-            continue
-        left = max(edge.getLanes(), key=lambda lane: lane.getIndex())
-        (x0, y0), (x1, y1) = left.getShape()[:2]
-        norm = math.hypot(x1 - x0, y1 - y0) or 1.0
-        half = left.getWidth() / 2  # the reference line is the edge's left border
-        start = (x0 - (y1 - y0) / norm * half, y0 + (x1 - x0) / norm * half)
-        signed[edge.getID()] = _road_of(roads, start, math.atan2(y1 - y0, x1 - x0))
-    for number, (edge_id, road) in enumerate(sorted(signed.items()), start=1):
-        signals = road.find("signals")
-        if signals is None:
-            signals = ET.SubElement(road, "signals")
-        width = sum(lane.getWidth() for lane in net.getEdge(edge_id).getLanes())
-        ET.SubElement(signals, "signal", {
-            "s": f"{max(0.0, float(road.get('length', 0)) - 1.0):.4f}",
-            "t": f"{-width - 0.5:.4f}", "id": f"stop{number}", "name": f"stop {edge_id}",
-            "dynamic": "no", "orientation": "+", "zOffset": "1.5", "country": "DEU",
-            "type": "206", "subtype": "-1", "height": "0.8", "width": "0.8",
-        })  # fmt: skip
 
 
 def _world(x: float, y: float, angle: float) -> xosc.WorldPosition:
@@ -184,6 +87,22 @@ def _vehicle(testcase: TestCase, name: str, length: float, width: float) -> xosc
         name, xosc.VehicleCategory.car, box, front, rear,
         params.v_max, params.a_max, -params.a_min,
     )  # fmt: skip
+
+
+def _pedestrian(person: Pedestrian, flavour: Flavour) -> xosc.Pedestrian:
+    """A person on foot as a Pedestrian entity: the bounding box of its rectangle centred
+    on the reference point, as a car's; CARLA's flavour names the walker ScenarioRunner
+    spawns (OpenSCENARIO 1.0 requires a model), the ASAM one leaves the model to the
+    player."""
+    box = xosc.BoundingBox(
+        person.width, person.length, PEDESTRIAN_HEIGHT, 0.0, 0.0, PEDESTRIAN_HEIGHT / 2
+    )
+    model = CARLA_WALKER if flavour == "carla" else None
+    entity = xosc.Pedestrian(
+        person.id, PEDESTRIAN_MASS, xosc.PedestrianCategory.pedestrian, box, model
+    )
+    entity.add_property("scengen_walk", person.walk)
+    return entity
 
 
 def _resampled(samples: Sequence[Sample], step: float | None) -> list[Sample]:
@@ -230,14 +149,14 @@ def _follow(name: str, samples: Sequence[Sample], step: float | None, minor: int
     return event
 
 
-def _leave(name: str, end: float) -> xosc.Event:
+def _leave(name: str, end: float, where: str = "road") -> xosc.Event:
     """An event that removes its actor when its trajectory ends: it reached the end of its
-    road and left the map there (as SUMO removes it)."""
+    road (a pedestrian: of its walk) and left the map there (as SUMO removes it)."""
     event = xosc.Event(f"{name}_leaves", xosc.Priority.parallel)
     event.add_action(f"{name}_leaves_the_map", xosc.DeleteEntityAction(name))
     event.add_trigger(
         xosc.ValueTrigger(
-            f"{name}_at_the_end_of_its_road", 0, xosc.ConditionEdge.none,
+            f"{name}_at_the_end_of_its_{where}", 0, xosc.ConditionEdge.none,
             xosc.SimulationTimeCondition(round(end, 6), xosc.Rule.greaterThan),
         )
     )  # fmt: skip
@@ -323,13 +242,6 @@ def _network_file(testcase: TestCase, flavour: str) -> str:
     return f"{NAME}.xodr"
 
 
-def _check_flavour(flavour: str) -> Flavour:
-    for known in FLAVOURS:
-        if flavour == known:
-            return known
-    raise InvalidInput(f"unknown OpenSCENARIO flavour {flavour!r}; choose one of {FLAVOURS}")
-
-
 def _road_network(
     testcase: TestCase, intersection: Intersection, flavour: Flavour
 ) -> xosc.RoadNetwork:
@@ -350,7 +262,7 @@ def scenario(
     """The test-case as an OpenSCENARIO scenario; with ``certificate`` ("solvability" or
     "complexity"), the ego follows that certificate instead of being left to the system
     under test."""
-    known = _check_flavour(flavour)
+    known = check_flavour(flavour)
     minor = 0 if flavour == "carla" else 2
     step = CARLA_STEP if flavour == "carla" else None
     entities = xosc.Entities()
@@ -374,16 +286,22 @@ def scenario(
     )
     init.add_init_action("ego", xosc.AssignRouteAction(_ego_route(testcase, intersection, start)))
 
-    followers: list[tuple[str, Sequence[Sample]]] = []
-    for car in testcase.nonegos:
-        entities.add_scenario_object(car.id, _vehicle(testcase, car.id, car.length, car.width))
-        first = car.trajectory[0]
-        init.add_init_action(car.id, xosc.TeleportAction(_world(first.x, first.y, first.heading)))
-        followers.append((car.id, car.trajectory))
+    followers: list[tuple[str, Sequence[Sample], str]] = []  # name, samples, what it ends
+    for user in testcase.road_users:  # the cars, then the pedestrians
+        if isinstance(user, Pedestrian):
+            entities.add_scenario_object(user.id, _pedestrian(user, known))
+            followers.append((user.id, user.trajectory, "walk"))
+        else:
+            entities.add_scenario_object(
+                user.id, _vehicle(testcase, user.id, user.length, user.width)
+            )
+            followers.append((user.id, user.trajectory, "road"))
+        first = user.trajectory[0]
+        init.add_init_action(user.id, xosc.TeleportAction(_world(first.x, first.y, first.heading)))
     if certificate is not None:
         if testcase.certificates is None:
             raise InvalidInput("the test-case has no certificates (an ego-only test-case)")
-        followers.append(("ego", getattr(testcase.certificates, certificate)))
+        followers.append(("ego", getattr(testcase.certificates, certificate), "road"))
 
     duration = xosc.ConditionGroup("stop")
     duration.add_condition(
@@ -398,11 +316,11 @@ def scenario(
     storyboard = xosc.StoryBoard(init, stop)
     if followers:
         act = xosc.Act("trajectories", _starts_now("at_the_start", minor))
-        for name, samples in followers:
+        for name, samples, where in followers:
             maneuver = xosc.Maneuver(f"{name}_maneuver")
             maneuver.add_event(_follow(name, samples, step, minor))
             if samples[-1].t < testcase.duration - testcase.timestep / 2:
-                maneuver.add_event(_leave(name, samples[-1].t))
+                maneuver.add_event(_leave(name, samples[-1].t, where))
             group = xosc.ManeuverGroup(f"{name}_group")
             group.add_actor(name)
             group.add_maneuver(maneuver)
@@ -413,6 +331,10 @@ def scenario(
     description = f"scengen test-case {testcase.name or testcase.junction}" + (
         f", the ego on its {certificate} certificate" if certificate else ""
     )
+    if testcase.pedestrians:
+        walks = ", ".join(f"{p.id} on walk {p.walk}" for p in testcase.pedestrians)
+        laws = "21950, 21951" + (", 21451, 21453, 21456" if testcase.signals else "")
+        description += f"; pedestrians: {walks} (their rules, CVC {laws}: {RULES_FILE})"
     return xosc.Scenario(
         description,
         "scengen",
@@ -426,73 +348,6 @@ def scenario(
     )
 
 
-def rules_text(
-    testcase: TestCase, intersection: Intersection | None = None, flavour: str = "asam"
-) -> str:
-    """The side file: what scengen judges and OpenSCENARIO cannot say; at a signalized
-    junction, its signals too (``intersection``: the test-case's, loaded when None)."""
-    p = testcase.params
-    signals = ""  # a section of its own, before the coordinates
-    if testcase.signals is not None:
-        junction = intersection or load_testcase_intersection(testcase)
-        program = testcase.signals.to_program()
-        signals = signal_rules_text(program, junction, _check_flavour(flavour)) + "\n"
-    return f"""# Pass-fail criteria of this test-case (scengen)
-
-OpenSCENARIO has no right-of-way criteria, so the scenario files only stop the run, when
-the ego has reached its goal (its reference point on the road just past its exit lane's
-start, its rear out of the junction: `ego_reached_its_goal`) or at {testcase.duration:g} s.
-scengen judges the ego's trajectory (`scengen check testcase.json --ego TRAJECTORY`) with
-these criteria; the ego passes when all of them hold:
-
-- it reaches its exit lane (route `{testcase.ego.route.id}`) within {testcase.duration:g} s;
-- it collides with no other car (footprints of {testcase.ego.length:g} m x
-  {testcase.ego.width:g} m for the ego, the non-egos' own sizes);
-- it obeys the traffic rules of `{testcase.rules}` at junction `{testcase.junction}`
-  (control `{testcase.control}`): the California Vehicle Code as scengen reads it (README,
-  "Traffic rules"), in the rule set `asp/rules/{testcase.rules}.lp`:
-
-{_rule_set_text(testcase)}
-
-- in a queue, each car stops at the limit line itself, a car behind another has not yet
-  arrived, and the ego keeps {p.gap:g} m plus {p.headway:g} s of headway to the car
-  ahead (running into it is a rear-end collision);
-- the judgement ends with the goal: the moment the ego is on its exit lane with its whole
-  footprint out of the junction (every rule of the junction is judged before it), or the
-  duration when it never gets there; a collision or violation after it is reported as
-  information, never as the ego's failure;
-- parameters: minimum perceptible time difference m = {p.m:g} s, stopped at or below
-  {p.v_stop:g} m/s, running a sign at or above {p.v_run:g} m/s, arrival within
-  {p.arrival_distance:g} m of the line, speed limit {p.v_max:g} m/s.
-
-{signals}Coordinates: SUMO's network coordinates (the OpenDRIVE file's), a vehicle's reference
-point at the centre of its footprint, headings in radians counter-clockwise from the x
-axis. Run the trajectory of your player back through `scengen check` as SUMO FCD, CSV or
-JSON (README, `scengen check`).
-"""
-
-
-def _rule_set_text(testcase: TestCase) -> str:
-    """The rule set's own summary (its header comment) and its rules with their sections
-    (the rule set's law/2 atoms)."""
-    control = ControlType(testcase.rules)
-    lines = rule_set_file(control).read_text().splitlines()
-    # the title (one line, or several: traffic_light.lp's) ends at the first empty comment
-    title = next((k for k, line in enumerate(lines) if not line[1:].strip()), 1)
-    header = []
-    for line in lines[title:]:
-        if not line.startswith("%") or line.startswith("% Input predicates"):
-            break
-        header.append("    " + line[1:].strip() if line[1:].strip() else "")
-    while header and not header[-1]:
-        header.pop()
-    laws = [
-        f"  - `{atom.arguments[0]}`: CVC {atom.arguments[1].string}"
-        for atom in solve_rules(control, [], shown=[("law", 2)])
-    ]
-    return "\n".join([*header, "", *sorted(laws)]).strip("\n")
-
-
 def export_openscenario(
     testcase: TestCase,
     folder: Path,
@@ -500,7 +355,7 @@ def export_openscenario(
     flavour: str = "asam",
 ) -> list[Path]:
     """Write the OpenSCENARIO files of ``testcase`` into ``folder``; the files written."""
-    _check_flavour(flavour)
+    check_flavour(flavour)
     junction = intersection or load_testcase_intersection(testcase)
     folder.mkdir(parents=True, exist_ok=True)
     written = [folder / f"{NAME}.xodr"]

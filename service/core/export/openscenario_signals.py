@@ -88,6 +88,19 @@ def headed_links(intersection: Intersection) -> list[int]:
     return sorted({int(link) for _, _, link in tls.getConnections()})
 
 
+def crossing_links(intersection: Intersection) -> dict[int, str]:
+    """The pedestrian signals of the junction's traffic light: the link index of every
+    connection onto a crossing, and that crossing's id; empty without a traffic light."""
+    if intersection.tls is None or not intersection.control.signalized:
+        return {}
+    tls = parsed_network(intersection.network_file).getTLS(intersection.tls)
+    return {
+        int(link): outgoing.getEdge().getID()
+        for _, outgoing, link in tls.getConnections()
+        if outgoing.getEdge().getFunction() == "crossing"
+    }
+
+
 def controller_phases(program: SignalProgram) -> list[ControllerPhase]:
     """The program's cycle as it runs from t = 0 (module docstring): the phase showing at
     t = 0 first, cut there when t = 0 falls inside it."""
@@ -181,6 +194,13 @@ def signal_rules_text(program: SignalProgram, intersection: Intersection, flavou
     heads = "\n".join(
         f"  - `{head_id(tls, r.link_index)}`: `{r.id}` ({r.turn.value})" for r in routes
     )
+    crossings = crossing_links(intersection)
+    if crossings:  # the pedestrian signals, beside the crosswalks (module crosswalks)
+        heads += "\n" + "\n".join(
+            f"  - `{head_id(tls, link)}`: the pedestrian signal of crossing `{crossing}`, "
+            "at the curb beside its crosswalk"
+            for link, crossing in sorted(crossings.items())
+        )
     phases = "\n".join(
         f"  - `phase_{k}`: {p.duration:g} s, `{p.state}`" for k, p in enumerate(program.phases)
     )

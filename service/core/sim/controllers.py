@@ -139,6 +139,9 @@ class Observation:
     signal: str | None = None  # the SUMO colour of the ego's link at a signalized junction
     # (G protected green, g permissive green, y yellow, r red, u red-yellow, s right on red
     # after a stop), as SUMO shows it at this step; None: the ego's route has no signal
+    pedestrians: tuple[Vehicle, ...] = ()  # every pedestrian on the map, as ``Vehicle``s:
+    # the centre of her rectangle, her walking direction, speed, length and width (last,
+    # and empty without pedestrians, so that controllers written before them still work)
 
 
 @runtime_checkable

@@ -49,6 +49,7 @@ from service.core.sim.controllers import (
     UserDriver,
     resolve_driver,
 )
+from service.core.sim.pedestrians import Walker, plan_section, walkers
 from service.core.sim.replay_child import run_replay
 from service.core.sim.rss_plan import rss_section
 from service.core.sumo import run as sumo_run
@@ -159,9 +160,15 @@ def goal_end(
     return (edges, None) if end is None else end
 
 
-def vtype_lines(ego: Departure, nonegos: Sequence[Departure], testcase: TestCase) -> list[str]:
+def vtype_lines(
+    ego: Departure,
+    nonegos: Sequence[Departure],
+    testcase: TestCase,
+    people: Sequence[Walker] = (),
+) -> list[str]:
     """One SUMO vehicle type per car: its size; for the ego, SUMO's driver settings (the
-    runner sets the stop-line wait of the chosen controller) and the test-case's bounds."""
+    runner sets the stop-line wait of the chosen controller) and the test-case's bounds;
+    and one per pedestrian: a person of its size."""
     p = testcase.params
     sumo = BUILT_IN["sumo"]
     assert isinstance(sumo, SumoDriver)
@@ -183,6 +190,11 @@ def vtype_lines(ego: Departure, nonegos: Sequence[Departure], testcase: TestCase
             )
         lines.append(
             f'    <vType id="type_{car.id}" length="{car.length:g}" width="{car.width:g}"{extra}/>'
+        )
+    for person in people:
+        lines.append(
+            f'    <vType id="type_{person.id}" vClass="pedestrian" length="{person.length:g}" '
+            f'width="{person.width:g}"/>'
         )
     return lines
 
@@ -257,9 +269,11 @@ def run_plan(
     network: str,
     signals: dict[str, Any] | None = None,
     rss: dict[str, Any] | None = None,
+    people: Sequence[Walker] = (),
 ) -> dict[str, Any]:
     """The runner's plan: its files, the time step, every car's departure (``departures``)
-    and distance per step, the certificates, the signals (``signals_spec``: the program's
+    and distance per step, every pedestrian's route, start and pose per step
+    (service.core.sim.pedestrians), the certificates, the signals (``signals_spec``: the program's
     file, the traffic light and the ego's link index, or None), what the RSS guard needs
     of the junction (``rss_section``), and the built-in controllers, SUMO's drivers also
     guarded (``NAME+rss``) (JSON, ``testcase.run.json``)."""
@@ -296,6 +310,7 @@ def run_plan(
             }
             for d, n in zip(others, testcase.nonegos, strict=True)
         ],
+        "pedestrians": plan_section(people),
         "certificates": certificates,
         "bounds": {
             "a_min": testcase.params.a_min,
@@ -326,12 +341,13 @@ def write_run_files(
     at a signalized junction the test-case's signal program (``sumo_signals``), and the
     plan (``network`` as the plan names it, relative to ``folder`` or absolute). The texts
     written, by file name."""
+    people = walkers(testcase, intersection)
     plan = run_plan(
         testcase, ego, others, network, signals_spec(testcase, intersection),
-        rss_section(testcase, intersection),
+        rss_section(testcase, intersection), people,
     )  # fmt: skip
     files = {
-        TYPES_FILE: xml_file("additional", vtype_lines(ego, others, testcase)),
+        TYPES_FILE: xml_file("additional", vtype_lines(ego, others, testcase, people)),
         ROUTES_FILE: xml_file("routes", vehicle_lines([ego, *others])),
         sumo_run.PLAN_FILE: json.dumps(plan, indent=1) + "\n",
     }

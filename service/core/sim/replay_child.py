@@ -68,6 +68,7 @@ def _user_step(
     bounds = plan["bounds"]
     ego = plan["ego"]
     sizes = {car["id"]: (float(car["length"]), float(car["width"])) for car in plan["nonegos"]}
+    people = plan.get("pedestrians") or []
     lanes: dict[str, Lanes] = {}  # every car's, from where it is at the first step
 
     def step(traci: Any, row: sumo_run.Row, present: set[str]) -> str | None:
@@ -89,6 +90,7 @@ def _user_step(
             v_max=bounds["v_max"],
             leader=find_leader(traci, lanes, {car: sizes[car][0] for car in nonegos}),
             signal=sumo_run.ego_signal(traci, plan),
+            pedestrians=pedestrians_seen(traci, people, round(row["t"] / timestep)),
         )
         try:
             command = float(user.step(observation))
@@ -105,6 +107,19 @@ def _user_step(
         return None
 
     return step
+
+
+def pedestrians_seen(traci: Any, people: list[dict[str, Any]], step: int) -> tuple[Vehicle, ...]:
+    """Every pedestrian in SUMO at ``step``, at her recorded pose (the centre of her
+    rectangle; SUMO has her there from the first step on, and at t = 0 at her departure
+    place nearby)."""
+    sizes = {person["id"]: (float(person["length"]), float(person["width"])) for person in people}
+    found = []
+    for name, (x, y, heading, speed) in sumo_run.people_at(traci, people, step).items():
+        length, width = sizes[name]
+        cx, cy = sumo_run.front_to_centre(x, y, heading, length)
+        found.append(Vehicle(name, cx, cy, heading, speed, length, width))
+    return tuple(found)
 
 
 def _vehicle(traci: Any, car: str, length: float, width: float) -> Vehicle:

@@ -19,6 +19,12 @@ priority there by the junction's control type:
 
 Where the same priority remains, the guard gives it to the car that entered the conflict
 area first (a car already in the intersection: CVC 21800(a), 21802(b)).
+
+And each pedestrian in the ego's path (``pedestrians``): one whose walk crosses the ego's
+route (``Walk.conflicts``), with the conflict area along the ego's route (where its
+connecting lane overlaps the crossing's strip, metres from its stop line) and along her
+walk (metres from the curb she starts at), and per step her front's place along her walk
+(negative before the curb). She has priority there (CVC 21950 (a)).
 """
 
 from __future__ import annotations
@@ -29,8 +35,8 @@ from shapely.geometry import LineString, Point
 
 from service.core.motion.poses import centre_to_front, start_distance_of
 from service.core.network import ControlType, Intersection, Route
-from service.core.network.model import Turn
-from service.core.testcase import TestCase
+from service.core.network.model import Turn, Walk
+from service.core.testcase import Pedestrian, TestCase
 
 
 def rss_section(testcase: TestCase, intersection: Intersection) -> dict[str, Any]:
@@ -62,10 +68,60 @@ def rss_section(testcase: TestCase, intersection: Intersection) -> dict[str, Any
     return {
         "control": intersection.control.value,
         "ego_length": testcase.ego.length,
+        "ego_width": testcase.ego.width,
         "ego_link": ego_route.link_index,
         "lane_width": intersection.connecting_lane_of(ego_route).width,
         "cars": cars,
+        "pedestrians": {
+            person.id: _pedestrian_spec(intersection, ego_route, person)
+            for person in testcase.pedestrians
+            if ego_route.id in intersection.walk(person.walk).conflicts
+        },
     }
+
+
+def _pedestrian_spec(intersection: Intersection, ego: Route, person: Pedestrian) -> dict[str, Any]:
+    """A pedestrian in the ego's path: the conflict area along the ego's route and along her
+    walk, her size, and her front's place along her walk at every step."""
+    walk = intersection.walk(person.walk)
+    crossing = intersection.crossings[walk.crossing]
+    overlap = intersection.connecting_lane_of(ego).polygon.intersection(crossing.polygon)
+    points = list(overlap.convex_hull.exterior.coords)
+    along = [walk_place(walk, Point(p[0], p[1])) for p in points]
+    places = []
+    for sample in person.trajectory:
+        front = centre_to_front(sample.x, sample.y, sample.heading, person.length)
+        places.append(round(walk_place(walk, Point(front)), 3))
+    return {
+        "walk": walk.id,
+        "length": person.length,
+        "width": person.width,
+        "ego_area": _along(intersection, ego, points),
+        "other_area": [round(max(min(along), 0.0), 3), round(min(max(along), walk.length), 3)],
+        "places": places,
+    }
+
+
+def walk_place(walk: Walk, point: Point) -> float:
+    """Metres along ``walk``'s path from the curb she starts at to ``point``'s projection;
+    before the curb (or past the far one) along the path's first (last) stretch extended."""
+    path = walk.path
+    place = float(path.project(point))
+    coords = list(path.coords)
+    if place <= 0.0:
+        (x0, y0), (x1, y1) = coords[0], coords[1]
+        return _signed(point, (x0, y0), (x1, y1))
+    if place >= path.length:
+        (x0, y0), (x1, y1) = coords[-2], coords[-1]
+        return float(path.length) + _signed(point, (x1, y1), (2 * x1 - x0, 2 * y1 - y0))
+    return place
+
+
+def _signed(point: Point, start: tuple[float, float], toward: tuple[float, float]) -> float:
+    """``point``'s distance from ``start`` along the direction to ``toward``."""
+    dx, dy = toward[0] - start[0], toward[1] - start[1]
+    norm = (dx * dx + dy * dy) ** 0.5
+    return float(((point.x - start[0]) * dx + (point.y - start[1]) * dy) / norm)
 
 
 def _relation(intersection: Intersection, ego: Route, other: Route) -> str | None:

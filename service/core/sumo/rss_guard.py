@@ -15,24 +15,36 @@ routes (metres from each car's stop line), and who has priority (``ego``, ``othe
 remains, the car that entered the conflict area first has it). Positions are metres of
 the front bumper from the car's own stop line (negative before it).
 
+Pedestrians in the ego's path (the section's ``pedestrians``: one whose walk crosses the
+ego's route, until she has walked past the ego's connecting lane or the ego has left the
+crossing) are ad-rss's own: each step an unstructured constellation of the ego and her
+(``ObjectType.Pedestrian``, CARLA's pedestrian dynamics), built from both poses in the
+plane, in which ad-rss's pedestrian model lets her turn and speed up within its bounds;
+the response (brake, or go on) restricts the ego as a car's does.
+
 When ``ad_rss`` is not installed, or refuses a world model (it checks every input range),
 the guard says so (``fallback``) and uses a time-gap rule from then on (see
-``time_gap_ceiling``); never silently.
+``time_gap_ceiling``; a pedestrian in the ego's path is a crossing road user with
+priority there); never silently.
 
 This file is standalone like ``run.py`` (the standard library and ``ad_rss`` only): every
-exported bundle ships it next to ``run.py``.
+exported bundle ships it next to ``run.py``, with ``rss_world.py`` (ad-rss's world models,
+which this file loads from beside itself when ad-rss is there).
 """
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
+import sys
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
 
 GUARD_FILE = "rss_guard.py"
+WORLD_FILE = "rss_world.py"  # ad-rss's world models, next to this file (loaded with ad-rss)
 RSS_SUFFIX = "+rss"
 
 # CARLA's RssSensor defaults (carla::rss::RssCheck::GetDefaultVehicleDynamics), used by
@@ -48,10 +60,21 @@ CARLA_DYNAMICS: dict[str, float] = {
     "response_time": 1.0,  # s
     "max_speed_on_acceleration": 100.0,  # m/s
 }
+# CARLA's pedestrians (carla::rss::RssCheck::GetDefaultPedestrianDynamics), for every
+# pedestrian: ``{"pedestrians": {...}}`` in the RSS parameters overrides them.
+CARLA_PEDESTRIAN_DYNAMICS: dict[str, float] = {
+    "accel_max": 2.0,
+    "brake_max": -4.0,
+    "brake_min": -2.0,
+    "brake_min_correct": -2.0,
+    "lat_accel_max": 0.001,
+    "lat_brake_min": -0.001,
+    "lateral_fluctuation_margin": 0.1,
+    "response_time": 0.5,
+    "max_speed_on_acceleration": 10.0,
+}
 HOLD_GAP = 2.0  # s: the time-gap rule forbids acceleration below this gap
 BRAKE_GAP = 1.0  # s: and brakes at brake_min below this one
-ROAD_START = -1000.0  # m: every scene's road runs from here (in the scene's coordinate)
-ROAD_LENGTH = 3000.0  # m, the road's length: the test-cases' places lie well inside
 PRIORITIES = ("ego", "other", "same", "signal")
 INTERSECTION_SCENES = {  # RSS's constellation type by who has priority
     "ego": "IntersectionEgoHasPriority",
@@ -67,31 +90,49 @@ class GuardError(ValueError):
 
 def dynamics_from(params: dict[str, Any] | None) -> tuple[dict[str, float], dict[str, float]]:
     """The ego's and the other cars' dynamics: CARLA's defaults overridden by ``params``
-    (keys of CARLA_DYNAMICS for both, or ``{"ego": {...}, "others": {...}}`` per side)."""
+    (keys of CARLA_DYNAMICS for both, or ``{"ego": {...}, "others": {...}}`` per side;
+    ``{"pedestrians": {...}}`` is ``pedestrian_dynamics_from``'s)."""
     params = dict(params or {})
-    sides = {"ego": dict(params.pop("ego", {})), "others": dict(params.pop("others", {}))}
-    result = []
-    for side in ("ego", "others"):
-        values = dict(CARLA_DYNAMICS)
-        for key, value in {**params, **sides[side]}.items():
-            if key not in CARLA_DYNAMICS:
-                raise GuardError(
-                    f"unknown RSS parameter {key!r}; valid: {', '.join(CARLA_DYNAMICS)}, "
-                    "and 'ego' / 'others' objects of them"
-                )
-            if not isinstance(value, int | float) or not math.isfinite(value):
-                raise GuardError(f"RSS parameter {key!r} must be a number, got {value!r}")
-            values[key] = float(value)
-        if not (values["brake_max"] <= values["brake_min"] <= values["brake_min_correct"] < 0):
+    pedestrian_dynamics_from(params)
+    params.pop("pedestrians", None)
+    sides = {"ego": params.pop("ego", {}), "others": params.pop("others", {})}
+    for side, changes in sides.items():
+        if not isinstance(changes, dict):
+            raise GuardError(f"RSS parameters for {side}: expected an object of parameters")
+    return _checked("ego", CARLA_DYNAMICS, {**params, **sides["ego"]}), _checked(
+        "others", CARLA_DYNAMICS, {**params, **sides["others"]}
+    )
+
+
+def pedestrian_dynamics_from(params: dict[str, Any] | None) -> dict[str, float]:
+    """The pedestrians' dynamics: CARLA's overridden by ``params["pedestrians"]`` (keys of
+    CARLA_DYNAMICS; the parameters for both sides of cars do not reach them)."""
+    return _checked("pedestrians", CARLA_PEDESTRIAN_DYNAMICS, (params or {}).get("pedestrians", {}))
+
+
+def _checked(side: str, defaults: dict[str, float], changes: dict[str, Any]) -> dict[str, float]:
+    """``defaults`` with ``changes``, each key and value checked."""
+    if not isinstance(changes, dict):
+        raise GuardError(f"RSS parameters for {side}: expected an object of parameters")
+    values = dict(defaults)
+    for key, value in changes.items():
+        if key not in CARLA_DYNAMICS:
             raise GuardError(
-                f"RSS {side}: need brake_max <= brake_min <= brake_min_correct < 0, got "
-                f"{values['brake_max']:g}, {values['brake_min']:g}, "
-                f"{values['brake_min_correct']:g}"
+                f"unknown RSS parameter {key!r}; valid: {', '.join(CARLA_DYNAMICS)}, "
+                "and 'ego' / 'others' / 'pedestrians' objects of them"
             )
-        if values["accel_max"] <= 0 or values["response_time"] <= 0:
-            raise GuardError(f"RSS {side}: accel_max and response_time must be > 0")
-        result.append(values)
-    return result[0], result[1]
+        if not isinstance(value, int | float) or not math.isfinite(value):
+            raise GuardError(f"RSS parameter {key!r} must be a number, got {value!r}")
+        values[key] = float(value)
+    if not (values["brake_max"] <= values["brake_min"] <= values["brake_min_correct"] < 0):
+        raise GuardError(
+            f"RSS {side}: need brake_max <= brake_min <= brake_min_correct < 0, got "
+            f"{values['brake_max']:g}, {values['brake_min']:g}, "
+            f"{values['brake_min_correct']:g}"
+        )
+    if values["accel_max"] <= 0 or values["response_time"] <= 0:
+        raise GuardError(f"RSS {side}: accel_max and response_time must be > 0")
+    return values
 
 
 def load_params(path: Path) -> dict[str, Any]:
@@ -127,6 +168,17 @@ class CarState(NamedTuple):
     speed: float
 
 
+class WalkerState(NamedTuple):
+    """A pedestrian at one step: her front's metres along her walk from the curb (negative
+    before it), her speed, and the centre of her rectangle with her walking direction."""
+
+    front: float
+    speed: float
+    x: float
+    y: float
+    heading: float  # degrees clockwise from north
+
+
 @dataclass
 class RssGuard:
     """The guard of one run: the plan's ``rss`` section, the dynamics, the record."""
@@ -155,7 +207,9 @@ class RssGuard:
         for car, spec in self.cars.items():
             if spec.get("priority", "same") not in PRIORITIES:
                 raise GuardError(f"car {car}: priority must be one of {', '.join(PRIORITIES)}")
-        self.ids = {car: k + 1 for k, car in enumerate(sorted(self.cars))}
+        self.walkers: dict[str, dict[str, Any]] = dict(self.section.get("pedestrians", {}))
+        self.ids = {car: k + 1 for k, car in enumerate([*sorted(self.cars), *sorted(self.walkers)])}
+        self.pedestrian_dynamics = pedestrian_dynamics_from(self.params)
         if not self.use_ad_rss:
             self.fallback = "the time-gap rule was asked for instead of ad-rss"
             return
@@ -167,18 +221,34 @@ class RssGuard:
             self.fallback = f"ad-rss is not installed ({exc}): pip install ad-rss"
             return
         ad_rss.rss.core.setLogLevel("off")
-        self._world = _RssWorld(ad_rss, self.ego_dynamics, self.other_dynamics)
+        self._world = _sibling(WORLD_FILE).RssWorld(
+            ad_rss, self.ego_dynamics, self.other_dynamics, self.pedestrian_dynamics,
+            INTERSECTION_SCENES.values(),
+        )  # fmt: skip
         self._check = ad_rss.rss.core.RssCheck()
 
     def step(
-        self, t: float, ego: CarState, others: dict[str, CarState], signals: str | None
+        self,
+        t: float,
+        ego: CarState,
+        others: dict[str, CarState],
+        signals: str | None,
+        pedestrians: dict[str, WalkerState] | None = None,
+        ego_pose: tuple[float, float, float] | None = None,
     ) -> Restriction | None:
         """The restriction at this step (None: the ego may do as it likes); kept as
-        ``current`` for ``limit``."""
+        ``current`` for ``limit``. ``pedestrians``: each one on the map; ``ego_pose``: the
+        centre of the ego's rectangle and its heading (ad-rss places her and the ego in the
+        plane)."""
         ego = CarState(*ego)
         others = {car: CarState(*state) for car, state in others.items()}
         self.steps += 1
         relevant = {car: state for car, state in others.items() if car in self.cars}
+        walkers = {
+            name: WalkerState(*state)
+            for name, state in (pedestrians or {}).items()
+            if name in self.walkers and self._in_path(name, ego, WalkerState(*state))
+        }
         for car, state in relevant.items():
             spec = self.cars[car]
             if "ego_area" in spec and ego.front > spec["ego_area"][0]:
@@ -186,14 +256,27 @@ class RssGuard:
             if "other_area" in spec and state.front > spec["other_area"][0]:
                 self._entered.setdefault((car, "other"), self.steps)
         self.current = None
+        if self.fallback is None and walkers and ego_pose is None:
+            self.fallback = "the ego's pose was not given: ad-rss places pedestrians in the plane"
         if self.fallback is None:
             try:
-                self.current = self._rss_restriction(ego, relevant, signals)
+                self.current = self._rss_restriction(ego, relevant, signals, walkers, ego_pose)
             except _Refused as exc:
                 self.fallback = f"ad-rss could not model the situation at {t:.2f} s: {exc}"
         if self.fallback is not None:
-            self.current = self._time_gap_restriction(ego, relevant, signals)
+            self.current = self._time_gap_restriction(ego, relevant, signals, walkers)
         return self.current
+
+    def _in_path(self, name: str, ego: CarState, walker: WalkerState) -> bool:
+        """Whether a pedestrian is still in the ego's path: she has not walked past the
+        ego's connecting lane (her rear beyond its far side), and the ego has not left the
+        crossing (its rear beyond it)."""
+        spec = self.walkers[name]
+        ego_rear = ego.front - float(self.section["ego_length"])
+        return bool(
+            walker.front - float(spec["length"]) <= float(spec["other_area"][1])
+            and ego_rear <= float(spec["ego_area"][1])
+        )
 
     def limit(self, t: float, wanted: float) -> float:
         """The acceleration the ego gets for ``wanted`` (``math.inf``: whatever the
@@ -265,10 +348,27 @@ class RssGuard:
         return "same"
 
     def _rss_restriction(
-        self, ego: CarState, others: dict[str, CarState], signals: str | None
+        self,
+        ego: CarState,
+        others: dict[str, CarState],
+        signals: str | None,
+        walkers: dict[str, WalkerState],
+        ego_pose: tuple[float, float, float] | None,
     ) -> Restriction | None:
         world = self._world
         model = world.model(self.steps)
+        ego_size = (float(self.section["ego_length"]), float(self.section.get("ego_width", 1.8)))
+        for name, walker in sorted(walkers.items()):
+            assert ego_pose is not None
+            spec = self.walkers[name]
+            model.constellations.append(
+                world.unstructured(
+                    self.ids[name],
+                    (*ego_pose, ego.speed),
+                    (walker.x, walker.y, walker.heading, walker.speed),
+                    (*ego_size, float(spec["length"]), float(spec["width"])),
+                )
+            )
         for car, state in sorted(others.items()):
             scene = self._scene(car, ego, state)
             if scene is None:
@@ -325,9 +425,23 @@ class RssGuard:
         return "SameDirection", (ego.front, 0.0, 0.0), (other.front, 0.0, 0.0)
 
     def _time_gap_restriction(
-        self, ego: CarState, others: dict[str, CarState], signals: str | None
+        self,
+        ego: CarState,
+        others: dict[str, CarState],
+        signals: str | None,
+        walkers: dict[str, WalkerState] | None = None,
     ) -> Restriction | None:
         found: Restriction | None = None
+        for name, walker in sorted((walkers or {}).items()):  # she has priority there
+            spec = self.walkers[name]
+            (ego_in, ego_out), (her_in, her_out) = spec["ego_area"], spec["other_area"]
+            path = ("intersection", (ego.front, float(ego_in), float(ego_out)),
+                    (walker.front, float(her_in), float(her_out)))  # fmt: skip
+            her = CarState(walker.front, walker.speed)
+            length = float(spec["length"])
+            ceiling = time_gap_ceiling(path, ego, her, length, "other", self.ego_dynamics)
+            if ceiling is not None and (found is None or ceiling < found.ceiling):
+                found = Restriction(ceiling, name, "time gap (pedestrian)")
         for car, state in sorted(others.items()):
             scene = self._scene(car, ego, state)
             if scene is None:
@@ -386,166 +500,15 @@ class _Refused(Exception):
     """ad-rss refused the world model."""
 
 
-class _RssWorld:
-    """Builds ``ad_rss`` world models. Each car's constellation is made once (its roads
-    do not move: one lane from ROAD_START metres, ROAD_LENGTH long, in the coordinate of
-    the scene) and only the cars' places and speeds are set at each step: making ad-rss's
-    values is what costs."""
-
-    def __init__(self, ad_rss: Any, ego: dict[str, float], others: dict[str, float]) -> None:
-        self.ad_rss = ad_rss
-        self.world = ad_rss.rss.world
-        self.physics = ad_rss.physics
-        self.ego_dynamics = self.dynamics(ego)
-        self.other_dynamics = self.dynamics(others)
-        self.types = {
-            name: getattr(self.world.ConstellationType, name)
-            for name in ("SameDirection", *INTERSECTION_SCENES.values())
-        }
-
-    def dynamics(self, values: dict[str, float]) -> Any:
-        p, d = self.physics, self.world.RssDynamics()
-        d.alpha_lon.accel_max = p.Acceleration(values["accel_max"])
-        d.alpha_lon.brake_max = p.Acceleration(values["brake_max"])
-        d.alpha_lon.brake_min = p.Acceleration(values["brake_min"])
-        d.alpha_lon.brake_min_correct = p.Acceleration(values["brake_min_correct"])
-        d.alpha_lat.accel_max = p.Acceleration(values["lat_accel_max"])
-        d.alpha_lat.brake_min = p.Acceleration(values["lat_brake_min"])
-        d.lateral_fluctuation_margin = p.Distance(values["lateral_fluctuation_margin"])
-        d.response_time = p.Duration(values["response_time"])
-        d.max_speed_on_acceleration = p.Speed(values["max_speed_on_acceleration"])
-        # the unstructured scenes are not used; ad-rss still checks their ranges (CARLA's)
-        u = d.unstructured_settings
-        u.pedestrian_turning_radius = p.Distance(2.0)
-        u.drive_away_max_angle = p.Angle(2.4)
-        u.vehicle_yaw_rate_change = p.AngularAcceleration(0.3)
-        u.vehicle_min_radius = p.Distance(3.5)
-        u.vehicle_trajectory_calculation_step = p.Duration(0.2)
-        return d
-
-    def model(self, time_index: int) -> Any:
-        model = self.world.WorldModel()
-        model.time_index = time_index
-        model.default_ego_vehicle_rss_dynamics = self.ego_dynamics
-        return model
-
-    def template(
-        self,
-        same_direction: bool,
-        ego_area: tuple[float, float],
-        other_area: tuple[float, float],
-        number: int,
-        lengths: tuple[float, float],
-        lane_width: float,
-    ) -> tuple[Any, Any, Any, tuple[float, float]]:
-        """A constellation of the ego and car ``number``: one road for both (same
-        direction), or each its own with the conflict area marked (intersection)."""
-        w = self.world
-        c = w.Constellation()
-        c.ego_vehicle_road.append(self.road(1, None if same_direction else ego_area, lane_width))
-        other_segment = 1
-        if not same_direction:
-            c.intersecting_road.append(self.road(2, other_area, lane_width))
-            other_segment = 2
-        c.ego_vehicle = self.vehicle(0, w.ObjectType.EgoVehicle, 1, lengths[0], lane_width)
-        c.object = self.vehicle(
-            number, w.ObjectType.OtherVehicle, other_segment, lengths[1], lane_width
-        )
-        c.ego_vehicle_rss_dynamics = self.ego_dynamics
-        c.object_rss_dynamics = self.other_dynamics
-        # the regions as Python holds them: ad-rss's vectors hand out copies, so each step
-        # changes these and puts them back (``place``)
-        return c, c.ego_vehicle.occupied_regions[0], c.object.occupied_regions[0], lengths
-
-    def place(
-        self,
-        template: tuple[Any, Any, Any, tuple[float, float]],
-        kind: str,
-        ego: tuple[float, float],
-        other: tuple[float, float],
-    ) -> Any:
-        """The template's constellation of type ``kind`` with both cars' (front, speed) in
-        the scene's coordinate."""
-        c, ego_region, other_region, lengths = template
-        c.constellation_type = self.types[kind]
-        cars = ((c.ego_vehicle, ego_region, ego, lengths[0]),
-                (c.object, other_region, other, lengths[1]))  # fmt: skip
-        for vehicle, region, (front, speed), length in cars:
-            span = region.lon_range
-            span.minimum.mParametricValue = _parametric(front - length)
-            span.maximum.mParametricValue = _parametric(front)
-            vehicle.occupied_regions[0] = region
-            v = vehicle.velocity
-            v.speed_lon_min.mSpeed = v.speed_lon_max.mSpeed = speed
-            r = vehicle.state.speed_range
-            r.minimum.mSpeed = r.maximum.mSpeed = speed
-        return c
-
-    def road(self, segment: int, area: tuple[float, float] | None, width: float) -> Any:
-        """One road segment of one lane; with ``area`` an intersection segment whose
-        intersecting area lies between area[0] and area[1]."""
-        p, w = self.physics, self.world
-        r = w.RoadSegment()
-        r.type = w.RoadSegmentType.Normal
-        if area is not None:
-            r.type = w.RoadSegmentType.Intersection
-            start, end = (min(max(x, ROAD_START), ROAD_START + ROAD_LENGTH) for x in area)
-            r.minimum_length_before_intersecting_area = p.Distance(start - ROAD_START)
-            r.minimum_length_after_intersecting_area = p.Distance(ROAD_START + ROAD_LENGTH - end)
-        lane = w.LaneSegment()
-        lane.id = segment
-        lane.length.minimum = lane.length.maximum = p.Distance(ROAD_LENGTH)
-        lane.width.minimum = lane.width.maximum = p.Distance(width)
-        lane.driving_direction = w.LaneDrivingDirection.Positive
-        r.lane_segments.append(lane)
-        return r
-
-    def vehicle(
-        self, number: int, kind: Any, segment: int, length: float, lane_width: float
-    ) -> Any:
-        """A car of ``length`` (and 1.8 m wide, centred in its lane), not yet placed."""
-        p, w = self.physics, self.world
-        width = min(1.8, lane_width)
-        o = w.Object()
-        o.object_id = number
-        o.object_type = kind
-        region = w.OccupiedRegion()
-        region.segment_id = segment
-        region.lon_range.minimum = p.ParametricValue(0.0)
-        region.lon_range.maximum = p.ParametricValue(0.0)
-        half = width / 2.0 / lane_width
-        region.lat_range.minimum = p.ParametricValue(0.5 - half)
-        region.lat_range.maximum = p.ParametricValue(0.5 + half)
-        o.occupied_regions.append(region)
-        v = o.velocity
-        v.speed_lon_min = v.speed_lon_max = p.Speed(0.0)
-        v.speed_lat_min = v.speed_lat_max = p.Speed(0.0)
-        s = o.state
-        s.yaw, s.yaw_rate, s.steering_angle = p.Angle(0.0), p.AngularVelocity(0.0), p.Angle(0.0)
-        s.center_point.x = s.center_point.y = p.Distance(0.0)
-        s.dimension.length, s.dimension.width = p.Distance(length), p.Distance(width)
-        s.speed_range.minimum = s.speed_range.maximum = p.Speed(0.0)
-        return o
-
-    def respond(self, check: Any, model: Any) -> tuple[float, tuple[int, str] | None] | None:
-        """(the ceiling, (the car, the scene) that asks for it) or None: refused."""
-        core, state = self.ad_rss.rss.core, self.ad_rss.rss.state
-        situations, states = core.RssSituationSnapshot(), state.RssStateSnapshot()
-        response = state.ProperResponse()
-        if not check.calculateProperResponse(model, situations, states, response):
-            return None
-        ceiling = float(response.acceleration_restrictions.longitudinal_range.maximum.mAcceleration)
-        if response.is_safe:
-            return ceiling, None
-        for individual in states.individual_responses:
-            longitudinal = individual.longitudinal_state
-            if not longitudinal.is_safe and str(longitudinal.response) != "None":
-                scene = str(individual.constellation_type).rsplit(".", 1)[-1]
-                return ceiling, (int(individual.object_id), scene)
-        return ceiling, None
-
-
-def _parametric(place: float) -> float:
-    """A place on a scene's road as ad-rss takes it: its share of the road from ROAD_START
-    (out of range when the place is: ad-rss then refuses the scene, and says so)."""
-    return (place - ROAD_START) / ROAD_LENGTH
+def _sibling(file_name: str) -> Any:
+    """The module in ``file_name`` next to this file (scengen's own, or a bundle's copy:
+    this file is loaded by path in a bundle, so it has no package to import from)."""
+    name = file_name.removesuffix(".py")
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name(file_name))
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up by name
+    spec.loader.exec_module(module)
+    return module

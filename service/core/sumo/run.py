@@ -6,7 +6,21 @@ and, every step, ``setSpeed`` with the distance they cover in that step (SUMO mo
 its speed times the step, Euler steps). The ego is driven by SUMO's own driver with a
 controller's settings, or replays a certificate, or is left to a caller's ``on_step`` (a
 user controller). Cars that start inside an upstream junction depart just before it and are
-moved onto their start (``vehicle.moveTo``) right after the first step. The test ends with
+moved onto their start (``vehicle.moveTo``) right after the first step.
+
+Pedestrians (the plan's ``pedestrians``) are persons walking their walk's edges in three
+walking stages (up to the curb, the crossing alone, from the far curb: SUMO keeps a
+person's direction on a crossing only on a stage of the crossing alone), added before the
+first step on the edge nearest their first pose, and placed at their recorded pose every
+step after it with ``person.moveToXY(..., keepRoute=1)``: mapped onto the nearest edge of
+their stage, so that SUMO has them on the crossing's lane while they are on it and its
+drivers yield to them; the runner moves a person on to her next stage when her pose comes
+near it (``removeStage``). At t = 0 SUMO has a person at its departure place (a lane's
+centreline, up to half a sidewalk's width from the pose, or the end of the sidewalk before
+a walking area); from the first step on at its pose (service.core.sim.pedestrians says how
+near, where). A person leaves when its trajectory ends (the test-case's, or where it left
+its route's lanes: the map). Collisions with persons are SUMO's to report, not to act on:
+``--intermodal-collision.action none`` (the checker judges them). The test ends with
 the ego's goal: the ego leaves the simulation at the end of its route, the first step past
 its goal (``plan["ego"]["goal"]``, metres from its start), rather than driving on and
 standing where a non-ego that follows its trajectory runs into it. (The route file ends its
@@ -89,8 +103,8 @@ def sumo_arguments(plan: dict[str, Any], folder: Path, types_file: Path) -> list
         "--additional-files", ",".join(additional), "--step-length", step,
         "--default.action-step-length", step, "--step-method.ballistic", "false",
         "--time-to-teleport", "-1", "--collision.action", "none",
-        "--collision.check-junctions", "true", "--ignore-route-errors", "false",
-        "--no-step-log", "true", "--no-warnings", "true",
+        "--intermodal-collision.action", "none", "--collision.check-junctions", "true",
+        "--ignore-route-errors", "false", "--no-step-log", "true", "--no-warnings", "true",
     ]  # fmt: skip
 
 
@@ -145,6 +159,8 @@ def drive(
     sumo_driven = controller["kind"] == "sumo"
     goal = None if ego.get("goal") is None else float(ego["goal"])
     moved = {car["id"]: car["start_on"] for car in (ego, *plan["nonegos"]) if car["start_on"]}
+    people = plan.get("pedestrians") or []
+    add_people(traci, people)
     rows: list[Row] = []
     rolling = capped = False
     odometer = 0.0  # the ego's SUMO odometer at its start
@@ -188,6 +204,7 @@ def drive(
             elif car != EGO:  # its trajectory ended: it left the map there
                 traci.vehicle.remove(car)
                 present.discard(car)  # gone for the controller too: SUMO no longer knows it
+        walk_people(traci, people, step)
         if sumo_driven and controller.get("rolling_speed") is not None:
             rolling = _roll(traci, plan, controller, row, rolling)
         if guard is not None:
@@ -202,22 +219,85 @@ def drive(
     return rows, None
 
 
+def add_people(traci: Any, people: list[dict[str, Any]]) -> None:
+    """Add every pedestrian before the first step: a person of its own type (its size)
+    departing at t = 0 on its first stage's first edge, with its walking stages (up to the
+    curb, the crossing alone, from the far curb: SUMO keeps a person's direction on a
+    crossing only on a stage of the crossing alone)."""
+    for person in people:
+        name = person["id"]
+        stages = person["stages"]
+        traci.person.add(name, stages[0]["edges"][0], float(person["depart_pos"]), depart=0.0,
+                         typeID=f"type_{name}")  # fmt: skip
+        for stage in stages:
+            traci.person.appendWalkingStage(name, list(stage["edges"]), float(stage["arrival"]))
+
+
+def walk_people(traci: Any, people: list[dict[str, Any]], step: int) -> None:
+    """Put every pedestrian still in SUMO where its trajectory has it at the next step
+    (``moveToXY`` before a step is where the person is after it), in the walking stage of
+    that pose (the stages before it ended: ``removeStage(id, 0)``); or remove it when its
+    trajectory ends at this step."""
+    walking = set(traci.person.getIDList())
+    for person in people:
+        name, poses = person["id"], person["poses"]
+        if name not in walking:
+            continue
+        if step + 1 >= len(poses):
+            traci.person.remove(name)
+            continue
+        x, y, angle, _, stage, edge = poses[step + 1]
+        stages = person["stages"]
+        for _ in range(int(stage) - (len(stages) - traci.person.getRemainingStages(name))):
+            traci.person.removeStage(name, 0)  # on to the next stage
+        edges = stages[min(int(stage), len(stages) - 1)]["edges"]
+        traci.person.moveToXY(name, edges[int(edge)], x, y, angle, 1)
+
+
+def people_at(traci: Any, people: list[dict[str, Any]], step: int) -> dict[str, list[float]]:
+    """Every pedestrian in SUMO at this step and its recorded pose (front x, y, heading,
+    speed)."""
+    walking = set(traci.person.getIDList())
+    return {
+        person["id"]: [float(v) for v in person["poses"][step][:4]]
+        for person in people
+        if person["id"] in walking and step < len(person["poses"])
+    }
+
+
 def _observe(
     traci: Any, plan: dict[str, Any], guard: Any, step: int, row: Row, present: set[str]
 ) -> None:
     """Tell the guard where every car is: its front's metres from its own stop line (the
-    ego's from its odometer, a non-ego's from its trajectory) and its speed."""
-    cars = (plan.get("rss") or {}).get("cars", {})
+    ego's from its odometer, a non-ego's from its trajectory) and its speed; where every
+    pedestrian in the ego's path is (her front's metres along her walk, her speed, her
+    centre and heading); and where the ego is in the plane (its centre and heading)."""
+    rss = plan.get("rss") or {}
+    cars = rss.get("cars", {})
     others = {}
     for car in plan["nonegos"]:
         name = car["id"]
         if name in present and name in cars and step < len(car["distances"]):
             front = car["distances"][step] - cars[name]["stop_line"]
             others[name] = (front, traci.vehicle.getSpeed(name))
+    walkers = rss.get("pedestrians", {})
+    sizes = {person["id"]: float(person["length"]) for person in plan.get("pedestrians") or []}
+    people = {}
+    for name, (x, y, heading, speed) in people_at(
+        traci, plan.get("pedestrians") or [], step
+    ).items():
+        if name in walkers:
+            cx, cy = front_to_centre(x, y, heading, sizes[name])
+            people[name] = (walkers[name]["places"][step], speed, cx, cy, heading)
     ego = (row["odometer"] - float(plan["ego"]["start_distance"]), row["speed"])
+    pose = (*front_to_centre(row["x"], row["y"], row["angle"], float(plan["ego"]["length"])),
+            row["angle"])  # fmt: skip
     signals = plan.get("signals")
     colours = traci.trafficlight.getRedYellowGreenState(signals["tls"]) if signals else None
-    guard.step(row["t"], ego, others, colours)
+    if rss.get("pedestrians"):
+        guard.step(row["t"], ego, others, colours, people, pose)
+    else:  # as before pedestrians: a guard of one's own with the old step keeps working
+        guard.step(row["t"], ego, others, colours)
 
 
 def _cap(traci: Any, guard: Any, row: Row, timestep: float, capped: bool, resume: float) -> bool:

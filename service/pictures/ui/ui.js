@@ -7,6 +7,10 @@
 const REPORT = window.SCENGEN_REPORT || null;
 const COLOURS = ["#2456a6", "#c62828", "#1a7f37", "#8e44ad", "#d97706", "#0e7490", "#be185d", "#4d7c0f"];
 const CAR_COLOURS = ["#2456a6", "#8e44ad", "#d97706", "#0e7490", "#be185d", "#64748b", "#a16207", "#0f766e"];
+// people on foot: the pictures' colours (service/pictures/pedestrians.py, held equal by a
+// test), a disc each, their curves dotted
+const PEDESTRIAN_COLOURS = ["#ff00ff", "#6200ea", "#000080", "#1b5e20"];
+const CROSSWALK = { strip: "#8a8d93", stripe: "#ffffff", pavement: "#ebe6da" };
 const CONTROLLER_COLOURS = {};
 
 // ---------- data ----------
@@ -161,7 +165,7 @@ async function home() {
   render(h("h1", {}, "Networks and junctions"),
     h("p", { class: "muted" }, "Bundled and uploaded road networks; each junction with a supported control type can grow test-cases. Connecting lanes: ",
       h("span", { style: `color:${TURN_COLOURS.left}` }, "left"), ", ", h("span", { style: `color:${TURN_COLOURS.right}` }, "right"), ", ",
-      h("span", { style: `color:${TURN_COLOURS.straight}` }, "straight"), "; stop lines red where there is a stop sign; dark bars past a stop line: signal heads (a test-case's page shows their colours)."));
+      h("span", { style: `color:${TURN_COLOURS.straight}` }, "straight"), "; stop lines red where there is a stop sign; dark bars past a stop line: signal heads (a test-case's page shows their colours); zebras: crosswalks, a bar at each curb where they have a walk signal (a network's page lists the walks over them)."));
   const list = h("div", {});
   main.append(list);
   for (const network of networks) {
@@ -172,7 +176,7 @@ async function home() {
   }
 }
 
-async function junctionCards(network, card, most) {
+async function junctionCards(network, card, most, walks = false) { // walks: list each junction's walks under it
   const heading = card.firstChild;
   card.append(waiting(`Reading the junctions of ${network.id}…`, "the first visit reads the network in a worker; later visits answer from the cache"));
   let junctions;
@@ -194,18 +198,39 @@ async function junctionCards(network, card, most) {
   const more = junctions.length > most ? h("p", {}, link(`all ${junctions.length} supported junctions`, `#/networks/${encodeURIComponent(network.id)}`)) : null;
   card.replaceChildren(heading, junctions.length ? grid : h("p", { class: "muted" }, "no junction with a supported control type"));
   if (more) card.append(more);
-  await Promise.all(boxes.map(([junction, box]) => drawInTurn(() => drawJunction(network, junction, box)))); // on the page: drawn
+  await Promise.all(boxes.map(([junction, box]) => drawInTurn(() => drawJunction(network, junction, box, walks)))); // on the page: drawn
 }
 
-async function drawJunction(network, junction, box) {
+async function drawJunction(network, junction, box, walks) {
   if (!box.isConnected) return; // the page was left before its turn
   box.replaceChildren(waiting(`drawing junction ${junction.id}…`));
+  let geometry;
   try {
-    const geometry = await get(`/networks/${encodeURIComponent(network.id)}/junctions/${encodeURIComponent(junction.id)}/geometry`);
+    geometry = await get(`/networks/${encodeURIComponent(network.id)}/junctions/${encodeURIComponent(junction.id)}/geometry`);
     box.replaceChildren(junctionDrawing(geometry, junction.id));
   } catch (error) {
     box.replaceChildren(h("p", { class: "error" }, `junction ${junction.id}: ${error.message || error}`));
+    return;
   }
+  if (walks && (geometry.crossings || []).length && box.isConnected) box.parentNode.append(await walkList(network, junction));
+}
+
+// the walks over a junction's crosswalks (a walk: one crossing in one direction, what a
+// pedestrian of a test-case does), as `scengen intersection` describes them
+async function walkList(network, junction) {
+  let description;
+  try {
+    description = await get(`/networks/${encodeURIComponent(network.id)}/junctions/${encodeURIComponent(junction.id)}`);
+  } catch (error) {
+    return h("p", { class: "error" }, `walks of junction ${junction.id}: ${error.message || error}`);
+  }
+  const walks = description.walks || [];
+  if (!walks.length) return h("p", { class: "muted" }, "no walks");
+  return h("details", { class: "walks", "data-junction": junction.id },
+    h("summary", {}, `${walks.length} walks over ${new Set(walks.map((w) => w.crossing)).size} crosswalks`),
+    h("ul", { class: "tree" }, walks.map((w) => h("li", { "data-walk": w.id, title: w.conflicts && w.conflicts.length ? `crosses the routes ${w.conflicts.join(", ")}` : null },
+      h("strong", {}, w.id), ` · ${w.from} → ${w.to} · ${Number(w.length).toFixed(1)} m`,
+      w.conflicts ? ` · ${w.conflicts.length} conflicting routes` : "", w.signal ? ` · signal link ${w.signal.link_index}` : ""))));
 }
 
 // ---------- traffic lights ----------
@@ -231,15 +256,23 @@ function signalColour(program, link, time) {
 }
 
 function headId(head) { return `${head.fork}-${head.link_index}`; }
+function walkHeadId(head) { return `walk-${head.walk}`; }
 
-function junctionDrawing(geometry, id) { // the junction and its approaches, north up: roads, area, connecting lanes by turn, stop lines
+function junctionDrawing(geometry, id) { // the junction and its approaches, north up: roads, area, crosswalks, connecting lanes by turn, stop lines
   const [ax0, ay0, ax1, ay1] = boundsOf(geometry.area.flat());
   const side = Math.max(ax1 - ax0, ay1 - ay0) * 1.8 + 10; // the approaches in view
   const x0 = (ax0 + ax1 - side) / 2, y1 = (ay0 + ay1 + side) / 2;
   const at = (points) => points.map(([x, y]) => `${(x - x0).toFixed(2)},${(y1 - y).toFixed(2)}`).join(" ");
   const drawing = svg("svg", { viewBox: `0 0 ${side.toFixed(2)} ${side.toFixed(2)}`, class: "junction-drawing", "data-junction": id, role: "img", "aria-label": `junction ${id}` });
-  for (const road of geometry.roads) for (const ring of road.polygon) drawing.append(svg("polygon", { points: at(ring), fill: "#dcdee2" }));
+  for (const road of geometry.roads) for (const ring of road.polygon) drawing.append(svg("polygon", { points: at(ring), fill: road.sidewalk ? CROSSWALK.pavement : "#dcdee2" }));
   for (const ring of geometry.area) drawing.append(svg("polygon", { points: at(ring), fill: "#c6c9ce" }));
+  for (const area of geometry.walking_areas || []) for (const ring of area.polygon) drawing.append(svg("polygon", { points: at(ring), fill: CROSSWALK.pavement, class: "walking-area" }));
+  for (const crossing of geometry.crossings || []) { // a zebra: white bars on a dark strip
+    const group = svg("g", { class: "crosswalk", "data-crossing": crossing.id }, svg("title", {}, `crosswalk ${crossing.id} over ${(crossing.edges || []).join(", ")}`));
+    for (const ring of crossing.polygon) group.append(svg("polygon", { points: at(ring), fill: CROSSWALK.strip }));
+    for (const bar of crossing.stripes || []) group.append(svg("polygon", { points: at(bar), fill: CROSSWALK.stripe, class: "stripe" }));
+    drawing.append(group);
+  }
   for (const path of geometry.paths) {
     drawing.append(svg("polyline", { points: at(path.line), fill: "none", stroke: TURN_COLOURS[path.turn] || "#6b7280", "stroke-width": 1.4, "vector-effect": "non-scaling-stroke", class: "route" },
       svg("title", {}, `${path.route} (${path.turn})`)));
@@ -251,6 +284,10 @@ function junctionDrawing(geometry, id) { // the junction and its approaches, nor
     drawing.append(svg("polygon", { points: at(head.polygon), fill: "#4b5563", class: "signal-head", "data-head": headId(head) },
       svg("title", {}, `signal of ${head.routes.join(", ")} (link ${head.link_index})`)));
   }
+  for (const head of geometry.pedestrian_heads || []) { // a walk signal at each curb of a signalized crosswalk
+    drawing.append(svg("polygon", { points: at(head.polygon), fill: "#4b5563", class: "pedestrian-head", "data-head": walkHeadId(head) },
+      svg("title", {}, `walk signal of ${head.crossing} where ${head.walk} starts (link ${head.link_index})`)));
+  }
   return drawing;
 }
 
@@ -259,7 +296,7 @@ async function networkPage(network) {
   render(h("h1", {}, `Network ${record.id}`));
   const card = h("div", { class: "card" }, h("h2", {}, "Junctions"));
   main.append(card);
-  await junctionCards(record, card, 1000);
+  await junctionCards(record, card, 1000, true);
 }
 
 // ---------- test-cases and their lineage ----------
@@ -335,6 +372,7 @@ class Player {
   constructor(geometry, tracks, duration, options = {}) {
     this.geometry = geometry; this.tracks = tracks; this.duration = duration;
     this.signals = options.signals || null; this.heads = geometry.signal_heads || [];
+    this.walkHeads = geometry.pedestrian_heads || [];
     const egoHead = this.heads.find((head) => head.routes.includes(options.ego));
     this.egoLink = egoHead ? egoHead.link_index : -1;
     this.time = 0; this.speed = 1; this.playing = false; this.frame = null;
@@ -389,8 +427,13 @@ class Player {
       ring.forEach(([x, y], i) => { const [sx, sy] = this.toScreen(x, y); if (i) c.lineTo(sx, sy); else c.moveTo(sx, sy); });
       c.closePath(); c.fillStyle = fill; c.fill();
     };
-    for (const road of this.geometry.roads) road.polygon.forEach((ring) => polygon(ring, "#d4d6da"));
+    for (const road of this.geometry.roads) road.polygon.forEach((ring) => polygon(ring, road.sidewalk ? CROSSWALK.pavement : "#d4d6da"));
     this.geometry.area.forEach((ring) => polygon(ring, "#c8cace"));
+    for (const area of this.geometry.walking_areas || []) area.polygon.forEach((ring) => polygon(ring, CROSSWALK.pavement));
+    for (const crossing of this.geometry.crossings || []) { // a zebra: white bars on a dark strip
+      crossing.polygon.forEach((ring) => polygon(ring, CROSSWALK.strip));
+      (crossing.stripes || []).forEach((bar) => polygon(bar, CROSSWALK.stripe));
+    }
     c.setLineDash([4, 4]); c.strokeStyle = "#ffffff"; c.lineWidth = 1;
     for (const path of this.geometry.paths) {
       c.beginPath();
@@ -403,11 +446,13 @@ class Player {
       const [a, b] = stop.line.map(([x, y]) => this.toScreen(x, y));
       c.moveTo(...a); c.lineTo(...b); c.stroke();
     }
+    this.walkersShown = [];
     for (const track of this.tracks) {
       if (track.hidden) continue;
       const pose = poseAt(track.samples, this.time);
-      if (!pose) continue;
+      if (!pose) continue; // not yet, or no more: a pedestrian whose walk has ended is gone
       const [sx, sy] = this.toScreen(pose[0], pose[1]);
+      if (track.walker) { this.drawWalker(c, track, sx, sy); continue; }
       const angle = (pose[2] * Math.PI) / 180; // clockwise from north
       c.save(); c.translate(sx, sy); c.rotate(angle);
       const l = track.length * this.scale, w = track.width * this.scale;
@@ -419,17 +464,32 @@ class Player {
       c.fillStyle = "#111827"; c.font = "12px system-ui, sans-serif";
       c.fillText(track.label, sx + 8, sy - 8 + (track.ghost ? 14 * (track.label.includes("complexity") ? 1 : 0) : 0));
     }
+    this.canvas.dataset.walkers = JSON.stringify(this.walkersShown);
     this.drawHeads(c);
     c.fillStyle = "#111827"; c.font = "13px system-ui, sans-serif";
     const egoSignal = this.signals && this.egoLink >= 0 ? ` · ego's signal: ${SIGNAL_WORDS[signalColour(this.signals, this.egoLink, this.time)]}` : "";
     c.fillText(`t = ${this.time.toFixed(1)} s${egoSignal}`, 10, 18);
   }
 
-  // each head in its colour at this moment, over the cars (s: red with a white dot); the
-  // canvas's data-signals lists them: [{head, colour, x, y}], x and y its centre on the canvas
+  // a pedestrian: a disc in her colour (at least 4 px across her shoulders), ringed when
+  // new, her id beside it; the canvas's data-walkers lists those drawn: [{id, x, y}]
+  drawWalker(c, track, sx, sy) {
+    const radius = Math.max(4, (Math.max(track.width, track.length) * this.scale) / 2);
+    c.beginPath(); c.arc(sx, sy, radius, 0, 2 * Math.PI);
+    c.fillStyle = track.colour; c.fill(); c.strokeStyle = "#ffffff"; c.lineWidth = 1.2; c.stroke();
+    if (track.highlight) { c.beginPath(); c.arc(sx, sy, radius + 3, 0, 2 * Math.PI); c.strokeStyle = "#f59e0b"; c.lineWidth = 2; c.stroke(); }
+    c.fillStyle = track.colour; c.font = "12px system-ui, sans-serif";
+    c.fillText(track.label, sx + radius + 4, sy - radius - 2);
+    this.walkersShown.push({ id: track.id, x: Number(sx.toFixed(1)), y: Number(sy.toFixed(1)) });
+  }
+
+  // each head in its colour at this moment, over the cars (s: red with a white dot), a
+  // crosswalk's walk signal at each of its curbs too; the canvas's data-signals lists them:
+  // [{head, colour, x, y}], x and y its centre on the canvas
   drawHeads(c) {
     const shown = [];
-    for (const head of this.heads) {
+    const heads = [...this.heads.map((head) => [headId(head), head]), ...this.walkHeads.map((head) => [walkHeadId(head), head])];
+    for (const [id, head] of heads) {
       const colour = this.signals ? signalColour(this.signals, head.link_index, this.time) : null;
       const corners = head.polygon.map(([x, y]) => this.toScreen(x, y));
       c.beginPath();
@@ -439,14 +499,15 @@ class Player {
       const x = corners.reduce((sum, p) => sum + p[0], 0) / corners.length;
       const y = corners.reduce((sum, p) => sum + p[1], 0) / corners.length;
       if (colour === "s") { c.beginPath(); c.arc(x, y, 2.5, 0, 2 * Math.PI); c.fillStyle = "#ffffff"; c.fill(); }
-      shown.push({ head: headId(head), colour, x: Number(x.toFixed(1)), y: Number(y.toFixed(1)) });
+      shown.push({ head: id, colour, x: Number(x.toFixed(1)), y: Number(y.toFixed(1)) });
     }
     if (shown.length) this.canvas.dataset.signals = JSON.stringify(shown);
   }
 
   legend() { // the colours this test-case's heads show at some time
-    if (!this.signals || !this.heads.length) return null;
-    const used = new Set(this.heads.flatMap((head) => this.signals.phases.map((phase) => phase.state[head.link_index])));
+    const heads = [...this.heads, ...this.walkHeads];
+    if (!this.signals || !heads.length) return null;
+    const used = new Set(heads.flatMap((head) => this.signals.phases.map((phase) => phase.state[head.link_index])));
     return h("div", { class: "legend", id: "signal-legend" }, "signals: ", [...SIGNAL_ORDER].filter((c) => used.has(c)).map((c) =>
       h("span", {}, h("span", { class: `swatch${c === "s" ? " dotted" : ""}`, style: `background:${SIGNAL_COLOURS[c]}` }), `${c} ${SIGNAL_WORDS[c]}`)));
   }
@@ -469,12 +530,22 @@ function poseAt(samples, time) {
 
 const rows = (samples) => samples.map((s) => [s.t, s.x, s.y, s.heading, s.speed, s.distance]);
 
-function tracksOf(testcase) {
-  const level = testcase.provenance ? testcase.provenance.level : 0;
+// a test-case's level: the extension that added its last road users (0: ego-only)
+function levelOf(testcase) {
+  return Math.max(0, ...testcase.nonegos.map((car) => car.added_in), ...(testcase.pedestrians || []).map((p) => p.added_in));
+}
+
+function tracksOf(testcase) { // the cars, then the pedestrians (walker: drawn as discs, curves dotted)
+  const level = levelOf(testcase);
   const tracks = testcase.nonegos.map((car, i) => ({
     id: car.id, label: car.added_in === level && level ? `${car.id} (new)` : car.id,
     colour: CAR_COLOURS[i % CAR_COLOURS.length], length: car.length, width: car.width,
     samples: rows(car.trajectory), highlight: car.added_in === level && level > 0, events: car.events,
+  }));
+  (testcase.pedestrians || []).forEach((person, i) => tracks.push({
+    id: person.id, label: person.added_in === level ? `${person.id} (new)` : person.id, walker: true, walk: person.walk,
+    colour: PEDESTRIAN_COLOURS[i % PEDESTRIAN_COLOURS.length], length: person.length, width: person.width,
+    samples: rows(person.trajectory), highlight: person.added_in === level, events: person.events,
   }));
   return tracks;
 }
@@ -542,9 +613,11 @@ function spreadLabels(wanted, top, bottom, gap) { // heights in order kept at le
   return result;
 }
 
-function timeDistance(tracks, duration) {
+const curveName = (track) => (track.walker ? `${track.id} (pedestrian)` : track.id);
+
+function timeDistance(tracks, duration) { // a pedestrian's curve dotted, named as hers
   const shown = tracks.filter((t) => !t.hidden && t.samples.length);
-  const longest = Math.max(4, ...shown.map((t) => t.id.length));
+  const longest = Math.max(4, ...shown.map((t) => curveName(t).length));
   const width = 560, height = 300, left = 56, bottom = 34, top = 12;
   const right = Math.min(220, 14 + Math.ceil(longest * TD_CHAR)); // the names' gutter
   const most = Math.max(1, ...shown.flatMap((t) => t.samples.map((s) => s[5] || 0)));
@@ -564,24 +637,40 @@ function timeDistance(tracks, duration) {
   plot.append(svg("line", { x1: left, y1: plotBottom, x2: plotRight, y2: plotBottom, stroke: "#6b7280" }),
     svg("line", { x1: left, y1: top, x2: left, y2: plotBottom, stroke: "#6b7280" }),
     svg("text", { x: (left + plotRight) / 2, y: height - 4, "font-size": 12, "text-anchor": "middle" }, "time (s)"),
-    svg("text", { x: 14, y: (top + plotBottom) / 2, "font-size": 12, transform: `rotate(-90 14 ${(top + plotBottom) / 2})`, "text-anchor": "middle" }, "distance driven (m)"));
+    svg("text", { x: 14, y: (top + plotBottom) / 2, "font-size": 12, transform: `rotate(-90 14 ${(top + plotBottom) / 2})`, "text-anchor": "middle" }, shown.some((t) => t.walker) ? "distance driven or walked (m)" : "distance driven (m)"));
   const ends = shown.map((track) => track.samples[track.samples.length - 1]);
   const heights = spreadLabels(ends.map((end) => y(end[5] || 0) + 3.5), top + 8, plotBottom, TD_LINE);
   shown.forEach((track, i) => {
     const points = track.samples.map((s) => `${x(s[0]).toFixed(1)},${y(s[5] || 0).toFixed(1)}`).join(" ");
-    plot.append(svg("polyline", { points, fill: "none", stroke: track.colour, "stroke-width": track.highlight ? 3 : 1.6, "stroke-dasharray": track.ghost ? "5 3" : "none" }));
+    const dashes = track.walker ? "0.1 4" : track.ghost ? "5 3" : "none";
+    plot.append(svg("polyline", { points, fill: "none", stroke: track.colour, "stroke-width": track.highlight ? 3 : track.walker ? 2.4 : 1.6, "stroke-dasharray": dashes,
+      "stroke-linecap": track.walker ? "round" : "butt", "data-track": track.id, class: track.walker ? "walker-curve" : "curve" }));
     const [endX, endY] = [x(ends[i][0]), y(ends[i][5] || 0)];
     plot.append(svg("line", { x1: endX + 2, y1: endY, x2: plotRight + 6, y2: heights[i] - 3.5, stroke: track.colour, "stroke-width": 0.6, "stroke-opacity": 0.7 }),
-      svg("text", { x: plotRight + 8, y: heights[i], "font-size": TD_FONT, fill: track.colour, class: "curve-name" }, track.id));
+      svg("text", { x: plotRight + 8, y: heights[i], "font-size": TD_FONT, fill: track.colour, class: "curve-name" }, curveName(track)));
   });
   return plot;
 }
 
-function eventsTable(testcase) {
+function eventsTable(testcase) { // a pedestrian's lane: her crossing, or a lane she walks over
   const found = [];
-  for (const car of testcase.nonegos) for (const e of car.events) found.push([e.t, car.id, e.kind, e.lane]);
+  const people = testcase.pedestrians || [];
+  for (const user of [...testcase.nonegos, ...people]) for (const e of user.events) found.push([e.t, user.id, e.kind, e.lane]);
   found.sort((a, b) => a[0] - b[0]);
-  return table(["t (s)", "car", "event", "lane"], found.map(([t, car, kind, lane]) => [t.toFixed(2), car, kind, lane]));
+  return table(["t (s)", people.length ? "road user" : "car", "event", "lane"], found.map(([t, car, kind, lane]) => [t.toFixed(2), car, kind, lane]));
+}
+
+// each pedestrian: her walk (a crosswalk in one direction), the level that added her, and
+// when she was on the crosswalk (her events), in her colour
+function pedestriansTable(testcase, tracks) {
+  const people = testcase.pedestrians || [];
+  if (!people.length) return null;
+  const colours = Object.fromEntries(tracks.map((t) => [t.id, t.colour]));
+  const when = (person, kind) => { const e = person.events.find((event) => event.kind === kind); return e ? `${e.t.toFixed(1)} s` : "—"; };
+  return [h("h2", {}, "Pedestrians"), Object.assign(table(["pedestrian", "walk", "added at level", "at the curb", "onto the crosswalk", "off it", "walked"],
+    people.map((p) => [h("span", {}, h("span", { class: "swatch round", style: `background:${colours[p.id]}` }), p.id), p.walk, String(p.added_in),
+      when(p, "arrived"), when(p, "entered"), when(p, "exited"), `${p.trajectory[p.trajectory.length - 1].distance.toFixed(1)} m in ${p.trajectory[p.trajectory.length - 1].t.toFixed(1)} s`])),
+  { id: "pedestrians" })];
 }
 
 function provenanceOf(testcase) {
@@ -597,8 +686,9 @@ function provenanceOf(testcase) {
   ]);
 }
 
-async function geometryOf(testcase) {
-  return get(`/networks/${encodeURIComponent(testcase.network.ref)}/junctions/${encodeURIComponent(testcase.junction)}/geometry?control=${testcase.control}`);
+async function geometryOf(testcase) { // the network the test-case runs on: with its guessed crosswalks if it has them
+  const guessed = testcase.crossings_guessed ? "&guess_crossings=true" : "";
+  return get(`/networks/${encodeURIComponent(testcase.network.ref)}/junctions/${encodeURIComponent(testcase.junction)}/geometry?control=${testcase.control}${guessed}`);
 }
 
 // ---------- a test-case ----------
@@ -629,19 +719,22 @@ async function testcasePage(id) {
       h("a", { href: record.links.openscenario }, "OpenSCENARIO (zip)"), " · ", h("a", { href: `${record.links.openscenario}?flavour=carla` }, "OpenSCENARIO for CARLA")];
   render(
     h("h1", {}, titleOf(testcase, id)),
-    h("p", { class: "muted" }, `${testcase.network.ref} · junction ${testcase.junction} (${testcase.control}) · ego ${ego.fork}:${ego.exit} · ${testcase.nonegos.length} other cars · id ${id}`,
+    h("p", { class: "muted" }, `${testcase.network.ref} · junction ${testcase.junction} (${testcase.control}) · ego ${ego.fork}:${ego.exit} · ${testcase.nonegos.length} other cars`
+      + `${(testcase.pedestrians || []).length ? ` · ${testcase.pedestrians.length} pedestrian${testcase.pedestrians.length === 1 ? "" : "s"}` : ""} · id ${id}`,
       record.parent ? [" · parent ", link(short(record.parent), `#/testcases/${record.parent}`)] : null),
     h("div", { class: "row" }, h("div", { class: "card" }, player.element,
-      h("div", { class: "legend" }, player.tracks.map((t) => h("span", {}, h("span", { class: "swatch", style: `background:${t.colour}` }), t.label))),
+      h("div", { class: "legend" }, player.tracks.map((t) => h("span", {}, h("span", { class: t.walker ? "swatch round" : "swatch", style: `background:${t.colour}` }), t.walker ? `${t.id} (pedestrian${t.highlight ? ", new" : ""})` : t.label)),
+        player.walkHeads.length ? h("span", { class: "muted" }, "walk signals: a bar at each curb of a crosswalk") : null),
       player.legend(),
     ), h("div", {},
       h("div", { class: "card" }, h("h2", {}, "Time and distance"), distance),
       h("div", { class: "card" }, h("h2", {}, "Downloads"), h("p", {}, downloads)))),
+    pedestriansTable(testcase, player.tracks),
     h("h2", {}, "Provenance"), provenanceOf(testcase),
     h("h2", {}, "Evaluations"), evaluations.items.length
       ? table(["controller", "verdict", "replay"], evaluations.items.map((e) => [e.controller, verdictCell(e.verdict), link("replay", `#/replay/${e.id}`)]))
       : h("p", { class: "muted" }, "none yet"),
-    h("details", {}, h("summary", {}, h("strong", {}, "Events"), ` (${testcase.nonegos.reduce((n, car) => n + car.events.length, 0)}: each car's arrivals, stops and lane entries and exits)`), eventsTable(testcase)),
+    h("details", {}, h("summary", {}, h("strong", {}, "Events"), ` (${[...testcase.nonegos, ...(testcase.pedestrians || [])].reduce((n, user) => n + user.events.length, 0)}: each ${(testcase.pedestrians || []).length ? "road user" : "car"}'s arrivals, stops and lane entries and exits)`), eventsTable(testcase)),
     REPORT ? null : h("p", {}, link("lineage: every test-case of this tree", `#/testcases?network=${encodeURIComponent(testcase.network.ref)}&junction=${encodeURIComponent(testcase.junction)}`)),
   );
   player.seek(0);
@@ -653,7 +746,7 @@ function playerOptions(testcase) {
 
 function titleOf(testcase, id) {
   if (testcase.name) return testcase.name;
-  const level = testcase.provenance ? testcase.provenance.level : 0;
+  const level = levelOf(testcase);
   return `level ${level} · ego ${testcase.ego.route.fork}:${testcase.ego.route.exit} · ${short(id)}`;
 }
 

@@ -3,7 +3,7 @@ retimed by hand, pedestrians walking straight across a crossing at 1.3 m/s, the 
 checker (events, facts, clingo, collisions).
 
 The networks are the bundled four-ways with crossings (tests/data/junctions/*-crossings,
-crossings and walks from tests/core/checker/crossing_model.py). At the all-way stop the
+crossings and walks as the network loader reads them). At the all-way stop the
 ego goes straight north from lane 1 (S2C_1:C2N_1), its front 40 m before the line: its near
 crosswalk :C_c2 begins at the line, its far one :C_c0 lies at its exit. A pedestrian waits
 at the curb, its centre 1 m before the crossing, then walks: C_c2+ (from the south-west

@@ -1,7 +1,7 @@
 """The pedestrian laws (CVC 21950 (a), (b), 21951) at the ASP level: hand-written events with
 numeric times, real clingo, on the bundled all-way stop with sidewalks and crossings guessed
-(tests/data/junctions/stop-crossings; crossings and walks built by
-tests/core/checker/crossing_model.py); and no car law treats a pedestrian as a car, under
+(tests/data/junctions/stop-crossings; its crossings and walks as the network loader reads
+them); and no car law treats a pedestrian as a car, under
 every rule set. The signal laws for people on foot: test_pedestrian_signal_rules.py.
 
 m = 1 s. The ego comes from the south on lane 1 (``S2C_1``) and its near crosswalk is :C_c2,

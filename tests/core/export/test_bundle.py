@@ -20,12 +20,13 @@ from service.core.export.bundle import export_bundle
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import centre_to_front, generate_poses
 from service.core.motion.trajectory import read_trajectory
-from service.core.network import Intersection, bundled_networks
+from service.core.network import Intersection, bundled_networks, parsed_network
 from service.core.sim.controllers import BUILT_IN
 from service.core.sim.replay import Evaluation, evaluate
 from service.core.sumo.binaries import sumo_binary
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase, read_testcase
-from tests.helpers import every_exported_case, retime, with_nonegos
+from tests.helpers import every_exported_case, next_junction_network, retime, with_nonegos
+from tests.walkers import crosswalk_scene, in_path_times, on_crossing_times
 
 
 @pytest.fixture(scope="module")
@@ -265,3 +266,90 @@ def test_the_bundle_ends_the_ego_with_its_goal(next_junction: TestCase, tmp_path
     on_plain = check_testcase(next_junction, plain, "sumo", junction)
     assert on_plain.goal_time is not None and plain[-1].t < on_plain.goal_time + 1.0
     assert on_plain.passed and on_plain.after_goal_collisions == ()
+
+
+def test_plain_sumo_inserts_a_car_that_starts_in_a_junction_on_a_network_with_sidewalks(
+    tmp_path: Path,
+) -> None:
+    """Every FCD row of a car names its lane and position: plain `sumo -c` used to fail
+    with "Invalid departLane definition" for a car that starts inside a junction on a
+    network with sidewalks (its fcd-replay device guessed the junction's internal lane
+    and gave its index to the edge after it, where index 0 is the sidewalk). On the
+    two-junction network with guessed crossings, car1 starts inside the signalized D and
+    drives through the all-way stop C: SUMO runs the bundle and replays car1 within
+    centimetres from its first step."""
+    network = next_junction_network(tmp_path)
+    base = new_testcase(network, "S2C_1:C2D_1", junction="C", duration=20.0,
+                        guess_crossings=True)  # fmt: skip
+    junction = load_testcase_intersection(base)
+    assert junction.crossings  # sidewalks: the car lanes are 1 and up
+    route = junction.route("D2C_1:C2S_1")
+    into_d = parsed_network(junction.network_file).getEdge("D2C").getLength() + 4.0
+    (track,) = generate_poses(junction, [(route, into_d)], 6.0, 20.0, 0.1)
+    case = with_nonegos(base, [("car1", route.id, list(track.samples))])
+    folder = tmp_path / "bundle"
+    export_bundle(case, folder, junction)
+    rows = list(ET.parse(folder / "testcase.fcd.xml").getroot().iter("vehicle"))
+    assert rows[0].get("lane", "").startswith(":D_")  # it starts inside D
+    assert all(row.get("lane") and row.get("pos") for row in rows)
+    done = subprocess.run(
+        [sumo_binary("sumo"), "-c", "testcase.sumocfg", "--fcd-output", "plain.fcd.xml"],
+        cwd=folder, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    misses = []
+    for step in ET.parse(folder / "plain.fcd.xml").getroot().iter("timestep"):
+        for car in step.iter("vehicle"):
+            if car.get("id") == "car1":
+                sample = track.samples[round(float(step.get("time", "nan")) / 0.1)]
+                expected = centre_to_front(sample.x, sample.y, sample.heading, 5.0)
+                misses.append(math.dist(expected, (float(car.get("x", "nan")),
+                                                   float(car.get("y", "nan")))))  # fmt: skip
+    assert len(misses) > 150 and max(misses) < 0.02
+
+
+def test_a_bundle_replays_its_pedestrians(tmp_path: Path) -> None:
+    """A pedestrian on the crosswalk of the ego's skewed arm: `python run.py` gives the
+    ego's trajectory of `scengen evaluate` (to a micrometre) for `sumo` and `sumo+rss`;
+    plain `sumo -c` runs the bundle, replays her at her poses (within a centimetre but for
+    a step or two at a curb, from its first step: SUMO has no place for a replayed person
+    at t = 0) until she leaves the map, and its `sumo` waits for her too (she walks the
+    crosswalk along its lane: README.md says why that matters)."""
+    _, testcase, junction = crosswalk_scene("E2C_1:C2W_1", "C_c1+", lead=2.0, wait=0.0)
+    export_bundle(testcase, tmp_path, junction)
+    plan = json.loads((tmp_path / "testcase.run.json").read_text())
+    assert [p["id"] for p in plan["pedestrians"]] == ["ped1"]
+    assert "rss_world.py" in {p.name for p in tmp_path.iterdir()}
+    assert "pedestrian" in (tmp_path / "README.md").read_text()
+    subprocess.run(
+        [sys.executable, "-c", RUN_EVERY_CONTROLLER, "sumo", "sumo+rss"],
+        cwd=tmp_path, check=True, capture_output=True, timeout=300,
+    )  # fmt: skip
+    in_path = in_path_times(testcase, junction)
+    for controller in ("sumo", "sumo+rss"):
+        ego = read_trajectory(tmp_path / f"{controller}.fcd.xml", "ego", testcase.ego.length)
+        service = evaluate(testcase, controller, junction).trajectory
+        assert [(s.t, round(s.x, 6), round(s.y, 6)) for s in ego] == [
+            (s.t, round(s.x, 6), round(s.y, 6)) for s in service
+        ]
+        entered = on_crossing_times(testcase, junction, ego)
+        assert entered[0] > in_path[-1]  # it waited for her
+    done = subprocess.run(
+        [sumo_binary("sumo"), "-c", "testcase.sumocfg", "--fcd-output", "plain.fcd.xml"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    person = testcase.pedestrians[0]
+    poses = plan["pedestrians"][0]["poses"]
+    seen = {}
+    for step in ET.parse(tmp_path / "plain.fcd.xml").getroot().iter("timestep"):
+        for row in step.iter("person"):
+            seen[round(float(step.get("time", "nan")) / 0.1)] = (
+                float(row.get("x", "nan")), float(row.get("y", "nan")))  # fmt: skip
+    assert sorted(seen) == list(range(len(poses)))  # on the map, and only then
+    misses = [math.dist(place, poses[k][:2]) for k, place in seen.items() if k > 0]
+    assert max(misses) < 0.15  # at a step near a curb SUMO has her at the crosswalk's end
+    assert sum(1 for miss in misses if miss >= 0.01) <= 2
+    assert len(poses) < len(person.trajectory)  # she walked off her walk's sidewalk
+    plain = read_trajectory(tmp_path / "plain.fcd.xml", "ego", testcase.ego.length)
+    assert on_crossing_times(testcase, junction, plain)[0] > in_path[-1]

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import itertools
+import math
+
 import pytest
 
 from service.core.motion.poses import generate_poses
@@ -9,6 +12,7 @@ from service.core.network import Intersection
 from service.core.sim.rss_plan import conflict_area, priority, rss_section
 from service.core.testcase import load_testcase_intersection, new_testcase
 from tests.helpers import with_nonegos
+from tests.walkers import crosswalk_scene, straight_walk, with_pedestrians
 
 
 @pytest.mark.parametrize(
@@ -63,3 +67,28 @@ def test_the_plan_names_only_the_cars_that_matter() -> None:
     cross = section["cars"]["cross"]
     assert (cross["relation"], cross["priority"]) == ("crossing", "same")  # all-way stop
     assert cross["stop_line"] == pytest.approx(40.0, abs=0.1)
+
+
+def test_the_plan_names_the_pedestrians_in_the_ego_path() -> None:
+    """ped1 walks the crosswalk the ego (from the skewed east arm) crosses first: her
+    conflict area lies at its stop line along the ego's route and over the ego's lane
+    along her walk, and her place grows from before the curb (negative) as she walks;
+    a pedestrian on the crosswalk across the ego's way out to the north is not in its
+    path (it goes west)."""
+    _, testcase, junction = crosswalk_scene("E2C_1:C2W_1", "C_c1+", lead=2.0, wait=0.0)
+    other = straight_walk(junction, "C_c0+", testcase.duration)
+    both = with_pedestrians(testcase, {"ped1": ("C_c1+", [s.model_dump() for s in
+                                                         testcase.pedestrians[0].trajectory]),
+                                       "ped2": ("C_c0+", other)})  # fmt: skip
+    section = rss_section(both, junction)
+    assert set(section["pedestrians"]) == {"ped1"}
+    assert "E2C_1:C2W_1" not in junction.walk("C_c0+").conflicts
+    spec = section["pedestrians"]["ped1"]
+    ego_in, ego_out = spec["ego_area"]
+    her_in, her_out = spec["other_area"]
+    assert 0.0 <= ego_in < ego_out <= 6.0  # the crosswalk at the ego's stop line
+    lane = junction.connecting_lane_of(junction.route("E2C_1:C2W_1")).width
+    assert her_out - her_in == pytest.approx(lane / math.sin(math.radians(65.0)), abs=0.5)
+    places = spec["places"]
+    assert places[0] == pytest.approx(-2.0 + 0.1075, abs=1e-3)  # her front, 2 m before
+    assert all(b - a == pytest.approx(0.13, abs=2e-3) for a, b in itertools.pairwise(places))

@@ -10,11 +10,14 @@ import pytest
 
 from service.core.sumo.rss_guard import (
     CARLA_DYNAMICS,
+    CARLA_PEDESTRIAN_DYNAMICS,
     CarState,
     GuardError,
     RssGuard,
+    WalkerState,
     dynamics_from,
     load_params,
+    pedestrian_dynamics_from,
 )
 
 
@@ -118,3 +121,63 @@ def test_rss_parameters_override_carla_defaults_and_bad_ones_are_named(tmp_path:
     path.write_text(json.dumps({"brake_min": "hard"}))
     with pytest.raises(GuardError, match="must be a number"):
         load_params(path)
+
+
+def _walker_section(**walker: Any) -> dict[str, Any]:
+    """The ego (5 m long, 1.8 m wide) heading north, and ped1 on a crosswalk 5-9 m past its
+    stop line: the ego's lane spans 4-7 m of her walk from the curb."""
+    spec = {"walk": "C_c2+", "length": 0.215, "width": 0.478, "ego_area": [5.0, 9.0],
+            "other_area": [4.0, 7.0], "places": [], **walker}  # fmt: skip
+    return {"ego_length": 5.0, "ego_width": 1.8, "lane_width": 3.2, "ego_link": -1,
+            "cars": {}, "pedestrians": {"ped1": spec}}  # fmt: skip
+
+
+def _her(front: float, speed: float = 1.3) -> WalkerState:
+    """ped1 walking east over the ego's lane (the ego's centre line at x = 0, its stop line
+    at y = 0; her curb at x = -5.5, y = 7)."""
+    return WalkerState(front, speed, -5.5 + front - 0.1075, 7.0, 90.0)
+
+
+def _ego(front: float) -> tuple[float, float, float]:
+    return (0.0, front - 2.5, 0.0)  # the ego's centre and heading (north)
+
+
+def test_a_pedestrian_in_the_ego_path_is_an_ad_rss_pedestrian() -> None:
+    """ad-rss's unstructured scene with ObjectType.Pedestrian: the ego closing in on her
+    brakes; far away, or once she has walked past its lane, it may go on."""
+    guard = RssGuard(_walker_section())
+    restriction = guard.step(0.0, CarState(-5.0, 8.0), {}, None, {"ped1": _her(2.0)}, _ego(-5.0))
+    assert guard.fallback is None
+    assert restriction is not None and restriction.kind == "brake"
+    assert (restriction.car, restriction.scene) == ("ped1", "Unstructured")
+    assert guard.limit(0.0, 1.0) == restriction.ceiling
+    far = guard.step(0.1, CarState(-80.0, 8.0), {}, None, {"ped1": _her(2.0)}, _ego(-80.0))
+    assert far is None
+    # her rear past the far side of the ego's lane (7 m): she is out of its path
+    gone = guard.step(0.2, CarState(-5.0, 8.0), {}, None, {"ped1": _her(7.3)}, _ego(-5.0))
+    assert gone is None
+    assert guard.summary()["by_car"] == {"ped1": 1}
+
+
+def test_without_ad_rss_the_time_gap_rule_stops_for_a_pedestrian_in_the_path() -> None:
+    """The fallback: she has priority in her conflict area; the ego brakes when it is
+    within its stopping distance of its own and she is in hers about when it would get
+    there, and may not accelerate before that."""
+    guard = RssGuard(_walker_section(), use_ad_rss=False)
+    near = guard.step(0.0, CarState(-5.0, 8.0), {}, None, {"ped1": _her(4.5)}, _ego(-5.0))
+    assert near is not None and near.kind == "brake"
+    assert (near.car, near.scene) == ("ped1", "time gap (pedestrian)")
+    early = guard.step(0.1, CarState(-30.0, 8.0), {}, None, {"ped1": _her(0.0)}, _ego(-30.0))
+    assert early is not None and early.kind == "no-accel"
+    # standing at the curb, far from the ego's arrival: not in its way yet
+    standing = guard.step(0.2, CarState(-30.0, 8.0), {}, None, {"ped1": _her(-1.0, 0.0)})
+    assert standing is None
+
+
+def test_pedestrian_dynamics_are_carlas_and_can_be_set() -> None:
+    assert pedestrian_dynamics_from(None) == CARLA_PEDESTRIAN_DYNAMICS
+    changed = pedestrian_dynamics_from({"pedestrians": {"accel_max": 1.0}, "accel_max": 5.0})
+    assert (changed["accel_max"], changed["response_time"]) == (1.0, 0.5)
+    assert dynamics_from({"pedestrians": {"accel_max": 1.0}})[0]["accel_max"] == 3.5
+    with pytest.raises(GuardError, match=r"unknown RSS parameter 'pace'"):
+        dynamics_from({"pedestrians": {"pace": 1.0}})
