@@ -29,14 +29,13 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import Any
 
 import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 
 from service.core.motion.poses import PoseSample, interpolate_heading
-from service.core.network import Crossing, Fork, Intersection
+from service.core.network import Fork, Intersection
 
 TOLERANCE = 1e-4  # metres
 SPLIT = 16  # shares tried at once in each round of the refinement
@@ -318,24 +317,10 @@ def pedestrian_events(
         stopped = _stop_before(track, crossing.id, arrived, limit, v_stop)
         if stopped is not None:
             events.append(stopped)
-    for region, lane in [
-        *_conflict_areas(intersection, crossing),
-        (crossing.polygon, crossing.lane),
-    ]:
+    regions = [(lane.polygon, lane.id) for lane in intersection.connecting_lanes.values()]
+    for region, lane in [*regions, (crossing.polygon, crossing.lane)]:
         events += _region_events(track, region, lane, EventKind.ENTERED_LANE, EventKind.LEFT_LANE)
     return _in_order(events)
-
-
-def _conflict_areas(intersection: Intersection, crossing: Crossing) -> list[tuple[Any, str]]:
-    """Where each car lane crosses ``crossing``: a pedestrian is in a car lane when it is
-    on the crosswalk in that lane's way, not where the lane's strip clips the corner of a
-    walking area (a turning lane's does) that no car drives over."""
-    found = []
-    for lane in intersection.connecting_lanes.values():
-        area = lane.polygon.intersection(crossing.polygon)
-        if not area.is_empty and area.area > 0:
-            found.append((area, lane.id))
-    return found
 
 
 def _at_curb(
