@@ -17,7 +17,7 @@ from service.cli.output import write_output
 from service.core.budget import WarmWorker
 from service.core.errors import ScengenError
 from service.core.generator.extension import extend_testcase
-from service.core.paper_table import PaperTable, paper_table
+from service.core.paper_table import PAPER_CONTROLLERS, PaperTable, paper_table
 from service.core.sim.controllers import CertificateDriver, resolve_driver
 from service.core.sim.replay import REPLAY_BUDGET, evaluate
 from service.core.testcase import (
@@ -38,9 +38,10 @@ class Example:
     name: str
     network: str
     ego: str
-    steps: tuple[tuple[str, ...], ...]
+    steps: tuple[tuple[str, ...], ...]  # each level's new routes and walks (a walk has no ':')
     duration: float
     about: str
+    controllers: tuple[str, ...] = PAPER_CONTROLLERS  # the table's rows by default
 
 
 EXAMPLES = {
@@ -85,6 +86,17 @@ EXAMPLES = {
             "then a second one queued on the first lane",
         ),
         Example(
+            "crosswalk",
+            "crosswalk-stop",
+            "E2C_1:C2N_1",
+            (("C_c0-",), ("C_c1+",), ("S2C_1:C2N_1",)),
+            40.0,
+            "right turn at the all-way stop with crosswalks (its east arm 25 degrees off) while "
+            "people cross: a pedestrian over the ego's exit, walking towards its lane (21950 "
+            "(a)), then one over the road it comes from, then a car straight on from the left",
+            ("sumo", "sumo+rss", "sumo-aggressive"),
+        ),
+        Example(
             "right-on-red",
             "t-signal",
             "S2C_0:C2E_0",
@@ -111,9 +123,13 @@ def run_example(
     chain = [renamed(start, readable_name(start, example.name))]
     if on_level is not None:
         on_level(chain[0])
-    for level, routes in enumerate(example.steps, start=1):
+    for level, step in enumerate(example.steps, start=1):
+        routes = [item for item in step if ":" in item]
+        walks = [item for item in step if ":" not in item]
         try:
-            extension = extend_testcase(chain[-1], list(routes), seed, budget, progress=progress)
+            extension = extend_testcase(
+                chain[-1], routes, seed, budget, progress=progress, walks=walks
+            )
         except ScengenError as error:
             message = f"{example.name} level {level}: {error.message}"
             raise type(error)(message, **error.context) from error

@@ -387,10 +387,10 @@ def controller_list(text: str) -> tuple[str, ...]:
     arg(
         "--controllers",
         type=controller_list,
-        default=PAPER_CONTROLLERS,
+        default=None,
         metavar="A,B",
         help=f"who drives the ego on every level (default {','.join(PAPER_CONTROLLERS)}: "
-        "the paper's autopilot and autopilot-plus-RSS)",
+        "the paper's autopilot and autopilot-plus-RSS; crosswalk adds sumo-aggressive)",
     ),
     arg("--no-evaluate", action="store_true", help="write the levels only, evaluate none"),
     arg("--markdown", action="store_true", help="print the table as Markdown"),
@@ -403,7 +403,7 @@ def controller_list(text: str) -> tuple[str, ...]:
 )
 def example(args: argparse.Namespace) -> int:
     chosen = EXAMPLES[args.name]
-    controllers = () if args.no_evaluate else args.controllers
+    controllers = () if args.no_evaluate else (args.controllers or chosen.controllers)
     for name in controllers:
         resolve_driver(name)  # a bad name fails before any work
     print(f"{chosen.name}: {chosen.about}", file=sys.stderr)
