@@ -321,7 +321,8 @@ def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
         document = json.loads(files[level].read_text())
         assert document["name"] == f"{name} level {level}"
         assert document["provenance"]["level"] == level
-        added = [n for n in document["nonegos"] if n["added_in"] == level]
+        users = [*document["nonegos"], *document.get("pedestrians", [])]
+        added = [n for n in users if n["added_in"] == level]
         assert len(added) == len(EXAMPLES[name].steps[level - 1])
         for kind in ("solvability", "complexity"):
             trajectory = tmp_path / f"{level}-{kind}.json"
@@ -350,7 +351,8 @@ def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
             level = int(verdict["testcase"].removeprefix(f"{name} level "))
             assert verdict["file"] == str(files[level])
             document = json.loads(files[level].read_text())
-            new_ids = {n["id"] for n in document["nonegos"] if n["added_in"] == level}
+            users = [*document["nonegos"], *document.get("pedestrians", [])]
+            new_ids = {n["id"] for n in users if n["added_in"] == level}
             assert not verdict["passed"] and verdict["goal"]["reached"]
             assert not verdict["collisions"]
             assert {v["other"] for v in verdict["violations"]} <= new_ids
