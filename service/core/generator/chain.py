@@ -48,11 +48,14 @@ def candidate_routes(old: TestCase, intersection: Intersection) -> list[str]:
 
 
 def _by_free_fork(old: TestCase, intersection: Intersection, routes: list[str]) -> list[list[str]]:
-    """Routes from forks no car uses, then those that join a queue (each in the order
-    given): the second group is tried only when the first gave nothing."""
+    """Routes from forks no car uses and walks no pedestrian takes, then those that join a
+    queue or a walk in use (each in the order given): the second group is tried only when
+    the first gave nothing."""
     used = {old.ego.route.fork, *(car.route.fork for car in old.nonegos)}
-    queued = [r for r in routes if r in intersection.routes and intersection.routes[r].fork in used]
-    return [[r for r in routes if r not in queued], queued]
+    walked = {person.walk for person in old.pedestrians}
+    taken = [r for r in routes if r in walked
+             or (r in intersection.routes and intersection.routes[r].fork in used)]  # fmt: skip
+    return [[r for r in routes if r not in taken], taken]
 
 
 @dataclass(frozen=True)

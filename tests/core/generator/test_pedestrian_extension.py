@@ -13,6 +13,7 @@ import pytest
 
 from service.core.checker.check import check_testcase
 from service.core.errors import NoMoreComplexTestCase, UnknownWalk
+from service.core.generator.chain import grow
 from service.core.generator.extension import Extension, extend_testcase
 from service.core.motion.invariants import motion_fault
 from service.core.network import load_intersection
@@ -145,3 +146,19 @@ def test_walks_that_cannot_matter_or_do_not_exist_are_refused() -> None:
     plain = new_testcase("4way-stop", "S2C_1:C2W_1")
     with pytest.raises(UnknownWalk, match=r"no pedestrian crossings.*--guess-crossings"):
         extend_testcase(plain, [], walks=["C_c0+"])
+
+
+def test_a_chain_grows_cars_and_pedestrians_each_on_a_way_no_one_takes_yet() -> None:
+    """chain.grow offers the walks over the ego's route beside the car routes; a walk a
+    pedestrian already takes waits, like a fork in use, until the free ones gave nothing."""
+    current = new_testcase("crosswalk-stop", "S2C_2:C2W_2", duration=45.0)
+    added = []
+    for _ in range(4):
+        growth = grow(current, seed=0, budget=120)
+        assert_strictly_more_complex(current, growth.extension.testcase)
+        current = growth.extension.testcase
+        added.append(growth.route)
+    walks = [a for a in added if ":" not in a]
+    assert walks and len(walks) < len(added)  # cars and pedestrians
+    assert len(set(added)) == len(added)  # each on a way no one took before
+    assert_lawful_pedestrians(new_testcase("crosswalk-stop", "S2C_2:C2W_2"), current)
