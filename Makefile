@@ -8,7 +8,7 @@ QC_STAMP := $(QC_VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled 4way-signal t-signal crosswalk-stop crosswalk-signal
 
 .PHONY: help install system-tools test lint format nets run demo openapi bench bench-api bench-jobs \
-	bench-generator bench-variety bench-reliability campaign-curve \
+	bench-generator bench-variety bench-pedestrians bench-reliability campaign-curve \
 	coverage clean
 
 help:
@@ -20,6 +20,7 @@ help:
 	@echo "make bench    time the checker, the RSS guard, the generator, the API and batch jobs (docs/benchmarks.md)"
 	@echo "make bench-generator   only the generator: targets, variety, chain growth, Step 2 theories"
 	@echo "make bench-variety     distinct extensions, count 10, against random search, issue 34's chains"
+	@echo "make bench-pedestrians  one new pedestrian on every walk, mixed chains of cars and people"
 	@echo "make bench-api / bench-jobs   one of those benchmarks"
 	@echo "make bench-reliability   hostile requests and 30 MB documents against a server (docs/reliability.md)"
 	@echo "make demo     describe the 4-way stop, write a test-case, drive and judge an ego"
@@ -88,6 +89,7 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.bench_variety
 	$(BIN)/python -m bench.bench_chains
 	$(BIN)/python -m bench.bench_ordering
+	$(BIN)/python -m bench.bench_pedestrians
 	$(BIN)/python -m bench.bench_api
 	$(BIN)/python -m bench.bench_jobs
 	$(BIN)/python -m bench.bench_hostile
@@ -107,6 +109,9 @@ bench-variety: $(STAMP)
 	$(BIN)/pip install --quiet -e '.[test,bench]'
 	$(BIN)/python -m bench.bench_variety
 	$(BIN)/python -m bench.bench_chains --only $(ISSUE34_CHAINS)
+
+bench-pedestrians: $(STAMP)
+	$(BIN)/python -m bench.bench_pedestrians
 
 campaign-curve: $(STAMP)
 	$(BIN)/python -m bench.campaign_curve
