@@ -3,11 +3,12 @@
 45 s test-cases (the duration of the benchmarks and campaigns) outlast the bundled roads: a
 car that reaches the end of its road leaves the test-case there. Chains on the bundled
 junctions, on junctions no constant was tuned on, with a queue on the ego's fork, on two
-real maps, and at a real signalized junction (Town05 1126, where SUMO's drivers obey the
-test-case's lights; the bundled ones are the examples', which tests/core/export/test_bundle.py
-replays with every controller); every level is checked on the road geometry
-(independently of the generator, tests.helpers.off_road_samples) and replayed in SUMO with
-every controller.
+real maps, with people on foot at crosswalks, and at a real signalized junction (Town05
+1126, where SUMO's drivers obey the test-case's lights; the bundled ones are the
+examples', which tests/core/export/test_bundle.py replays with every controller); every
+level is checked on the road geometry (independently of the generator,
+tests.helpers.off_road_samples and off_walkable_samples) and replayed in SUMO with every
+controller.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from service.core.sim.controllers import BUILT_IN
 from service.core.sim.replay import evaluate
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase
 from tests.conftest import TOWN05, TOWN07
-from tests.helpers import off_road_samples
+from tests.helpers import off_road_samples, off_walkable_samples
 
 UNSEEN = Path(__file__).parents[2] / "data" / "junctions"
 DURATION = 45.0
@@ -58,6 +59,17 @@ CHAINS = {
         lambda: new_testcase(TOWN05, "-6_1:-47_1", junction="1126", duration=DURATION),
         2,
     ),
+    # people on foot: cars and pedestrians, on the skewed crosswalk all-way stop, its
+    # signalized sibling and a Y of our own (tests.helpers.off_walkable_samples below)
+    "crosswalk-stop": (lambda: new_testcase("crosswalk-stop", "S2C_2:C2W_2", duration=DURATION), 3),
+    "crosswalk-signal": (
+        lambda: new_testcase("crosswalk-signal", "S2C_2:C2W_2", duration=DURATION),
+        3,
+    ),
+    "y-crosswalk": (
+        lambda: new_testcase(UNSEEN / "y-crosswalk.net.xml", "SW2C_1:C2N_1", duration=DURATION),
+        3,
+    ),
     "town07-358": (
         lambda: new_testcase(
             TOWN07, "-40_0:35_0", junction="358", control="right_before_left", duration=DURATION
@@ -78,6 +90,7 @@ def test_every_level_replays_with_every_controller_on_the_map(name: str) -> None
     for testcase in chain:
         level = testcase.provenance["level"] if testcase.provenance else 0
         assert off_road_samples(testcase) == [], f"level {level}"
+        assert off_walkable_samples(testcase) == [], f"level {level}"
         for controller in BUILT_IN:
             evaluation = evaluate(testcase, controller, intersection)
             verdict = evaluation.verdict
