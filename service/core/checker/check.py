@@ -51,7 +51,8 @@ from service.core.checker.verdict import (
 )
 from service.core.errors import InvalidTrajectory
 from service.core.motion.collisions import Motion, first_collision
-from service.core.motion.criticality import Criticality, Mover, measure_criticality
+from service.core.motion.criticality import Mover, measure_criticality
+from service.core.motion.criticality_records import Criticality
 from service.core.motion.events import EventKind, LaneEvent, compute_events
 from service.core.motion.poses import (
     PoseSample,
