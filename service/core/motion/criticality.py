@@ -38,6 +38,9 @@ crossing with the crossing point plus the foe's width; here the strips' overlap 
 so oblique crossings and merges get their exact area, and PET is computed at merges too
 (SUMO only at crossings). SUMO logs a value only below its thresholds, within its range;
 here the extreme of each measure is kept whatever its size.
+
+The records are in service.core.motion.criticality_records; the measures against people on
+foot, which SUMO's device does not take, in service.core.motion.pedestrian_criticality.
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ from typing import Any
 
 @dataclass(frozen=True)
 class Measure:
-    """A measure's extreme against one car and when it occurred (s)."""
+    """A measure's extreme against one road user and when it occurred (s)."""
 
     value: float
     t: float
@@ -20,7 +20,7 @@ class Measure:
 
 @dataclass(frozen=True)
 class AreaPet:
-    """The post-encroachment time at one conflict area; ``t``: when the second car entered."""
+    """The post-encroachment time at one conflict area; ``t``: when the second one entered."""
 
     area: str
     value: float
@@ -29,7 +29,8 @@ class AreaPet:
 
 @dataclass(frozen=True)
 class PairCriticality:
-    """The ego against one other car (None: the measure never applied)."""
+    """The ego against one other road user, a car or a pedestrian, ``car`` its id (None:
+    the measure never applied)."""
 
     car: str
     ttc: Measure | None
@@ -40,7 +41,8 @@ class PairCriticality:
 
 @dataclass(frozen=True)
 class Extreme:
-    """The extreme of a measure over every other car: which car, when (and where, for PET)."""
+    """The extreme of a measure over every other road user: which one (``car``: a car's or
+    a pedestrian's id), when (and where, for PET)."""
 
     value: float
     car: str
@@ -50,8 +52,8 @@ class Extreme:
 
 @dataclass(frozen=True)
 class Criticality:
-    """Every measure against each other car, and overall: the smallest TTC, PET and
-    distance and the largest DRAC."""
+    """Every measure against each other car and each pedestrian (in that order), and
+    overall: the smallest TTC, PET and distance and the largest DRAC."""
 
     others: tuple[PairCriticality, ...]
 
@@ -105,7 +107,7 @@ class Criticality:
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Criticality:
-        """The criticality ``to_dict`` wrote (its overall part follows from the cars)."""
+        """The criticality ``to_dict`` wrote (its overall part follows from the others)."""
 
         def measure(item: dict[str, Any] | None) -> Measure | None:
             return None if item is None else Measure(item["value"], item["t"])
