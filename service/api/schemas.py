@@ -305,7 +305,7 @@ class EvaluationPublic(BaseModel):
         "missed), `collisions` and `violations` until then, `after_goal` {`collisions`, "
         "`violations`} after it (information), `reasons`, `information`, with its "
         "criticality until the goal: TTC, PET, DRAC and distance against each car and "
-        "overall (README, Criticality)"
+        "each pedestrian, and overall (README, Criticality)"
     )
     seconds: float
     created_at: datetime

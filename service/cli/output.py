@@ -19,7 +19,7 @@ from service.cli.table import Writes
 from service.core.checker.verdict import Verdict
 from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
 from service.core.files import replacing, write_atomically
-from service.core.motion.criticality import Criticality
+from service.core.motion.criticality_records import Criticality
 from service.core.sumo.run import guard_text
 from service.core.testcase import TestCase, dump_testcase, with_network_path
 

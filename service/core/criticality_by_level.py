@@ -3,10 +3,11 @@ as distributions, and whether they grow more critical as the levels grow more co
 
 A verdict's ``criticality`` (null when it was not measured, as in campaigns stored before
 it existed) holds, overall, the smallest time-to-collision (``ttc``, s), post-encroachment
-time (``pet``, s) and distance (``distance``, m) to any other car and the largest
-deceleration needed to avoid a crash (``drac``, m/s²); each is null when it never arose
-(no car on a collision course: no TTC). A level's distribution of a measure is over the
-verdicts that have it: count, min, quartiles, median, max and the values themselves.
+time (``pet``, s) and distance (``distance``, m) to any other road user, car or
+pedestrian, and the largest deceleration needed to avoid a crash (``drac``, m/s²); each
+is null when it never arose (no one on a collision course: no TTC). A level's
+distribution of a measure is over the verdicts that have it: count, min, quartiles,
+median, max and the values themselves.
 
 A measure is more critical at one level than at another when its median is: TTC, PET and
 distance smaller, DRAC larger. It grows with complexity, over the levels that have it (at

@@ -51,8 +51,10 @@ from service.core.checker.verdict import (
 )
 from service.core.errors import InvalidTrajectory
 from service.core.motion.collisions import Motion, first_collision
-from service.core.motion.criticality import Criticality, Mover, measure_criticality
+from service.core.motion.criticality import Mover, measure_criticality
+from service.core.motion.criticality_records import Criticality
 from service.core.motion.events import EventKind, LaneEvent, compute_events
+from service.core.motion.pedestrian_criticality import PedestrianMover, measure_pedestrians
 from service.core.motion.poses import (
     PoseSample,
     centre_to_front,
@@ -203,8 +205,8 @@ class Judge:
         )
 
     def criticality(self, cars: Sequence[Car], end: float = math.inf) -> Criticality:
-        """The criticality of the ego (``cars[0]``) against each other car, the ego's drive
-        measured until ``end`` (the judgement's end: its goal)."""
+        """The criticality of the ego (``cars[0]``) against each other car, then each
+        pedestrian, the ego's drive measured until ``end`` (the judgement's end: its goal)."""
         routes = {EGO: self.testcase.ego.route.id}
         routes.update((n.id, n.route.id) for n in self.testcase.nonegos)
         movers = [
@@ -212,7 +214,11 @@ class Judge:
                   judged_samples(car.samples, end) if car.id == EGO else car.samples)
             for car in cars
         ]  # fmt: skip
-        return measure_criticality(self.junction, movers[0], movers[1:])
+        against_cars = measure_criticality(self.junction, movers[0], movers[1:])
+        people = [PedestrianMover(p.id, p.walk, p.length, p.width, p.samples)
+                  for p in self.pedestrians]  # fmt: skip
+        against_people = measure_pedestrians(self.junction, movers[0], people)
+        return Criticality((*against_cars.others, *against_people))
 
     def rules_broken_by(self, car_id: str) -> list[Violation]:
         """The traffic rules (not right-of-way) that non-ego ``car_id`` breaks, among the

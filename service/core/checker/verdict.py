@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 from xml.etree import ElementTree as ET
 
-from service.core.motion.criticality import Criticality
+from service.core.motion.criticality_records import Criticality
 
 VERDICT_SCHEMA = "scengen/verdict/1"
 

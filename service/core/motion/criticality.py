@@ -38,6 +38,9 @@ crossing with the crossing point plus the foe's width; here the strips' overlap 
 so oblique crossings and merges get their exact area, and PET is computed at merges too
 (SUMO only at crossings). SUMO logs a value only below its thresholds, within its range;
 here the extreme of each measure is kept whatever its size.
+
+The records are in service.core.motion.criticality_records; the measures against people on
+foot, which SUMO's device does not take, in service.core.motion.pedestrian_criticality.
 """
 
 from __future__ import annotations
@@ -45,13 +48,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import shapely
 from shapely.geometry import LineString
 from shapely.geometry.base import BaseGeometry
 
+from service.core.motion.criticality_records import AreaPet, Criticality, Measure, PairCriticality
 from service.core.motion.events import overlapping, rectangles
 from service.core.motion.poses import PoseSample
 from service.core.network import Intersection, Route, parsed_network
@@ -77,133 +81,10 @@ class Mover:
     samples: Sequence[PoseSample]
 
 
-@dataclass(frozen=True)
-class Measure:
-    """A measure's extreme against one car and when it occurred (s)."""
-
-    value: float
-    t: float
-
-
-@dataclass(frozen=True)
-class AreaPet:
-    """The post-encroachment time at one conflict area; ``t``: when the second car entered."""
-
-    area: str
-    value: float
-    t: float
-
-
-@dataclass(frozen=True)
-class PairCriticality:
-    """The ego against one other car (None: the measure never applied)."""
-
-    car: str
-    ttc: Measure | None
-    pet: tuple[AreaPet, ...]
-    drac: Measure | None
-    distance: Measure | None
-
-
-@dataclass(frozen=True)
-class Extreme:
-    """The extreme of a measure over every other car: which car, when (and where, for PET)."""
-
-    value: float
-    car: str
-    t: float
-    area: str | None = None
-
-
-@dataclass(frozen=True)
-class Criticality:
-    """Every measure against each other car, and overall: the smallest TTC, PET and
-    distance and the largest DRAC."""
-
-    others: tuple[PairCriticality, ...]
-
-    @property
-    def ttc(self) -> Extreme | None:
-        return _extreme([(p.car, p.ttc) for p in self.others], smallest=True)
-
-    @property
-    def drac(self) -> Extreme | None:
-        return _extreme([(p.car, p.drac) for p in self.others], smallest=False)
-
-    @property
-    def distance(self) -> Extreme | None:
-        return _extreme([(p.car, p.distance) for p in self.others], smallest=True)
-
-    @property
-    def pet(self) -> Extreme | None:
-        found = [(a.value, a.t, p.car, a.area) for p in self.others for a in p.pet]
-        if not found:
-            return None
-        value, t, car, area = min(found)
-        return Extreme(value, car, t, area)
-
-    def to_dict(self) -> dict[str, Any]:
-        def measure(m: Measure | None) -> dict[str, float] | None:
-            return None if m is None else {"value": m.value, "t": m.t}
-
-        def extreme(e: Extreme | None) -> dict[str, Any] | None:
-            if e is None:
-                return None
-            found: dict[str, Any] = {"value": e.value, "car": e.car, "t": e.t}
-            return found if e.area is None else {**found, "area": e.area}
-
-        return {
-            "others": {
-                p.car: {
-                    "ttc": measure(p.ttc),
-                    "pet": [{"area": a.area, "value": a.value, "t": a.t} for a in p.pet],
-                    "drac": measure(p.drac),
-                    "distance": measure(p.distance),
-                }
-                for p in self.others
-            },
-            "overall": {
-                "ttc": extreme(self.ttc),
-                "pet": extreme(self.pet),
-                "drac": extreme(self.drac),
-                "distance": extreme(self.distance),
-            },
-        }
-
-    @classmethod
-    def from_dict(cls, data: dict[str, Any]) -> Criticality:
-        """The criticality ``to_dict`` wrote (its overall part follows from the cars)."""
-
-        def measure(item: dict[str, Any] | None) -> Measure | None:
-            return None if item is None else Measure(item["value"], item["t"])
-
-        return cls(
-            tuple(
-                PairCriticality(
-                    car,
-                    measure(item["ttc"]),
-                    tuple(AreaPet(a["area"], a["value"], a["t"]) for a in item["pet"]),
-                    measure(item["drac"]),
-                    measure(item["distance"]),
-                )
-                for car, item in data["others"].items()
-            )
-        )
-
-
-def _extreme(found: Sequence[tuple[str, Measure | None]], smallest: bool) -> Extreme | None:
-    sign = 1.0 if smallest else -1.0
-    present = [(sign * m.value, m.t, car) for car, m in found if m is not None]
-    if not present:
-        return None
-    value, t, car = min(present)
-    return Extreme(sign * value, car, t)
-
-
 def measure_criticality(junction: Intersection, ego: Mover, others: Sequence[Mover]) -> Criticality:
     """The measures of ``ego`` against each of ``others`` (module docstring)."""
-    ego_view = _View(junction, ego)
-    return Criticality(tuple(_pair(junction, ego_view, _View(junction, o)) for o in others))
+    ego_view = CarView(junction, ego)
+    return Criticality(tuple(_pair(junction, ego_view, CarView(junction, o)) for o in others))
 
 
 @dataclass(frozen=True)
@@ -301,7 +182,7 @@ def _heading(start: np.ndarray, end: np.ndarray) -> np.ndarray:
     return np.degrees(np.arctan2(dx, dy)) % 360.0  # type: ignore[no-any-return]
 
 
-class _View:
+class CarView:
     """A car's samples as arrays, with its place on its path at each."""
 
     def __init__(self, junction: Intersection, car: Mover) -> None:
@@ -318,9 +199,9 @@ class _View:
             shapely.line_locate_point(self.path.line, shapely.points(fx, fy))
         )
 
-    def at(self, times: np.ndarray) -> _Poses:
+    def at(self, times: np.ndarray) -> Poses:
         """Pose, speed and place at ``times`` (within the samples), interpolated."""
-        return _Poses(
+        return Poses(
             np.interp(times, self.t, self.x),
             np.interp(times, self.t, self.y),
             np.interp(times, self.t, self.heading),
@@ -330,7 +211,7 @@ class _View:
 
 
 @dataclass(frozen=True)
-class _Poses:
+class Poses:
     x: np.ndarray
     y: np.ndarray
     heading: np.ndarray  # radians, clockwise from north
@@ -350,17 +231,17 @@ def measure_series(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(times, TTC, DRAC) of ``ego`` against ``other`` at the ego's samples while both
     drive (inf TTC and 0 DRAC where none applies): what the extremes are taken from."""
-    ego_view, other_view = _View(junction, ego), _View(junction, other)
+    ego_view, other_view = CarView(junction, ego), CarView(junction, other)
     times = _shared_times(ego_view, other_view)
     mine, theirs = ego_view.at(times), other_view.at(times)
     return (times, *_ttc_drac(junction, ego_view, other_view, mine, theirs))
 
 
-def _shared_times(ego: _View, other: _View) -> np.ndarray:
+def _shared_times(ego: CarView, other: CarView) -> np.ndarray:
     return ego.t[(ego.t >= other.t[0]) & (ego.t <= other.t[-1])]  # type: ignore[no-any-return]
 
 
-def _pair(junction: Intersection, ego: _View, other: _View) -> PairCriticality:
+def _pair(junction: Intersection, ego: CarView, other: CarView) -> PairCriticality:
     area = conflict_area(junction, ego.car, other.car)
     pets = () if area is None else tuple(filter(None, [_pet(junction, ego, other, area)]))
     times = _shared_times(ego, other)
@@ -370,15 +251,15 @@ def _pair(junction: Intersection, ego: _View, other: _View) -> PairCriticality:
     ttc, drac = _ttc_drac(junction, ego, other, mine, theirs)
     return PairCriticality(
         other.car.id,
-        _at(times, ttc, np.isfinite(ttc), smallest=True),
+        extreme_at(times, ttc, np.isfinite(ttc), smallest=True),
         pets,
-        _at(times, drac, drac > 0.0, smallest=False),
-        _closest(times, mine, theirs, ego.car, other.car),
+        extreme_at(times, drac, drac > 0.0, smallest=False),
+        closest(times, mine, theirs, ego.car, other.car),
     )
 
 
 def _ttc_drac(
-    junction: Intersection, ego: _View, other: _View, mine: _Poses, theirs: _Poses
+    junction: Intersection, ego: CarView, other: CarView, mine: Poses, theirs: Poses
 ) -> tuple[np.ndarray, np.ndarray]:
     """TTC and DRAC at each time: at the conflict area, and behind the other either way."""
     ttc = np.full(mine.x.shape, math.inf)
@@ -400,7 +281,9 @@ def _ttc_drac(
     return np.where(apart <= RANGE, ttc, math.inf), np.where(apart <= RANGE, drac, 0.0)
 
 
-def _at(times: np.ndarray, values: np.ndarray, valid: np.ndarray, smallest: bool) -> Measure | None:
+def extreme_at(
+    times: np.ndarray, values: np.ndarray, valid: np.ndarray, smallest: bool
+) -> Measure | None:
     """The smallest (largest) valid value and its time, the first where it repeats."""
     if not valid.any():
         return None
@@ -409,7 +292,17 @@ def _at(times: np.ndarray, values: np.ndarray, valid: np.ndarray, smallest: bool
     return Measure(round(float(values[k]), DIGITS), round(float(times[k]), DIGITS))
 
 
-def _closest(times: np.ndarray, mine: _Poses, theirs: _Poses, ego: Mover, other: Mover) -> Measure:
+class Body(Protocol):
+    """A road user's rectangle: its length (along its heading) and width."""
+
+    @property
+    def length(self) -> float: ...
+
+    @property
+    def width(self) -> float: ...
+
+
+def closest(times: np.ndarray, mine: Poses, theirs: Poses, ego: Body, other: Body) -> Measure:
     """The smallest gap between the rectangles. It is at most the centres' distance and at
     least that less half of both diagonals, so only the samples that can hold the
     smallest are measured."""
@@ -423,7 +316,7 @@ def _closest(times: np.ndarray, mine: _Poses, theirs: _Poses, ego: Mover, other:
     return Measure(round(float(gaps[k]), DIGITS), round(float(times[candidates[k]]), DIGITS))
 
 
-def _rectangles(poses: _Poses, car: Mover, chosen: np.ndarray) -> np.ndarray:
+def _rectangles(poses: Poses, car: Body, chosen: np.ndarray) -> np.ndarray:
     return rectangles(poses.x[chosen], poses.y[chosen], np.degrees(poses.heading[chosen]) % 360.0,
                       car.length, car.width)  # fmt: skip
 
@@ -435,7 +328,7 @@ def _time_to(distance: np.ndarray, speed: np.ndarray) -> np.ndarray:
 
 
 def _crossing(
-    mine: _Poses, theirs: _Poses, my_bounds: tuple[float, float], their_bounds: tuple[float, float]
+    mine: Poses, theirs: Poses, my_bounds: tuple[float, float], their_bounds: tuple[float, float]
 ) -> tuple[np.ndarray, np.ndarray]:
     """(TTC, DRAC) at each time at one conflict area (inf and 0 where none applies)."""
     to_in = (my_bounds[0] - mine.place, their_bounds[0] - theirs.place)
@@ -473,7 +366,7 @@ def _delay(
 
 
 def _following(
-    behind: _Poses, ahead: _Poses, view: _View, car_ahead: Mover, near: np.ndarray
+    behind: Poses, ahead: Poses, view: CarView, car_ahead: Mover, near: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """(TTC, DRAC) at each time of a car (``view``: the one ``behind``) closing in on the
     back of ``car_ahead`` on its path, looked for where ``near``."""
@@ -501,7 +394,9 @@ def _following(
     return ttc, drac
 
 
-def _pet(junction: Intersection, ego: _View, other: _View, area: BaseGeometry) -> AreaPet | None:
+def _pet(
+    junction: Intersection, ego: CarView, other: CarView, area: BaseGeometry
+) -> AreaPet | None:
     """The PET at ``area``, when both cars went into it."""
     passes = []
     for view in (ego, other):
@@ -522,7 +417,7 @@ def _pet(junction: Intersection, ego: _View, other: _View, area: BaseGeometry) -
     return AreaPet(name, round(gap, DIGITS), round(second_entered, DIGITS))
 
 
-def _first_time(view: _View, place: float) -> float | None:
+def _first_time(view: CarView, place: float) -> float | None:
     """When the car's front first reached ``place`` on its path (interpolated), if it did."""
     k = int(np.searchsorted(view.place, place, side="left"))
     if k >= len(view.place):

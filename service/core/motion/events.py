@@ -165,6 +165,21 @@ def _region_events(
     return events
 
 
+def region_events(
+    samples: Sequence[PoseSample],
+    length: float,
+    width: float,
+    region: Polygon | MultiPolygon,
+    name: str,
+) -> list[LaneEvent]:
+    """When the rectangle starts and stops overlapping ``region`` (``entered_lane`` and
+    ``left_lane`` events named ``name``), placed as a lane's events are."""
+    if len(samples) < 2:
+        return []
+    return _region_events(_Track(samples, length, width), region, name,
+                          EventKind.ENTERED_LANE, EventKind.LEFT_LANE)  # fmt: skip
+
+
 def _arrival(
     track: _Track, fork: Fork, arrival_distance: float, not_before: float
 ) -> LaneEvent | None:

@@ -805,6 +805,7 @@ function guardCard(guard) {
 }
 
 // how close the ego came to a crash (README, Criticality): overall, then against each car
+// and each pedestrian
 function criticalityTable(criticality) {
   if (!criticality) return h("p", { id: "criticality", class: "muted" }, "This verdict has no criticality measures (stored before they were measured).");
   const at = (m, unit) => (m ? `${m.value.toFixed(2)} ${unit} at ${m.t.toFixed(2)} s` : "-");
@@ -817,7 +818,7 @@ function criticalityTable(criticality) {
     m.pet.length ? m.pet.map((p) => `${at(p, "s")} (${p.area})`).join("; ") : "-", at(m.drac, "m/s²"), at(m.distance, "m")]);
   return h("div", { id: "criticality", class: "card" }, h("h2", {}, "Criticality"),
     h("p", { class: "muted" }, "Smallest time-to-collision, post-encroachment time at each conflict area, largest deceleration to avoid a crash, smallest distance."),
-    table(["car", "TTC", "PET", "DRAC", "distance"], [overall, ...cars]));
+    table(["against", "TTC", "PET", "DRAC", "distance"], [overall, ...cars]));
 }
 
 // ---------- evaluations matrix ----------
@@ -995,7 +996,7 @@ function criticalityView(outcome) {
   if (!measured) return h("p", { class: "muted", id: "criticality-none" }, "Criticality was not measured: this campaign's verdicts carry none.");
   const trends = outcome.criticality_trend || {};
   return h("div", { id: "criticality" },
-    h("p", { class: "muted" }, "How close each run came, over the level's test-cases: the smallest time-to-collision (TTC), post-encroachment time (PET) and distance to any car, and the largest deceleration needed to avoid a crash (DRAC). Criticality grows when TTC, PET and distance fall and DRAC rises from level to level."),
+    h("p", { class: "muted" }, "How close each run came, over the level's test-cases: the smallest time-to-collision (TTC), post-encroachment time (PET) and distance to any car or pedestrian, and the largest deceleration needed to avoid a crash (DRAC). Criticality grows when TTC, PET and distance fall and DRAC rises from level to level."),
     controllers.map((c) => h("div", { class: "card criticality-card", "data-controller": c },
       h("h3", {}, h("span", { class: "swatch", style: `background:${colourOf(c, controllers)}` }), c),
       h("p", { class: "failure-rate" }, "failed: ", outcome.levels.map((l, i) => [i ? " · " : "", `level ${l.level} `,

@@ -10,7 +10,7 @@ import pytest
 
 from service.cli.output import print_verdict
 from service.core.checker.verdict import Verdict
-from service.core.motion.criticality import Criticality
+from service.core.motion.criticality_records import Criticality
 
 MEASURES = {
     "others": {

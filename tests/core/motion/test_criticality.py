@@ -8,13 +8,13 @@ import math
 import pytest
 
 from service.core.motion.criticality import (
-    Criticality,
     Mover,
     area_bounds,
     conflict_area,
     measure_criticality,
     route_path,
 )
+from service.core.motion.criticality_records import Criticality
 from service.core.motion.poses import PoseSample
 from service.core.network import Intersection
 
