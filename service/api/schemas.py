@@ -31,6 +31,7 @@ from service.core.testcase import (
 )
 from service.start_distances import DESCRIPTION as START_DISTANCES
 from service.start_distances import (
+    SOME_ROAD_USER,
     StartDistancesField,
     check_new_road_users,
     check_start_count,
@@ -223,6 +224,9 @@ class ExtendRequest(_Body):
     )
     pedestrians: list[WalkText] = Field(
         [], max_length=MAX_NEW_ROAD_USERS, description="one new pedestrian per walk"
+    )
+    model_config = ConfigDict(
+        extra="forbid", allow_inf_nan=False, strict=True, json_schema_extra=SOME_ROAD_USER
     )
     seed: int = Field(0, ge=0, le=MAX_SEED, description="same seed, same bytes")
     budget: float | None = Field(None, gt=0, description="seconds (default SCENGEN_EXTEND_BUDGET)")

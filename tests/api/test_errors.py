@@ -110,7 +110,7 @@ def test_malformed_json_is_a_400(client: TestClient) -> None:
     ("body", "words"),
     [
         ({"routes": [EXAMPLE_NEW_ROUTE]}, ["exactly one of testcase"]),
-        ({"testcase_id": "x", "routes": []}, ["routes", "at least 1"]),
+        ({"testcase_id": "x", "routes": []}, ["at least one new car (routes) or pedestrian"]),
         ({"testcase_id": "x", "routes": ["a"], "colour": 1}, ["colour", "Extra inputs"]),
         (
             {"testcase_id": "x", "routes": ["a:b", "c:d"], "start_distance": [12, None, 3]},
