@@ -124,7 +124,7 @@ def test_the_bundle_runner_reproduces_the_evaluation(
             cwd=folder, check=True, capture_output=True, timeout=300,
         )  # fmt: skip
         jobs += [(testcase, intersection, folder, name) for name in controllers]
-    assert len(jobs) == 4 * len(every_case) + 2 * (len(every_case) - 7)  # 7 ego-only cases
+    assert len(jobs) == 4 * len(every_case) + 2 * (len(every_case) - 8)  # 8 ego-only cases
 
     def evaluated(job: tuple[TestCase, Intersection, Path, str]) -> Evaluation:
         testcase, intersection, _, controller = job

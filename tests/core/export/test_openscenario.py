@@ -109,8 +109,9 @@ def test_every_export_passes_the_asam_quality_checkers(
     for _, asam, carla in (exported[3], exported[-1]):
         scenarios = [*sorted(asam.glob("testcase.*.xosc")), carla / "testcase.xosc"]
         issues += [issue for scenario in scenarios for issue in _issues("xosc", scenario)]
-    # the five bundled junctions (the signal examples' two among them), Town05 396, Town07 358
-    assert len(networks) == 7
+    # the five bundled junctions (the signal examples' two among them), the crosswalk
+    # example's, Town05 396, Town07 358
+    assert len(networks) == 8
     assert issues == []
     rules = (exported[3][1] / "verdict-rules.md").read_text()  # four-way-3, an all-way stop
     assert "`stopAtSign`: CVC 22450(a)" in rules and "`yieldToRightAtAllWayStop`" in rules
@@ -330,4 +331,4 @@ def test_stop_signs_stand_on_the_roads_into_the_junction(
             assert signal is not None
             before_end = float(road.get("length", 0)) - float(signal.get("s", 0))
             assert before_end == pytest.approx(1.0, abs=1e-3)
-    assert len(seen) == 7  # at the two signalized ones: none
+    assert len(seen) == 8  # at the two signalized ones: none
