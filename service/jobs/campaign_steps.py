@@ -111,9 +111,10 @@ class JobCampaign:
                     f"valid routes: {choices(routes)}"
                 )
         self.junction, self.control = description["junction"], description["control"]
+        crosswalks = bool(description.get("walks"))
         laws = self._remembered(
-            f"laws/{self.control}",
-            lambda: self.work.call(tasks.rule_set_laws, (self.control,),
+            f"laws/{self.control}/{'crosswalks' if crosswalks else 'no-crosswalks'}",
+            lambda: self.work.call(tasks.rule_set_laws, (self.control, crosswalks),
                                     self.work.settings.work_budget, "reading the rule set"),
         )  # fmt: skip
         plan = CampaignPlan(

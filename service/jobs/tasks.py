@@ -113,13 +113,17 @@ def junction_geometry(
     )
 
 
-def rule_set_laws(control: str) -> list[tuple[str, str]]:
-    """The rules of a control type's rule set with their CVC sections, sorted."""
+def rule_set_laws(control: str, crosswalks: bool = True) -> list[tuple[str, str]]:
+    """The rules of a control type's rule set with their CVC sections, sorted; without
+    ``crosswalks``, not those about people on foot (``peopleLaw``: no test-case of a
+    junction without crosswalks can test them)."""
     from service.core.checker.rules import solve_rules
     from service.core.network import ControlType
 
-    atoms = solve_rules(ControlType(control), [], shown=[("law", 2)])
-    return sorted((str(atom.arguments[0]), atom.arguments[1].string) for atom in atoms)
+    atoms = solve_rules(ControlType(control), [], shown=[("law", 2), ("peopleLaw", 1)])
+    people = {str(a.arguments[0]) for a in atoms if a.name == "peopleLaw"}
+    found = ((str(a.arguments[0]), a.arguments[1].string) for a in atoms if a.name == "law")
+    return sorted(law for law in found if crosswalks or law[0] not in people)
 
 
 def plot_junction(
