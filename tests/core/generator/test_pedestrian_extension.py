@@ -18,6 +18,7 @@ from service.core.generator.extension import Extension, extend_testcase
 from service.core.motion.invariants import motion_fault
 from service.core.network import load_intersection
 from service.core.testcase import TestCase, dump_testcase, new_testcase
+from tests.conftest import TOWN05
 from tests.core.generator.test_extension import assert_strictly_more_complex, samples
 from tests.helpers import off_road_samples, off_walkable_samples
 
@@ -162,3 +163,25 @@ def test_a_chain_grows_cars_and_pedestrians_each_on_a_way_no_one_takes_yet() -> 
     assert walks and len(walks) < len(added)  # cars and pedestrians
     assert len(set(added)) == len(added)  # each on a way no one took before
     assert_lawful_pedestrians(new_testcase("crosswalk-stop", "S2C_2:C2W_2"), current)
+
+
+@pytest.mark.parametrize(
+    ("junction", "control", "ego", "walk", "rule"),
+    [
+        ("396", "allway_stop", "-44_2:-9_2", "396_c3-", "yieldToPedestrian"),
+        ("1126", None, "-6_2:-47_2", "1126_c1+", "yieldToPedestrianOnGreen"),
+    ],
+)
+def test_on_a_real_map_with_guessed_crosswalks(
+    junction: str, control: str | None, ego: str, walk: str, rule: str, cache_dir: Path
+) -> None:
+    """CARLA's Town05 with sidewalks and crossings guessed by netconvert (the car lanes'
+    indices move up by one): an all-way stop and a signal of the town."""
+    old = new_testcase(TOWN05, ego, junction=junction, control=control, duration=45.0,
+                       cache_dir=cache_dir, guess_crossings=True)  # fmt: skip
+    new = extend_testcase(old, [], walks=[walk]).testcase
+    assert new.crossings_guessed
+    assert_strictly_more_complex(old, new)
+    assert_lawful_pedestrians(old, new)
+    provenance = new.provenance or {}
+    assert provenance["complexity_certificate_violates"] == [{"car": "ped1", "rule": rule}]
