@@ -13,6 +13,7 @@ Answer sets are drawn lazily, one at a time; search is limited by counts, never 
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import random
@@ -387,6 +388,17 @@ def ordering_facts(
 RULE_FILES = ("extension.lp", "time_dl.lp")
 
 
+@functools.lru_cache(maxsize=16)
+def _parsed(files: tuple[str, ...], text: str) -> tuple[clingo.ast.AST, ...]:
+    """The statements of the rule files and of ``text``, parsed once per process (every
+    search of a chain reads the same files; the theory rewrites each search's copy)."""
+    found: list[clingo.ast.AST] = []
+    clingo.ast.parse_files(list(files), found.append)
+    if text:
+        clingo.ast.parse_string(text, found.append)
+    return tuple(found)
+
+
 class OrderingSearch:
     """Answer sets of Step 2, drawn one at a time, each with its event times."""
 
@@ -416,12 +428,10 @@ class OrderingSearch:
             ]
         )
         self.theory.register(self.control)
-        files = [str(rule_set_file(intersection.control)), *map(str, self._programs())]
+        files = (str(rule_set_file(intersection.control)), *map(str, self._programs()))
         with clingo.ast.ProgramBuilder(self.control) as builder:
-            add = lambda ast: self.theory.rewrite_ast(ast, builder.add)  # noqa: E731
-            clingo.ast.parse_files(files, add)
-            if self._program_text():
-                clingo.ast.parse_string(self._program_text(), add)
+            for statement in _parsed(files, self._program_text()):
+                self.theory.rewrite_ast(statement, builder.add)
         with self.control.backend() as backend:
             for fact in self.facts:
                 backend.add_rule([backend.add_atom(fact)])
