@@ -735,7 +735,7 @@ def _check_old(old: TestCase, judge: Judge) -> None:
 
 
 def _new_ids(old: TestCase, count: int) -> list[str]:
-    taken = {n.id for n in old.nonegos}
+    taken = {n.id for n in old.road_users}
     ids: list[str] = []
     k = 1
     while len(ids) < count:

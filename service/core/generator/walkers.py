@@ -50,9 +50,9 @@ def validate_walks(junction: Intersection, walks: Sequence[str]) -> list[Walk]:
     return chosen
 
 
-def new_pedestrian_ids(old: TestCase, count: int, taken: Sequence[str] = ()) -> list[str]:
-    """``ped1``, ``ped2``, ... not yet used by a road user of ``old`` (nor in ``taken``)."""
-    used = {n.id for n in old.road_users} | set(taken)
+def new_pedestrian_ids(old: TestCase, count: int) -> list[str]:
+    """``ped1``, ``ped2``, ... not yet used by a road user of ``old``."""
+    used = {n.id for n in old.road_users}
     ids: list[str] = []
     k = 1
     while len(ids) < count:
@@ -159,13 +159,3 @@ def pedestrian_rows(
             }
         )
     return rows
-
-
-def unlawful_pedestrian(judge: Judge, people: NewPedestrians) -> str | None:
-    """What a new pedestrian does that it must not (a rule of people on foot), in words."""
-    for person in people.ids:
-        broken = judge.rules_broken_by(person)
-        if broken:
-            laws = ", ".join(f"{v.rule} ({v.law})" for v in broken)
-            return f"{person} breaks {laws}"
-    return None
