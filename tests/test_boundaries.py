@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ast
 import graphlib
+import importlib
 import subprocess
 import sys
 from collections.abc import Collection, Sequence
@@ -13,6 +14,7 @@ from pathlib import Path
 import pytest
 
 import service.core.network as network
+import service.core.testcase as testcase
 
 ROOT = Path(__file__).parents[1]
 PACKAGE = ROOT / "service"
@@ -126,6 +128,28 @@ def test_network_public_surface_is_complete() -> None:
         "crossings",
     }
     assert set(network.__all__) == public - submodules
+
+
+def test_testcase_public_surface_is_complete() -> None:
+    """The test-case package re-exports every public name its modules define (not those
+    they import), so that callers import from ``service.core.testcase`` whichever module
+    holds a name."""
+    submodules = {"model", "document", "network_path", "make"}
+    public = {name for name in vars(testcase) if not name.startswith("_")}
+    assert set(testcase.__all__) == public - submodules
+    defined = set()
+    for name in submodules:
+        path = PACKAGE / "core" / "testcase" / f"{name}.py"
+        body = ast.parse(path.read_text()).body
+        imported = {
+            (alias.asname or alias.name).split(".")[0]
+            for node in body
+            if isinstance(node, ast.Import | ast.ImportFrom)
+            for alias in node.names
+        }
+        module = importlib.import_module(f"service.core.testcase.{name}")
+        defined |= {n for n in vars(module) if not n.startswith("_") and n not in imported}
+    assert defined == set(testcase.__all__)
 
 
 ROOTS = {"service", "service.core"}  # namespaces: docstrings only, no floor of their own
