@@ -13,7 +13,6 @@ from collections.abc import Sequence
 from typing import Annotated, Any
 
 from pydantic import Field, ValidationError, ValidatorFunctionWrapHandler, WrapValidator
-from pydantic.config import JsonDict
 from pydantic_core import PydanticCustomError
 
 DESCRIPTION = (
@@ -80,15 +79,6 @@ def check_start_count(routes: Sequence[str], start: float | Sequence[Any] | None
 
 def _count(n: int, what: str) -> str:
     return f"{n} {what}" if n == 1 else f"{n} {what}s"
-
-
-# What JSON Schema states of an extension's new road users: at least one car or pedestrian.
-SOME_ROAD_USER: JsonDict = {
-    "anyOf": [
-        {"required": ["routes"], "properties": {"routes": {"minItems": 1}}},
-        {"required": ["pedestrians"], "properties": {"pedestrians": {"minItems": 1}}},
-    ]
-}
 
 
 def check_new_road_users(routes: Sequence[str], walks: Sequence[str], most: int = 6) -> None:

@@ -142,7 +142,8 @@ def _one_base_of(components: dict[str, Any], name: str) -> None:
 
 RULES_ACROSS_FIELDS = {  # what the models check that JSON Schema cannot say: in words
     "Params": "v_stop < v_run < v_max.",
-    "ExtendItem": "Exactly one of testcase_id, testcase and after.",
+    "ExtendItem": "Exactly one of testcase_id, testcase and after; at least one new road "
+    "user (routes and pedestrians), six at most.",
     "ChainItem": "Exactly one of testcase_id, testcase and after; of steps and levels.",
     "EvaluateItem": "Exactly one of testcase_id, testcase and items.",
     "CampaignItem": "Exactly one of egos and all_egos: true.",

@@ -31,7 +31,6 @@ from service.core.testcase import (
 )
 from service.start_distances import DESCRIPTION as START_DISTANCES
 from service.start_distances import (
-    SOME_ROAD_USER,
     StartDistancesField,
     check_new_road_users,
     check_start_count,
@@ -215,7 +214,7 @@ class Attempt(BaseModel):
 
 class ExtendRequest(_Body):
     """Extend a test-case (inline, or stored by id) with new cars on `routes` and new
-    pedestrians on `pedestrians` (walks)."""
+    pedestrians on `pedestrians` (walks): at least one new road user, six at most."""
 
     testcase: dict[str, Any] | None = Field(None, description="the old test-case document")
     testcase_id: Ident | None = Field(None, description="or the id of a stored test-case")
@@ -225,9 +224,7 @@ class ExtendRequest(_Body):
     pedestrians: list[WalkText] = Field(
         [], max_length=MAX_NEW_ROAD_USERS, description="one new pedestrian per walk"
     )
-    model_config = ConfigDict(
-        extra="forbid", allow_inf_nan=False, strict=True, json_schema_extra=SOME_ROAD_USER
-    )
+
     seed: int = Field(0, ge=0, le=MAX_SEED, description="same seed, same bytes")
     budget: float | None = Field(None, gt=0, description="seconds (default SCENGEN_EXTEND_BUDGET)")
     start_distance: StartDistancesField = Field(None, description=START_DISTANCES)

@@ -19,7 +19,6 @@ from service.core.generator.variety import MAX_COUNT
 from service.core.testcase import Control, Signals
 from service.start_distances import DESCRIPTION as START_DISTANCES
 from service.start_distances import (
-    SOME_ROAD_USER,
     StartDistancesField,
     check_new_road_users,
     check_start_count,
@@ -53,9 +52,7 @@ class ExtendItem(_Based):
     kind: Literal["extend"]
     routes: list[str] = Field([], max_length=6)
     pedestrians: list[str] = Field([], max_length=6, description="one new pedestrian per walk")
-    model_config = ConfigDict(
-        extra="forbid", frozen=True, strict=True, json_schema_extra=SOME_ROAD_USER
-    )
+
     seed: int = Field(0, ge=0, le=MAX_SEED)
     budget: float | None = Field(None, gt=0, description="seconds (default: the server's)")
     start_distance: StartDistancesField = Field(None, description=START_DISTANCES)

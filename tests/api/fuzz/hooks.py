@@ -83,6 +83,7 @@ BEYOND_JSON_SCHEMA = [
     ("*", "speeds must satisfy v_stop < v_run < v_max", "an order of three params"),
     ("*", "one entry per route", "start_distance as a list is as long as routes"),
     ("*", "new road users in one extension", "routes and pedestrians together at most 6"),
+    ("*", "name at least one new car (routes) or pedestrian", "routes or pedestrians not empty"),
     ("POST /jobs", "give exactly one of", "an item's base: an id, a document or an item"),
     ("*", "every state has one colour per link", "a signal program's states are equally long"),
     ("POST /jobs", "refers to item", "an item refers to an earlier item that makes test-cases"),
