@@ -9,7 +9,8 @@ the security headers.
   and carries a Content-Security-Policy unless its route set one: an HTML page may run its
   own scripts (from the server, and its inline ones by their sha256: the campaign report
   inlines its script and data, Swagger UI its set-up) and nothing else; anything else is
-  no page at all (an SVG picture opened on its own runs no script).
+  no page at all (an SVG picture opened on its own runs no script). A 304 (not modified)
+  carries none: the browser would lay it over the policy of the page it keeps.
 """
 
 from __future__ import annotations
@@ -110,6 +111,9 @@ class _Answer:
             headers = MutableHeaders(scope=message)
             for name, value in FIXED_HEADERS.items():
                 headers.setdefault(name, value)
+            if message["status"] == 304:  # the cached response's policy stands: a 304's
+                await self._send(message)  # headers replace the cached ones (RFC 9111)
+                return
             html = headers.get("content-type", "").startswith("text/html")
             if "content-security-policy" in headers or not html:
                 headers.setdefault("content-security-policy", OTHER_POLICY)

@@ -92,6 +92,17 @@ def test_a_page_may_run_its_own_scripts_only(public_reads: TestClient, path: str
     assert "connect-src 'self'" in policy and "object-src 'none'" in policy
 
 
+def test_a_page_revalidated_keeps_its_policy(public_reads: TestClient) -> None:
+    """A browser revalidates a cached page and lays the 304's headers over the cached ones:
+    a 304 that carried the policy of a non-page (no script, no stylesheet) would break the
+    page it keeps (the browser UI lost its ui.js so, on a fresh clone)."""
+    page = public_reads.get("/ui/")
+    again = public_reads.get("/ui/", headers={"If-None-Match": page.headers["etag"]})
+    assert again.status_code == 304
+    assert "content-security-policy" not in again.headers
+    assert again.headers["x-content-type-options"] == "nosniff"
+
+
 def test_page_policy_hashes_inline_scripts_not_those_it_loads() -> None:
     page = b'<script src="/ui/ui.js"></script><script>window.X = 1;</script><style>p{}</style>'
     digest = base64.b64encode(hashlib.sha256(b"window.X = 1;").digest()).decode()
