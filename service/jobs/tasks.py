@@ -117,12 +117,12 @@ def rule_set_laws(control: str, crosswalks: bool = True) -> list[tuple[str, str]
     """The rules of a control type's rule set with their CVC sections, sorted; without
     ``crosswalks``, not those about people on foot (``peopleLaw``: no test-case of a
     junction without crosswalks can test them)."""
-    from service.core.checker.rules import solve_rules
+    from service.core.checker.rules import people_laws, solve_rules
     from service.core.network import ControlType
 
-    atoms = solve_rules(ControlType(control), [], shown=[("law", 2), ("peopleLaw", 1)])
-    people = {str(a.arguments[0]) for a in atoms if a.name == "peopleLaw"}
-    found = ((str(a.arguments[0]), a.arguments[1].string) for a in atoms if a.name == "law")
+    atoms = solve_rules(ControlType(control), [], shown=[("law", 2)])
+    people = people_laws(ControlType(control))
+    found = ((str(a.arguments[0]), a.arguments[1].string) for a in atoms)
     return sorted(law for law in found if crosswalks or law[0] not in people)
 
 

@@ -11,6 +11,7 @@ route by its connecting lane (docs/pedestrians.md, "The rules on an event trace"
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Iterable, Sequence
@@ -291,3 +292,11 @@ def solve_rules(
     if not result.satisfiable:
         raise ScengenError("the event order contradicts the order axioms (time.lp)")
     return found
+
+
+@functools.cache
+def people_laws(control: ControlType) -> frozenset[str]:
+    """The rules of ``control``'s rule set that only a junction with crosswalks can test
+    (its ``peopleLaw`` facts): those that protect people on foot, and theirs."""
+    atoms = solve_rules(control, [], shown=[("peopleLaw", 1)])
+    return frozenset(str(a.arguments[0]) for a in atoms)

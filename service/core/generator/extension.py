@@ -23,7 +23,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from service.core.checker.check import Car, Judge, check_testcase
-from service.core.checker.verdict import REAR_END, Verdict
+from service.core.checker.rules import people_laws
+from service.core.checker.verdict import REAR_END, Verdict, Violation
 from service.core.errors import (
     BudgetExceeded,
     InvalidInput,
@@ -1220,6 +1221,13 @@ def _row(sample: PoseSample) -> dict[str, float]:
 _SAMPLE_FIELDS = tuple(f.name for f in dataclasses.fields(PoseSample))
 
 
+def _binds_new(violation: Violation, junction: Intersection) -> bool:
+    """Whether Step 2 holds a new road user to the rule it broke: at a signal every rule
+    (a new car obeys its light), elsewhere those of people on foot (theirs, and 21951 of
+    the cars): at a sign a new car stops or does not, Step 2's choice, as without them."""
+    return junction.signals is not None or violation.rule in people_laws(junction.control)
+
+
 def verify_extension(
     old: TestCase,
     new: TestCase,
@@ -1275,22 +1283,21 @@ def _verify(
         return f"complexity certificate {late} in the new test-case", verdict
     if any(v.other not in ids for v in verdict.violations):
         return "complexity certificate breaks a rule besides a new car's right-of-way", verdict
-    if junction.signals is not None or new.pedestrians:  # new road users obey the rules
-        for car_id in ids:
-            broken = new_judge.rules_broken_by(car_id)
-            if broken:
-                laws = ", ".join(f"{v.rule} ({v.law})" for v in broken)
-                return f"{car_id} breaks {laws}", verdict
+    people = {p.id for p in new.pedestrians}
+    for car_id in ids:  # new road users obey the rules Step 2 holds them to
+        broken = [v for v in new_judge.rules_broken_by(car_id) if _binds_new(v, junction)]
+        if broken:
+            laws = ", ".join(f"{v.rule} ({v.law})" for v in broken)
+            return f"{car_id} breaks {laws}", verdict
     motions = {
         n.id: Motion([PoseSample(**s.model_dump()) for s in n.trajectory], n.length, n.width)
         for n in new.road_users
     }
-    people = {p.id for p in new.pedestrians}  # people on foot step round each other
     for car_id in ids:
         for other, motion in motions.items():
             if other == car_id or (other in ids and other < car_id):
                 continue
-            if car_id in people and other in people:
+            if car_id in people and other in people:  # people on foot step round each other
                 continue
             hit = first_collision(motions[car_id], motion)
             if hit is not None:

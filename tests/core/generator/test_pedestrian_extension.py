@@ -104,6 +104,24 @@ def test_a_car_and_a_pedestrian_in_one_extension() -> None:
     assert off_road_samples(new) == []
 
 
+def test_a_car_joins_a_level_with_a_pedestrian_free_to_stop_at_its_sign_or_not(
+    right_turn: tuple[TestCase, Extension],
+) -> None:
+    """At a sign Step 2 lets a new car stop or not, with pedestrians as without them; the
+    verification held it to its sign once a pedestrian was there, and every order failed
+    ("car1 breaks stopAtSign"). It still holds it to the rules of people on foot."""
+    _, extension = right_turn
+    level1 = extension.testcase
+    level2 = extend_testcase(level1, ["S2C_1:C2N_1"]).testcase
+    assert [n.id for n in level2.nonegos] == ["car1"]
+    assert level2.pedestrians == level1.pedestrians  # old road users kept exactly
+    assert_strictly_more_complex(level1, level2)
+    assert off_road_samples(level2) == []
+    assert level2.certificates is not None
+    verdict = check_testcase(level2, samples(level2.certificates.solvability), "solvability")
+    assert verdict.passed and not verdict.pedestrians_broke, verdict.reasons
+
+
 def test_at_a_signal_the_turning_car_yields_to_a_pedestrian_on_her_walk_signal() -> None:
     old = new_testcase("crosswalk-signal", "S2C_2:C2W_2", duration=45.0)
     new = extend_testcase(old, [], walks=["C_c3-"]).testcase
