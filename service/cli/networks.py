@@ -60,6 +60,8 @@ def intersection(args: argparse.Namespace) -> int:
         junction = with_signals(junction, program)
     elif junction.signals_refused:  # shown, but no test-case can be made on it as it is
         print(f"scengen: note: {junction.signals_refused}", file=sys.stderr)
+    elif junction.signals is not None and junction.signals.note:  # read, but not as given
+        print(f"scengen: note: {junction.signals.note}", file=sys.stderr)
     description = describe_intersection(junction, args.duration)
     if args.plot:
         from service.pictures.junction import plot_intersection
@@ -164,7 +166,8 @@ def _print_signals(signals: dict[str, Any], routes: dict[str, dict[str, Any]]) -
         if signal is None:
             rows.append([route_id, "-", "-", "no signal"])
             continue
-        greens = {"G": "protected", "g": "permissive", "s": "on red after stop"}
+        greens = {"G": "protected", "g": "permissive", "s": "on red after stop",
+                  "O": "off, priority", "o": "off, yields"}  # fmt: skip
         kinds = sorted({greens[c] for _, _, c in signal["timeline"] if c in greens})
         runs = "  ".join(f"{start:g}: {colour}" for start, _, colour in signal["timeline"])
         rows.append([route_id, str(signal["link_index"]), ", ".join(kinds) or "never", runs])

@@ -94,6 +94,8 @@ def new(args: argparse.Namespace) -> int:
         signals=signals_program(args),
         guess_crossings=args.guess_crossings,
     )
+    if args.signals is None and testcase.signals is not None and testcase.signals.note:
+        print(f"scengen: note: {testcase.signals.note}", file=sys.stderr)
     start = testcase.ego.start.distance
     if args.start_distance is None and start < DEFAULT_START_DISTANCE:
         print(

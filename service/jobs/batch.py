@@ -200,9 +200,10 @@ class Batch(BaseModel):
     def fingerprint(self) -> str:
         """What an Idempotency-Key is bound to: the batch, not its formatting. An extend
         item's automatic start (``start_distance`` null) and single extension (``count``
-        1), and a campaign's network program (``signals`` null) are left out, so that
-        batches stored before those fields existed keep their fingerprint (a campaign
-        folder too: ``scengen campaign`` resumes)."""
+        1), a campaign's network program (``signals`` null) and a program's absent note
+        (``signals.note`` null) are left out, so that batches stored before those fields
+        existed keep their fingerprint (a campaign folder too: ``scengen campaign``
+        resumes)."""
         document = self.model_dump(mode="json")
         for item in document["items"]:
             if item.get("kind") == "extend" and item.get("start_distance") is None:
@@ -211,6 +212,8 @@ class Batch(BaseModel):
                 item.pop("count", None)
             if item.get("kind") == "campaign" and item.get("signals") is None:
                 item.pop("signals", None)
+            if isinstance(item.get("signals"), dict) and item["signals"].get("note") is None:
+                item["signals"].pop("note", None)
         canonical = json.dumps(document, sort_keys=True)
         return hashlib.sha256(canonical.encode()).hexdigest()
 

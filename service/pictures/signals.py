@@ -35,14 +35,17 @@ SIGNAL_COLOURS = {
     "G": "#0a7d2c",
     "g": "#7ddc72",
     "y": "#f2a600",
+    "Y": "#f2a600",
     "r": "#d42020",
     "u": "#d42020",
     "s": "#d42020",
+    "O": "#1fa6b8",
+    "o": "#9a6a1c",
 }
 MARKED = "s"  # the colour drawn with a dot on it
 MARK = "#ffffff"
 UNKNOWN = "#8c8c8c"  # a head whose junction has no program (the network's was refused)
-COLOUR_ORDER = "Ggyrus"  # the legend's order
+COLOUR_ORDER = "GgyYrusOo"  # the legend's order
 HEAD_EDGE = "#3c3c3c"
 
 

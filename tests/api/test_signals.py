@@ -13,6 +13,7 @@ import httpx2 as httpx
 import pytest
 
 from service.core.network import bundled_networks
+from tests.conftest import DATA
 
 pytestmark = pytest.mark.slow
 
@@ -86,10 +87,10 @@ def test_the_bundle_and_the_picture_carry_the_program(
     assert picture.status_code == 200 and picture.content[:4] == b"\x89PNG"
 
 
-def _actuated(api: httpx.Client) -> str:
-    """The bundled four-way uploaded with its program made actuated."""
-    text = bundled_networks()["4way-signal"].read_text().replace('type="static"', 'type="actuated"')
-    reply = api.post("/networks", files={"file": ("actuated.net.xml", text, "application/xml")})
+def _nema(api: httpx.Client) -> str:
+    """The bundled four-way uploaded with its program's type made NEMA (no time line)."""
+    text = bundled_networks()["4way-signal"].read_text().replace('type="static"', 'type="NEMA"')
+    reply = api.post("/networks", files={"file": ("nema.net.xml", text, "application/xml")})
     assert reply.status_code == 201, reply.text
     return str(reply.json()["id"])
 
@@ -105,8 +106,8 @@ BAD = [  # (network, signals, problem type, what the detail says)
      "the signal program is for traffic light 'J7', but junction 'C' is controlled by"),
     ("4way-stop", PROGRAM, "invalid-input",
      "without traffic lights: a signal program applies to a junction of type traffic_light"),
-    ("actuated", None, "invalid-input", "runs program '0' of type 'actuated'; scengen needs a "
-     "fixed-time program"),
+    ("nema", None, "invalid-input", "program '0' is of type 'NEMA', which scengen cannot read "
+     "as a time line of phases; it reads types static, actuated, delay_based"),
 ]  # fmt: skip
 
 
@@ -114,9 +115,25 @@ BAD = [  # (network, signals, problem type, what the detail says)
 def test_a_bad_program_is_a_problem_that_names_it(
     api: httpx.Client, network: str, signals: Any, kind: str, detail: str
 ) -> None:
-    body = {"network": _actuated(api) if network == "actuated" else network, "ego_route": EGO}
+    body = {"network": _nema(api) if network == "nema" else network, "ego_route": EGO}
     reply = api.post("/testcases", json=body | ({"signals": signals} if signals else {}))
     assert reply.status_code == 422, reply.text
     problem = reply.json()
     assert problem["type"] == f"/problems/{kind}" and detail in problem["detail"], problem
     assert "Value error" not in problem["detail"]
+
+
+def test_an_actuated_network_makes_a_testcase_that_records_the_reading(
+    api: httpx.Client,
+) -> None:
+    """POST /testcases on a network whose light runs an actuated program: the test-case's
+    signals hold each phase's duration and a note saying it was read as fixed-time."""
+    text = (DATA / "signals" / "tee-actuated.net.xml").read_text()
+    upload = api.post("/networks", files={"file": ("tee.net.xml", text, "application/xml")})
+    assert upload.status_code == 201, upload.text
+    reply = api.post("/testcases", json={"network": upload.json()["id"],
+                                         "ego_route": "N2J_0:J2A_0", "duration": 30})  # fmt: skip
+    assert reply.status_code == 201, reply.text
+    signals = reply.json()["testcase"]["signals"]
+    assert [p["duration"] for p in signals["phases"]] == [20, 3, 15, 3]
+    assert "actuated program '0' read as fixed-time" in signals["note"]

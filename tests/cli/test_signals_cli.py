@@ -70,23 +70,24 @@ def test_new_takes_the_junctions_light_from_a_file_of_many(tmp_path: Path) -> No
     assert signals is not None and signals.tls == "1126" and len(signals.phases[0].state) == 16
 
 
-def _actuated_network(folder: Path) -> Path:
-    """The bundled four-way with its program made actuated, as netconvert
-    --tls.default-type actuated makes it."""
+def _nema_network(folder: Path) -> Path:
+    """The bundled four-way with its program's type made NEMA: a controller of its own
+    kind, no time line of phases."""
     text = bundled_networks()["4way-signal"].read_text()
     assert text.count('type="static"') == 1
-    path = folder / "actuated.net.xml"
-    path.write_text(text.replace('type="static"', 'type="actuated"'))
+    path = folder / "nema.net.xml"
+    path.write_text(text.replace('type="static"', 'type="NEMA"'))
     return path
 
 
 ONE_PHASE = [{"duration": 9, "state": "GGGG"}]
 NO_TIME = [{"duration": 0, "state": "G" * 16}]
 BAD = [  # (how the program is given, what the one line says)
-    (lambda d: ["--signals", str(sumo_file(d, "a.xml", kind="actuated"))],
-     "is of type 'actuated'; scengen needs a fixed-time program"),
-    (lambda d: [],  # the network's own program is actuated
-     "runs program '0' of type 'actuated'"),
+    (lambda d: ["--signals", str(sumo_file(d, "a.xml", kind="NEMA"))],
+     "program 'alt' is of type 'NEMA', which scengen cannot read as a time line of phases; "
+     "it reads types static, actuated, delay_based"),
+    (lambda d: [],  # the network's own program is NEMA
+     "the network's program '0' is of type 'NEMA', which scengen cannot read"),
     (lambda d: ["--signals", str(sumo_file(d, "w.xml", phases=[(9, "G" * 15), *PHASES[1:]]))],
      "phases.0.state has 15 colours where the other phases have 16"),
     (lambda d: ["--signals", str(json_file(d, "l.json", phases=ONE_PHASE))],
@@ -106,11 +107,11 @@ def test_a_bad_program_is_one_line_and_exit_2(
     given: object, message: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     options = given(tmp_path)  # type: ignore[operator]
-    network = str(_actuated_network(tmp_path)) if not options else "4way-signal"
+    network = str(_nema_network(tmp_path)) if not options else "4way-signal"
     for command in ("new", "intersection"):
         ego = ["--ego", "S2C_1:C2W_1", "-o", str(tmp_path / "out.json")] if command == "new" else []
         if command == "intersection" and not options:
-            continue  # intersection shows an actuated junction, with a note (below)
+            continue  # intersection shows a NEMA junction, with a note (below)
         assert cli.main([command, network, *ego, *options]) == 2
         captured = capsys.readouterr()
         lines = captured.err.strip().splitlines()
@@ -132,11 +133,12 @@ def test_signals_on_a_junction_without_lights_is_one_line_and_exit_2(
 def test_intersection_notes_a_program_it_cannot_use(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    assert cli.main(["intersection", str(_actuated_network(tmp_path))]) == 0
+    assert cli.main(["intersection", str(_nema_network(tmp_path))]) == 0
     captured = capsys.readouterr()
     assert "control traffic_light" in captured.out
     assert "traffic light C  program" not in captured.out  # no program to show
-    assert "scengen: note: traffic light 'C' runs program '0' of type 'actuated'" in captured.err
-    assert cli.main(["intersection", str(_actuated_network(tmp_path)),
+    assert ("scengen: note: traffic light 'C': the network's program '0' is of type 'NEMA'"
+            in captured.err)  # fmt: skip
+    assert cli.main(["intersection", str(_nema_network(tmp_path)),
                      "--signals", str(json_file(tmp_path, "s.json"))]) == 0  # fmt: skip
     assert "traffic light C  program mine" in capsys.readouterr().out

@@ -48,7 +48,8 @@ from service.core.export import Flavour
 from service.core.network import Intersection, parsed_network
 from service.core.network.signals import SignalProgram
 
-_ASAM_WORDS = {"G": "green", "g": "green", "y": "yellow", "r": "red", "u": "red;yellow", "s": "red"}
+_ASAM_WORDS = {"G": "green", "g": "green", "y": "yellow", "Y": "yellow", "r": "red",
+               "u": "red;yellow", "s": "red", "O": "off", "o": "off"}  # fmt: skip
 STATE_WORDS: dict[str, dict[str, str]] = {
     "asam": _ASAM_WORDS,
     "carla": {**_ASAM_WORDS, "u": "red"},
@@ -61,6 +62,9 @@ SUMO_MEANING = {
     "r": "red",
     "u": "red-yellow (red; green follows)",
     "s": "red on which a right turn may go after a full stop",
+    "Y": "yellow (SUMO's major yellow)",
+    "O": "signal off, the link has priority (read as protected green)",
+    "o": "signal off and blinking, the link yields (read as permissive green)",
 }
 ROUNDING = 6  # decimals of a cut phase's duration (microseconds)
 
@@ -181,12 +185,18 @@ def complete_signal_heads(root: ET.Element, intersection: Intersection) -> None:
         junction.insert(list(junction).index(after[-1]) + 1, ET.Element("controller", id=tls))
 
 
+def _shows(program: SignalProgram, colour: str) -> bool:
+    """Some phase of ``program`` shows ``colour``."""
+    return any(colour in phase.state for phase in program.phases)
+
+
 def signal_rules_text(program: SignalProgram, intersection: Intersection, flavour: Flavour) -> str:
     """The section of ``verdict-rules.md`` on the test-case's program."""
     tls, _ = _light(program, intersection)
     words = STATE_WORDS[flavour]
     colours = "\n".join(
-        f"  - `{colour}` {SUMO_MEANING[colour]}: `{words[colour]}`" for colour in "Ggyrus"
+        f"  - `{colour}` {SUMO_MEANING[colour]}: `{words[colour]}`"
+        for colour in "Ggyrus" + "".join(c for c in "YOo" if _shows(program, c))
     )
     routes = sorted(
         (r for r in intersection.routes.values() if r.link_index >= 0), key=lambda r: r.link_index

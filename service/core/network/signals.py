@@ -3,10 +3,17 @@
 A program is a cycle of phases; each phase has a duration (s) and a state: one colour
 character per link (connection) the traffic light controls, indexed by SUMO's link index.
 Colours (SUMO's): ``G`` green with priority (a protected movement), ``g`` green without
-priority (permissive: yield to conflicting traffic), ``y`` yellow, ``r`` red, ``u``
+priority (permissive: yield to conflicting traffic), ``y`` yellow and ``Y`` yellow with
+priority (SUMO's minor and major yellow: both yellow to the rules), ``r`` red, ``u``
 red-yellow (red, before green), ``s`` a green right-turn arrow that requires a stop first
-(right turn on red). ``o`` and ``O`` (signal off) are not a program to test under signal
-rules.
+(right turn on red), ``O`` signal off without blinking (the link has priority: read as
+``G``) and ``o`` signal off, blinking (the link yields: read as ``g``).
+
+Program types: SUMO's ``static`` programs are fixed-time. ``actuated`` and
+``delay_based`` ones are read as fixed-time too, each phase lasting its ``duration`` (not
+stretched between minDur and maxDur by detected traffic); the program keeps a ``note``
+that says so. Other types (``NEMA``, a program without phases such as ``off``) are no time
+line and are refused.
 
 Time: SUMO shows the phase at program position ``(t - offset) mod cycle`` at simulation
 time t (t = 0 is the test-case's start). A phase instance is one occurrence of a phase on
@@ -33,22 +40,34 @@ RULE_COLOURS = {
     "G": "green",
     "g": "permissive",
     "y": "yellow",
+    "Y": "yellow",
     "r": "red",
     "u": "red",
     "s": "redTurn",
+    "O": "green",  # off, no signal: the link has priority, as under a protected green
+    "o": "permissive",  # off, blinking: the link yields, as under a permissive green
 }
 COLOUR_WORDS = {
     "G": "protected green",
     "g": "permissive green",
     "y": "yellow",
+    "Y": "yellow with priority",
     "r": "red",
     "u": "red-yellow",
     "s": "right on red after a stop",
+    "O": "off (priority)",
+    "o": "off, blinking (yield)",
 }
 VALID_COLOURS = "".join(RULE_COLOURS)
-GO_COLOURS = "Ggys"  # a car may enter (s: after a full stop); the rules' goColour and redTurn
+GO_COLOURS = "GgyYsOo"  # a car may enter (s: after a full stop); the rules' goColour, redTurn
 MAX_PHASES = 1000
-MAX_PHASE_DURATION = 3600.0  # s
+# A phase may outlast any test-case (a road green until a pedestrian asks: 10,000 s in
+# real maps). The bound keeps every phase instance's end, in ms, within clingo's 32-bit
+# integers (signals.lp's phaseSpan): 1e6 s of a phase before t = 0 or after the horizon.
+MAX_PHASE_DURATION = 1e6  # s
+STATIC = "static"
+READ_AS_FIXED_TIME = ("actuated", "delay_based")  # phases with durations, run in order
+PROGRAM_TYPES = (STATIC, *READ_AS_FIXED_TIME)
 
 
 @dataclass(frozen=True)
@@ -76,6 +95,7 @@ class SignalProgram:
     program_id: str
     offset: float
     phases: tuple[SignalPhase, ...]
+    note: str | None = None  # how it was read, when not as given (an actuated program)
 
     @property
     def cycle(self) -> float:
@@ -147,12 +167,15 @@ class SignalProgram:
 
     def to_document(self) -> dict[str, Any]:
         """The program as the test-case's ``signals`` field."""
-        return {
+        document: dict[str, Any] = {
             "tls": self.tls,
             "program": self.program_id,
             "offset": self.offset,
             "phases": [{"duration": p.duration, "state": p.state} for p in self.phases],
         }
+        if self.note is not None:
+            document["note"] = self.note
+        return document
 
     def to_sumo_xml(self) -> str:
         """An additional file that makes this program the active one of its traffic light
@@ -162,13 +185,21 @@ class SignalProgram:
         lines = [
             "<additional>",
             f"    <tlLogic id={quoteattr(self.tls)} programID={quoteattr(self.program_id)} "
-            f'offset="{self.offset:g}" type="static">',
+            f'offset="{_seconds(self.offset)}" type="static">',
         ]
         lines += [
-            f'        <phase duration="{p.duration:g}" state="{p.state}"/>' for p in self.phases
+            f'        <phase duration="{_seconds(p.duration)}" state="{p.state}"/>'
+            for p in self.phases
         ]
         lines += ["    </tlLogic>", "</additional>", ""]
         return "\n".join(lines)
+
+
+def _seconds(value: float) -> str:
+    """Seconds as SUMO reads them back exactly: short where ``g`` is exact (31, 0.1), all
+    digits where it is not (a long phase of 123456.5 s)."""
+    short = f"{value:g}"
+    return short if float(short) == value else repr(value)
 
 
 def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases") -> list[str]:
@@ -188,13 +219,8 @@ def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases")
             )
         bad = sorted({c for c in state if c not in VALID_COLOURS})
         if bad:
-            off = (
-                " (o and O switch the signal off: not a program to test)"
-                if set(bad) & set("oO")
-                else ""
-            )
             problems.append(
-                f"{where}.{k}.state {state!r} has unknown colours {''.join(bad)!r}{off}; "
+                f"{where}.{k}.state {state!r} has unknown colours {''.join(bad)!r}; "
                 f"valid colours: {', '.join(f'{c} {COLOUR_WORDS[c]}' for c in VALID_COLOURS)}"
             )
         if not state:
@@ -219,7 +245,11 @@ def _unequal_states(phases: Sequence[tuple[float, str]], where: str) -> list[str
 
 
 def make_program(
-    tls: str, program_id: str, offset: float, phases: Sequence[tuple[float, str]]
+    tls: str,
+    program_id: str,
+    offset: float,
+    phases: Sequence[tuple[float, str]],
+    note: str | None = None,
 ) -> SignalProgram:
     """A checked program; InvalidInput naming every problem."""
     problems = program_problems(phases)
@@ -228,8 +258,43 @@ def make_program(
     if problems:
         raise InvalidInput(f"traffic-light program of {tls!r}: " + "; ".join(problems))
     return SignalProgram(
-        tls, program_id, float(offset), tuple(SignalPhase(float(d), s) for d, s in phases)
+        tls, program_id, float(offset), tuple(SignalPhase(float(d), s) for d, s in phases), note
     )
+
+
+def timeline_note(tls: str, program_id: str, kind: str, where: str) -> str | None:
+    """How a program of SUMO type ``kind`` is read: None for a fixed-time one, a note for
+    one read as fixed-time; InvalidInput naming the valid types for one that is no time
+    line. ``where``: the program's source, as the note names it (the network, a file)."""
+    if kind == STATIC:
+        return None
+    if kind in READ_AS_FIXED_TIME:
+        return (
+            f"traffic light {tls!r}: {where}'s {kind} program {program_id!r} read as "
+            "fixed-time, each phase lasting its duration (SUMO would stretch or cut a phase "
+            "between minDur and maxDur by the traffic it detects)"
+        )
+    raise InvalidInput(
+        f"traffic light {tls!r}: {where}'s program {program_id!r} is of type {kind!r}, which "
+        f"scengen cannot read as a time line of phases; it reads types {', '.join(PROGRAM_TYPES)} "
+        f"({' and '.join(READ_AS_FIXED_TIME)} as fixed-time, each phase lasting its "
+        "duration): give such a program (--signals FILE on the command line, a SUMO "
+        "<tlLogic> or scengen's JSON; the signals field of the API and of batch campaigns), "
+        "or rebuild the network with netconvert --tls.default-type static"
+    )
+
+
+def _successor_problem(nexts: Sequence[Sequence[int]]) -> str | None:
+    """Why phases with SUMO's ``next`` are no cycle in order (None when they are): a phase
+    that names another successor than the one after it."""
+    count = len(nexts)
+    for k, chosen in enumerate(nexts):
+        if list(chosen) not in ([], [(k + 1) % count]):
+            return (
+                f"phase {k} names its successors (next {' '.join(map(str, chosen))}) instead "
+                "of running the phases in order, which is no fixed time line"
+            )
+    return None
 
 
 def network_program(net: Any, tls_id: str) -> SignalProgram:
@@ -243,17 +308,20 @@ def network_program(net: Any, tls_id: str) -> SignalProgram:
             "JSON; the signals field of the API and of batch campaigns)"
         )
     program_id, program = list(programs.items())[-1]
-    kind = program.getType()
-    if kind != "static":
-        raise InvalidInput(
-            f"traffic light {tls_id!r} runs program {program_id!r} of type {kind!r}; scengen "
-            "needs a fixed-time program (type static) so that the test-case is the same "
-            "everywhere: give one (--signals FILE on the command line, a SUMO "
-            '<tlLogic type="static"> or scengen\'s JSON; the signals field of the API and of '
-            "batch campaigns), or rebuild the network with netconvert --tls.default-type static"
-        )
+    note = timeline_note(tls_id, str(program_id), str(program.getType()), "the network")
+    _refuse_successors(tls_id, [list(p.next or ()) for p in program.getPhases()])
     phases = [(float(p.duration), str(p.state)) for p in program.getPhases()]
-    return make_program(tls_id, str(program_id), float(program.getOffset()), phases)
+    return make_program(tls_id, str(program_id), float(program.getOffset()), phases, note)
+
+
+def _refuse_successors(tls: str, nexts: Sequence[Sequence[int]]) -> None:
+    """InvalidInput when the phases choose their successors (SUMO's ``next``)."""
+    problem = _successor_problem(nexts)
+    if problem is not None:
+        raise InvalidInput(
+            f"traffic light {tls!r}: {problem}; give a fixed-time program (--signals FILE; "
+            "the signals field of the API and of batch campaigns)"
+        )
 
 
 def read_signals_file(path: Path, tls: str | None = None) -> SignalProgram:
@@ -300,9 +368,12 @@ def program_from_document(document: Any, where: str = "signals") -> SignalProgra
         raise InvalidInput(f"{where}: offset must be a number of seconds")
     tls = document.get("tls", "")
     program = document.get("program", "scengen")
+    note = document.get("note")
     if not isinstance(tls, str) or not isinstance(program, str):
         raise InvalidInput(f"{where}: tls and program must be strings")
-    return make_program(tls, program or "scengen", float(offset), phases)
+    if note is not None and not isinstance(note, str):
+        raise InvalidInput(f"{where}: note must be a string")
+    return make_program(tls, program or "scengen", float(offset), phases, note)
 
 
 def program_from_xml(text: str, where: str, tls: str | None = None) -> SignalProgram:
@@ -320,23 +391,21 @@ def program_from_xml(text: str, where: str, tls: str | None = None) -> SignalPro
         ids = ", ".join(sorted({str(e.get("id")) for e in logics}))
         raise InvalidInput(f"signals file {where} has several <tlLogic> elements ({ids})")
     logic = logics[0]
-    kind = logic.get("type", "static")
-    if kind != "static":
-        raise InvalidInput(
-            f"signals file {where}: tlLogic {logic.get('id')!r} is of type {kind!r}; scengen "
-            'needs a fixed-time program: type="static"'
-        )
-    phases = []
+    tls_id, program_id = str(logic.get("id", "")), str(logic.get("programID", "scengen"))
+    note = timeline_note(tls_id, program_id, logic.get("type", STATIC), f"signals file {where}")
+    phases, nexts = [], []
     for k, phase in enumerate(logic.iter("phase")):
         try:
             duration = float(phase.get("duration", ""))
+            nexts.append([int(n) for n in phase.get("next", "").split()])
         except ValueError:
-            raise InvalidInput(f"signals file {where}: phase {k} has no numeric duration") from None
+            raise InvalidInput(
+                f"signals file {where}: phase {k} has no numeric duration or next"
+            ) from None
         phases.append((duration, phase.get("state", "")))
+    _refuse_successors(tls_id, nexts)
     try:
         offset = float(logic.get("offset", "0"))
     except ValueError:
         raise InvalidInput(f"signals file {where}: offset is not a number") from None
-    return make_program(
-        str(logic.get("id", "")), str(logic.get("programID", "scengen")), offset, phases
-    )
+    return make_program(tls_id, program_id, offset, phases, note)

@@ -81,7 +81,9 @@ INTERSECTION_SCENES = {  # RSS's constellation type by who has priority
     "other": "IntersectionObjectHasPriority",
     "same": "IntersectionSamePriority",
 }
-SIGNAL_RANK = {"G": 3, "g": 2, "y": 1, "s": 1}  # a colour's claim to go; others (r, u, o) 0
+# a colour's claim to go; others (r, u) 0. O and o (signal off) rank as G and g: the
+# junction's priority (service.core.network.signals.RULE_COLOURS)
+SIGNAL_RANK = {"G": 3, "O": 3, "g": 2, "o": 2, "y": 1, "Y": 1, "s": 1}
 
 
 class GuardError(ValueError):

@@ -121,7 +121,7 @@ def write_types(
 
 
 def ego_signal(traci: Any, plan: dict[str, Any]) -> str | None:
-    """The SUMO colour of the ego's link now (``G g y r u s``, see SUMO's
+    """The SUMO colour of the ego's link now (``G g y Y r u s O o``, see SUMO's
     ``trafficlight.getRedYellowGreenState``); None when the ego's route has no signal."""
     signals = plan.get("signals")
     if not signals or int(signals["ego_link"]) < 0:
@@ -324,7 +324,7 @@ def _roll(
     speed = float(controller["rolling_speed"])
     to_line = float(plan["ego"]["start_distance"]) - row["odometer"]
     inside_zone = -1.0 < to_line <= float(plan["ego"]["arrival_distance"])
-    if inside_zone and to_line > 0.0 and ego_signal(traci, plan) in ("r", "u", "y"):
+    if inside_zone and to_line > 0.0 and ego_signal(traci, plan) in ("r", "u", "y", "Y"):
         inside_zone = False
     if inside_zone and traci.vehicle.getSpeed(EGO) <= speed:
         if not rolling:

@@ -262,8 +262,9 @@ class SignalPhaseDoc(_Model):
         min_length=1,
         max_length=1000,
         description="one SUMO colour per link of the traffic light, by link index: G "
-        "protected green, g permissive green, y yellow, r red, u red-yellow, s right on red "
-        "after a stop",
+        "protected green, g permissive green, y yellow, Y yellow with priority, r red, u "
+        "red-yellow, s right on red after a stop, O off with priority (read as G), o off "
+        "and blinking, yielding (read as g)",
         # in the schema only: the model's check names the unknown colours and the valid ones
         json_schema_extra={"pattern": f"^[{VALID_COLOURS}]+$"},
     )
@@ -281,6 +282,14 @@ class Signals(_Model):
         description="the cycle in order; every state has one colour per link of the traffic "
         "light, so all states are equally long",
     )
+    note: str | None = Field(
+        None,
+        min_length=1,
+        max_length=1000,
+        description="how the program was read from its source when not as given: an "
+        "actuated or delay_based program read as fixed-time, each phase lasting its "
+        "duration; absent: as given (a static program)",
+    )
 
     @model_validator(mode="after")
     def _consistent(self) -> Signals:
@@ -291,7 +300,11 @@ class Signals(_Model):
 
     def to_program(self) -> SignalProgram:
         return make_program(
-            self.tls, self.program, self.offset, [(p.duration, p.state) for p in self.phases]
+            self.tls,
+            self.program,
+            self.offset,
+            [(p.duration, p.state) for p in self.phases],
+            self.note,
         )
 
 

@@ -239,9 +239,9 @@ async function walkList(network, junction) {
 // position (t - offset) mod cycle, phases in order, the modulo Python's (never negative).
 // The colours are those of the pictures (service/pictures/signals.py, held equal by a test).
 
-const SIGNAL_COLOURS = { G: "#0a7d2c", g: "#7ddc72", y: "#f2a600", r: "#d42020", u: "#d42020", s: "#d42020" };
-const SIGNAL_WORDS = { G: "protected green", g: "permissive green", y: "yellow", r: "red", u: "red-yellow", s: "right on red after a stop" };
-const SIGNAL_ORDER = "Ggyrus";
+const SIGNAL_COLOURS = { G: "#0a7d2c", g: "#7ddc72", y: "#f2a600", Y: "#f2a600", r: "#d42020", u: "#d42020", s: "#d42020", O: "#1fa6b8", o: "#9a6a1c" };
+const SIGNAL_WORDS = { G: "protected green", g: "permissive green", y: "yellow", Y: "yellow with priority", r: "red", u: "red-yellow", s: "right on red after a stop", O: "off (priority)", o: "off, blinking (yield)" };
+const SIGNAL_ORDER = "GgyYrusOo";
 const SIGNAL_UNKNOWN = "#8c8c8c";
 
 function signalColour(program, link, time) {
