@@ -13,7 +13,13 @@ import sys
 from collections.abc import Sequence
 
 from service.cli import campaigns, exports, judging, networks, servers, testcases
-from service.cli.output import EXIT_BAD_INPUT, EXIT_OK, check_writable, exit_code
+from service.cli.output import (
+    EXIT_BAD_INPUT,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    check_writable,
+    exit_code,
+)
 from service.cli.table import Command, Parser, build_parser
 from service.core.errors import ScengenError
 
@@ -78,6 +84,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         label = "error" if code == EXIT_BAD_INPUT else "failed"
         print(f"scengen: {label}: {exc}", file=sys.stderr)
         return code
+    except KeyboardInterrupt:  # Ctrl-C: a normal way to stop, not a fault
+        print(
+            "scengen: stopped (Ctrl-C); files written before are kept, and a campaign goes "
+            "on where it stopped when run again",
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
 
 
 if __name__ == "__main__":

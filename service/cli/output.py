@@ -24,6 +24,7 @@ from service.core.sumo.run import guard_text
 from service.core.testcase import TestCase, dump_testcase, with_network_path
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report a command stopped by Ctrl-C
 
 
 def exit_code(error: ScengenError) -> int:
