@@ -35,6 +35,13 @@ def y_junction() -> Intersection:
 
 
 @pytest.fixture(scope="session")
+def skewed_yield() -> Intersection:
+    """A skewed four-way junction of SUMO type priority of our own: the minor road S-N
+    crosses the major road W-E at about 60 degrees, with yield signs (CVC 21803)."""
+    return load_intersection(DATA / "junctions" / "skewed-yield.net.xml")
+
+
+@pytest.fixture(scope="session")
 def town07_y(cache_dir: Path) -> Intersection:
     """Town07's Y-shaped junction 358 (plain priority in CARLA) made uncontrolled."""
     return load_intersection(TOWN07, "358", "right_before_left", cache_dir)

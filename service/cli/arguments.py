@@ -59,9 +59,10 @@ NETWORK = (
         "--major",
         type=lambda text: edge_pair(text),
         metavar="EDGE,EDGE",
-        help="priority_stop: the two roads into the junction (edge ids) that keep the right "
-        "of way, the others stop (default: the network's; for a junction made priority_stop "
-        "whose roads all have the same priority, the two closest to straight across)",
+        help="priority_stop, priority: the two roads into the junction (edge ids) that keep "
+        "the right of way, the others stop or yield (default: the network's; for a junction "
+        "made priority_stop or priority whose roads all have the same priority, the two "
+        "closest to straight across)",
     ),
     arg(
         "--guess-crossings",

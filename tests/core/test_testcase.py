@@ -261,7 +261,7 @@ def test_the_major_road_is_kept_only_when_named(cache_dir: Path) -> None:
         ({"major_road": ["46", ""]}, r"major_road\.1: String should have at least 1 character"),
         ({"major_road": "46,4"}, r"major_road: Input should be a valid list"),
         ({"major_road": ["46", "4"], "control": "allway_stop", "rules": "allway_stop"},
-         r"major_road applies to a priority_stop junction, not to allway_stop"),
+         r"major_road applies to a priority_stop or priority junction, not to allway_stop"),
     ],
 )  # fmt: skip
 def test_a_bad_major_road_is_refused(

@@ -78,6 +78,7 @@ IS_TO_THE_RIGHT_OF = Predicate("isToTheRightOf", 2)
 IS_OPPOSITE_OF = Predicate("isOppositeOf", 2)
 SAME_DIRECTION = Predicate("sameDirection", 2)
 HAS_STOP_SIGN = Predicate("hasStopSign", 1)
+HAS_YIELD_SIGN = Predicate("hasYieldSign", 1)
 REQUESTED_LANE = Predicate("requestedLane", 2)
 # People on foot (pedestrians.lp)
 PEDESTRIAN = Predicate("pedestrian", 1)
@@ -106,7 +107,7 @@ REAL_LTE = Predicate("realLTE", 2)
 
 INPUT_PREDICATES = (
     IS_FORK, LANE_FROM_FORK, LANE_TURN, OVERLAPS, IS_TO_THE_RIGHT_OF, IS_OPPOSITE_OF,
-    SAME_DIRECTION, HAS_STOP_SIGN, REQUESTED_LANE, ARRIVED_AT_FORK, STOPPED_AT_FORK,
+    SAME_DIRECTION, HAS_STOP_SIGN, HAS_YIELD_SIGN, REQUESTED_LANE, ARRIVED_AT_FORK, STOPPED_AT_FORK,
     ENTERED_FORK, ENTERED_LANE, LEFT_LANE, TIME, EQUAL, LESS_THAN, REAL_LTE, SIGNAL_LANE,
     LANE_COLOUR, PHASE_SPAN, PHASE_AT, PEDESTRIAN, CROSSING_LANE, CROSSING_AT_FORK,
     ARRIVED_AT_CURB, STOPPED_AT_CURB, ENTERED_CROSSING, LEFT_CROSSING,
@@ -121,6 +122,7 @@ def geometry_facts(intersection: Intersection) -> list[Fact]:
     """The intersection model as facts (geometry.lp), with its crossings (crossing_facts)."""
     facts = [IS_FORK(f) for f in intersection.forks]
     facts += [HAS_STOP_SIGN(f.lane) for f in intersection.forks.values() if f.stop_sign]
+    facts += [HAS_YIELD_SIGN(f.lane) for f in intersection.forks.values() if f.yield_sign]
     for fork, others in intersection.to_its_right.items():
         facts += [IS_TO_THE_RIGHT_OF(other, fork) for other in sorted(others)]
     for fork, others in intersection.opposite.items():

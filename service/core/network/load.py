@@ -27,7 +27,7 @@ from service.core.network.lanes import (
     side_lane_reason,
     via_chain,
 )
-from service.core.network.major import choose_major_road, lifted_priorities
+from service.core.network.major import choose_major_road, lifted_priorities, yielding_roads
 from service.core.network.model import (
     ConnectingLane,
     ControlType,
@@ -47,6 +47,9 @@ from service.core.network.relations import (
 from service.core.network.signals import SignalProgram, network_program
 
 SUPPORTED = tuple(c.value for c in ControlType)
+# SUMO's junction types and the rule set each is tested under (every other type is refused:
+# zipper, rail_crossing, rail_signal, left_before_right, unregulated, ...)
+RULE_SETS = ", ".join(f"{c.value} -> {c.rule_set}" for c in ControlType)
 TURNS = {"s": Turn.STRAIGHT, "l": Turn.LEFT, "L": Turn.LEFT, "r": Turn.RIGHT, "R": Turn.RIGHT}
 
 
@@ -171,7 +174,8 @@ def _choose_junction(
         raise UnsupportedIntersection(
             f"the only junction of {path.name} with 3 or more approaches, {only!r}, has "
             f"control type {nodes[only].getType()!r}, which has no traffic-rule set; give "
-            f"--control ({', '.join(SUPPORTED)})",
+            f"--control ({', '.join(SUPPORTED)}). SUMO junction types and their rule sets: "
+            f"{RULE_SETS}",
             junction=only,
         )
     reason = "several junctions" if supported else "no junction"
@@ -202,7 +206,8 @@ def _parse_control(control: ControlType | str | None) -> ControlType | None:
         return ControlType(control)
     except ValueError:
         raise InvalidInput(
-            f"control type {control!r} is not supported; valid choices: {', '.join(SUPPORTED)}"
+            f"control type {control!r} is not supported; valid choices: {', '.join(SUPPORTED)} "
+            f"(SUMO junction types and their rule sets: {RULE_SETS})"
         ) from None
 
 
@@ -220,11 +225,11 @@ def load_intersection(
 
     With ``control``, the junction is rebuilt with netconvert to that control type first
     (the rebuilt network is cached in ``cache_dir``). ``major_road``: the two roads into a
-    ``priority_stop`` junction that keep the right of way (rebuilt too); by default the
-    network's, or for a junction made priority_stop whose roads all have the same
-    priority, the pair closest to straight across. ``guess_crossings``: the network gets
-    sidewalks and crossings (netconvert --sidewalks.guess --crossings.guess, in the same
-    rebuild): every road's car lanes then move up by one lane index, and a signalized
+    ``priority_stop`` or ``priority`` junction that keep the right of way (rebuilt too); by
+    default the network's, or for a junction made priority_stop or priority whose roads all
+    have the same priority, the pair closest to straight across. ``guess_crossings``: the
+    network gets sidewalks and crossings (netconvert --sidewalks.guess --crossings.guess, in
+    the same rebuild): every road's car lanes then move up by one lane index, and a signalized
     junction gets a program with its crossings' links. A node that is not a junction
     (fewer than three approaches, no two routes that cross or merge) is
     UnsupportedIntersection.
@@ -256,7 +261,8 @@ def load_intersection(
     if current not in SUPPORTED:
         raise UnsupportedIntersection(
             f"junction {junction_id!r} has control type {current!r}, which has no traffic-rule "
-            f"set; supported types: {', '.join(SUPPORTED)} (override with --control)",
+            f"set; SUMO junction types and their rule sets: {RULE_SETS} (override with "
+            "--control)",
             junction=junction_id,
         )
     intersection = _model(
@@ -353,8 +359,10 @@ def _build(
     lights.discard("")
     _check_unsignalized(net, junction, control, lights)
     area = junction_area(node, lanes)
+    minor = yielding_roads(routes.values()) if control == ControlType.PRIORITY else frozenset()
     for lane_id, (lane, limit) in limits.items():
-        forks[lane_id] = build_fork(net, lane, junction, routes, limit, area)
+        fork = build_fork(net, lane, junction, routes, limit, area)
+        forks[lane_id] = dataclasses.replace(fork, yield_sign=fork.edge in minor)
     right, opposite, same = fork_relations(forks)
     tls, links, program, refused = _traffic_light(net, junction, control, lights)
     crossings = build_crossings(net, node, effective, tls)

@@ -1,5 +1,5 @@
-"""The major road of a ``priority_stop`` junction: the two roads in that keep the right of
-way while the others stop.
+"""The major road of a ``priority_stop`` or ``priority`` junction: the two roads in that
+keep the right of way while the others stop (``priority_stop``) or yield (``priority``).
 
 netconvert picks it from the roads' priorities and, when they are equal, from a score of
 angles, lane counts and speeds, which on real maps can make the stem of a T the major road
@@ -11,11 +11,17 @@ every road in has the same priority, and otherwise keeps the map's priorities. P
 within STRAIGHT_MARGIN of the straightest are told apart by lanes, then speed, then how
 straight, then their ids. The user can name the pair instead (``--major EDGE,EDGE``, the
 test-case's ``major_road``).
+
+A ``priority`` junction's links say which roads netconvert made major (it writes no road's
+rank into the network): a link of the major road going straight or turning left has state
+``M`` (major); every link of a minor road that crosses or merges with the major road is
+``m`` (minor), only a right turn nobody crosses may be ``M``. ``yielding_roads`` reads
+them so (see its docstring), the same links SUMO's own drivers obey.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from itertools import combinations
 from typing import Any
 
@@ -28,28 +34,29 @@ from service.core.network.lanes import (
     heading_of,
     roads_in,
 )
-from service.core.network.model import ControlType
+from service.core.network.model import ControlType, Route, Turn
 
 STRAIGHT_MARGIN = 10.0  # degrees: pairs this close to the straightest count as straight too
 HEADING_WINDOW = 10.0  # metres of approach whose chord gives a road's heading
+MAJOR_ROAD_TYPES = (ControlType.PRIORITY_STOP, ControlType.PRIORITY)
 
 
 def choose_major_road(
     net: Any, node: Any, target: str, current: str, major_road: Sequence[str] | None
 ) -> tuple[str, str] | None:
     """The major road of ``node`` made a ``target`` junction (its type now ``current``):
-    the one given (for a priority_stop junction only), else, when it becomes priority_stop
-    with netconvert and it has three roads in or every road in has the same priority, the
-    straightest pair. None leaves the choice to the network's priorities."""
+    the one given (for a priority_stop or priority junction only), else, when it becomes
+    one of those with netconvert and it has three roads in or every road in has the same
+    priority, the straightest pair. None leaves the choice to the network's priorities."""
     if major_road is not None:
-        if target != ControlType.PRIORITY_STOP:
+        if target not in MAJOR_ROAD_TYPES:
             raise InvalidInput(
-                f"a major road applies to a priority_stop junction; junction "
-                f"{node.getID()!r} is {target} (give --control priority_stop)",
+                f"a major road applies to a priority_stop or priority junction; junction "
+                f"{node.getID()!r} is {target} (give --control priority_stop or priority)",
                 junction=str(node.getID()),
             )
         return check_major_road(node, major_road)
-    if target != ControlType.PRIORITY_STOP or current == target:
+    if target not in MAJOR_ROAD_TYPES or current == target:
         return None
     if len(roads_in(node)) == 3 or same_priority(node):  # a T or a Y: its stem stops
         return straightest_pair(net, node)
@@ -123,3 +130,28 @@ def _heading(net: Any, edge: Any, junction: str) -> float:
     line = LineString(points)
     start = line.interpolate(max(0.0, line.length - HEADING_WINDOW))
     return heading_of((start.x, start.y), points[-1])
+
+
+def yielding_roads(routes: Iterable[Route]) -> frozenset[str]:
+    """The roads (edge ids) of a ``priority`` junction's minor road, read from its links
+    (``routes``): the major road is the roads with a link ``M`` going straight or turning
+    left, and when that makes one road, with it the one road whose only links ``M`` are
+    right turns (a major road that bends: one turns left into it, it turns right out; a
+    minor road's right turn that nobody crosses is ``M`` too, but then the major road has
+    its two straight roads already). Every other road yields."""
+    routes = list(routes)
+    roads = sorted({_road(route.fork) for route in routes})
+    free = {_road(r.fork) for r in routes if r.link_state == "M"}
+    through = {_road(r.fork) for r in routes if r.link_state == "M" and r.turn is not Turn.RIGHT}
+    major = set(through)
+    bending = sorted(free - through)
+    if len(major) == 1 and len(bending) == 1:
+        major.update(bending)
+    if not major:
+        return frozenset()  # no link keeps the right of way: nobody is told to yield
+    return frozenset(road for road in roads if road not in major)
+
+
+def _road(lane: str) -> str:
+    """The edge of a lane id (``-35_0`` -> ``-35``)."""
+    return lane.rpartition("_")[0]

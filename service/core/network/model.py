@@ -22,6 +22,7 @@ class ControlType(StrEnum):
     """Junction control types that have a traffic-rule set (SUMO junction types)."""
 
     ALLWAY_STOP = "allway_stop"
+    PRIORITY = "priority"
     PRIORITY_STOP = "priority_stop"
     RIGHT_BEFORE_LEFT = "right_before_left"
     TRAFFIC_LIGHT = "traffic_light"
@@ -65,6 +66,7 @@ class Fork:
     limit_offset: float  # metres along the road from the limit line to the lane's end
     entry: Polygon | MultiPolygon  # what a car of this fork enters by crossing its limit
     # line: the junction's polygon (with the lanes after the line), not behind the line
+    yield_sign: bool = False  # on the minor road of a ``priority`` junction (CVC 21803)
 
 
 @dataclass(frozen=True)
@@ -189,8 +191,8 @@ class Intersection:
     # forks and exits that are not for driving through (parking lanes, bays), each with the
     # reason (service.core.network.lanes.side_lane_reason): their routes are not offered
     side_lanes: dict[str, str] = field(default_factory=dict)
-    # the two roads into a priority_stop junction rebuilt with netconvert that keep the
-    # right of way (given or chosen by service.core.network.major); None: the network's
+    # the two roads into a priority_stop or priority junction rebuilt with netconvert that
+    # keep the right of way (given or chosen by service.core.network.major); None: the network's
     major_road: tuple[str, str] | None = None
     # the traffic light of a signalized junction, how many links it controls, and the
     # program in force (the network's, or the test-case's: load_testcase_intersection)

@@ -44,9 +44,9 @@ def rebuild_with_control(
 ) -> Path:
     """A copy of ``network_file`` whose ``junction`` has type ``control``, built once, cached.
 
-    ``edge_priorities`` gives roads new priorities (how a ``priority_stop`` junction gets
-    the major road the user or service.core.network.major chose); they are part of what the
-    copy is cached by."""
+    ``edge_priorities`` gives roads new priorities (how a ``priority_stop`` or ``priority``
+    junction gets the major road the user or service.core.network.major chose); they are
+    part of what the copy is cached by."""
     return rebuild_network(network_file, junction, control, cache_dir, edge_priorities)
 
 

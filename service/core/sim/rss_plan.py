@@ -10,6 +10,8 @@ priority there by the junction's control type:
 - ``priority_stop``: a car without a stop sign over one with it (CVC 22450, 21802); two
   without: the left turn yields to the oncoming car (21801); two with: ``same`` (the first
   to stop goes first, which RSS cannot know beforehand).
+- ``priority``: a car without a yield sign (the major road) over one with it (CVC 21803);
+  two without, or two with: the left turn yields to the oncoming car (21801), else ``same``.
 - ``right_before_left``: the car on the right (21800(a)/(b)); head-on, the left turn yields
   (21801); otherwise ``same``.
 - ``allway_stop``: ``same`` (the first to stop goes first: RSS then asks each car to be able
@@ -169,12 +171,11 @@ def priority(intersection: Intersection, ego: Route, other: Route) -> dict[str, 
     control = intersection.control
     if control.signalized:
         return {"priority": "signal", "tie": _left_turn_rule(intersection, ego, other)}
-    if control == ControlType.PRIORITY_STOP:
-        ego_stop = intersection.fork(ego.fork).stop_sign
-        other_stop = intersection.fork(other.fork).stop_sign
-        if ego_stop != other_stop:
-            return {"priority": "other" if ego_stop else "ego"}
-        if ego_stop:
+    if control in (ControlType.PRIORITY_STOP, ControlType.PRIORITY):
+        ego_sign, other_sign = _minor(intersection, ego), _minor(intersection, other)
+        if ego_sign != other_sign:
+            return {"priority": "other" if ego_sign else "ego"}
+        if ego_sign and control == ControlType.PRIORITY_STOP:
             return {"priority": "same"}
         return {"priority": _left_turn_rule(intersection, ego, other)}
     if control == ControlType.RIGHT_BEFORE_LEFT:
@@ -184,6 +185,13 @@ def priority(intersection: Intersection, ego: Route, other: Route) -> dict[str, 
             return {"priority": "ego"}
         return {"priority": _left_turn_rule(intersection, ego, other)}
     return {"priority": "same"}
+
+
+def _minor(intersection: Intersection, route: Route) -> bool:
+    """The route comes from the minor road: a stop sign (priority_stop) or a yield sign
+    (priority) on its fork."""
+    fork = intersection.fork(route.fork)
+    return fork.stop_sign or fork.yield_sign
 
 
 def _left_turn_rule(intersection: Intersection, ego: Route, other: Route) -> str:

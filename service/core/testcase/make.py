@@ -51,10 +51,11 @@ def new_testcase(
     the fork where it is shorter (a start given is refused when the road is shorter).
     ``start_speed`` None is automatic: DEFAULT_START_SPEED, or the speed limit of the lane
     the ego starts on (or v_max) where that is lower; a speed given above either is refused.
-    ``major_road``: two roads into a priority_stop junction that keep the right of way
-    (service.core.network.load_intersection); the test-case keeps it (``major_road``), so
-    every later command rebuilds the same network. ``signals``: the program of a signalized
-    junction (default: the network's, when it is fixed-time); the test-case carries it.
+    ``major_road``: two roads into a priority_stop or priority junction that keep the right
+    of way (service.core.network.load_intersection); the test-case keeps it
+    (``major_road``), so every later command rebuilds the same network. ``signals``: the
+    program of a signalized junction (default: the network's, when it is fixed-time); the
+    test-case carries it.
     ``guess_crossings``: the network gets sidewalks and crossings (netconvert guesses them;
     the route's lane indices are those of the rebuilt network); the test-case keeps it
     (``crossings_guessed``) like ``major_road``."""

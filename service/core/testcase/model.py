@@ -310,6 +310,7 @@ class Signals(_Model):
 
 Control = Literal[
     "allway_stop",
+    "priority",
     "priority_stop",
     "right_before_left",
     "traffic_light",
@@ -340,8 +341,9 @@ class TestCase(_Model):
         None,
         min_length=2,
         max_length=2,
-        description="the two roads (edge ids) into a priority_stop junction that keep the "
-        "right of way, as the user named them; absent: the network's, or scengen's choice",
+        description="the two roads (edge ids) into a priority_stop or priority junction that "
+        "keep the right of way, as the user named them; absent: the network's, or scengen's "
+        "choice",
     )
     crossings_guessed: bool = Field(
         False,
@@ -422,9 +424,9 @@ class TestCase(_Model):
             )
         if not signalized and self.signals is not None:
             raise ValueError(f"signals applies to a signalized junction, not to {self.control}")
-        if self.major_road is not None and self.control != "priority_stop":
+        if self.major_road is not None and self.control not in ("priority_stop", "priority"):
             raise ValueError(
-                f"major_road applies to a priority_stop junction, not to {self.control}"
+                f"major_road applies to a priority_stop or priority junction, not to {self.control}"
             )
         if self.major_road is not None and self.major_road[0] == self.major_road[1]:
             raise ValueError("major_road must name two different roads")

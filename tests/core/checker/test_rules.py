@@ -401,6 +401,113 @@ def test_all_way_stop_has_no_21802(four_way: Intersection) -> None:
     assert judge(four_way, routes, events) == set()
 
 
+# --- 21803: yield sign on the minor road of a priority junction -----------------------------
+
+FROM_YIELD = {"ego": "S2C_0:C2N_0", "car1": "W2C_0:C2E_0"}
+
+
+def _at_yield(through_arrived: float, into: float, out: float) -> list[tuple]:  # type: ignore[type-arg]
+    return [
+        ("ego", ARRIVED, None, 8.0),
+        ("ego", ENTERED, None, 10.0),
+        ("car1", ARRIVED, None, through_arrived),
+        ("ego", IN, "W2C_0:C2E_0", into),
+        ("car1", OUT, "S2C_0:C2N_0", out),
+    ]
+
+
+def test_the_minor_road_has_yield_signs_and_no_stop_signs(skewed_yield: Intersection) -> None:
+    assert skewed_yield.control is ControlType.PRIORITY
+    signs = {f.lane: (f.stop_sign, f.yield_sign) for f in skewed_yield.forks.values()}
+    assert signs == {"W2C_0": (False, False), "E2C_0": (False, False),
+                     "S2C_0": (False, True), "N2C_0": (False, True)}  # fmt: skip
+
+
+def test_pulling_out_in_front_of_an_approaching_car_violates_21803a(
+    skewed_yield: Intersection,
+) -> None:
+    found = judge(skewed_yield, FROM_YIELD, _at_yield(10.99, 11.0, 13.0))
+    assert found == {("ego", "car1", "yieldAtYieldSign")}
+
+
+def test_pulling_out_in_front_of_a_car_inside_violates_21803a(skewed_yield: Intersection) -> None:
+    found = judge(skewed_yield, FROM_YIELD, _at_yield(3.0, 11.0, 13.0))
+    assert found == {("ego", "car1", "yieldAtYieldSign")}
+
+
+def test_waiting_at_the_yield_sign_keeps_21803a(skewed_yield: Intersection) -> None:
+    assert judge(skewed_yield, FROM_YIELD, _at_yield(9.0, 13.5, 13.0)) == set()
+
+
+def test_a_yield_sign_asks_no_stop(skewed_yield: Intersection) -> None:
+    # the ego never stops: at a stop sign that alone would break 22450 (a)
+    assert judge(skewed_yield, FROM_YIELD, _at_yield(11.0, 11.5, 13.0)) == set()
+    alone = [("ego", ARRIVED, None, 1.0), ("ego", ENTERED, None, 2.0)]
+    assert judge(skewed_yield, {"ego": "S2C_0:C2N_0"}, alone) == set()
+
+
+THROUGH_VS_YIELD = {"ego": "W2C_0:C2E_0", "car1": "S2C_0:C2N_0"}
+
+
+def _through_yield(arrived: float, into: float) -> list[tuple]:  # type: ignore[type-arg]
+    return [
+        ("car1", ARRIVED, None, 5.0),
+        ("car1", ENTERED, None, 10.0),
+        ("ego", ARRIVED, None, arrived),
+        ("ego", IN, "S2C_0:C2N_0", into),
+        ("car1", OUT, "W2C_0:C2E_0", 13.0),
+    ]
+
+
+def test_not_yielding_to_a_car_that_entered_from_the_yield_sign_violates_21803b(
+    skewed_yield: Intersection,
+) -> None:
+    found = judge(skewed_yield, THROUGH_VS_YIELD, _through_yield(11.0, 12.0))
+    assert found == {("ego", "car1", "yieldToCarFromYieldSign")}
+
+
+def test_yielding_to_a_car_that_entered_from_the_yield_sign_keeps_21803b(
+    skewed_yield: Intersection,
+) -> None:
+    assert judge(skewed_yield, THROUGH_VS_YIELD, _through_yield(11.0, 12.5)) == set()
+
+
+def test_the_major_road_owes_a_later_minor_car_nothing(skewed_yield: Intersection) -> None:
+    # the ego on the major road entered first; the minor car arrives later and waits
+    events = [
+        ("ego", ARRIVED, None, 5.0),
+        ("ego", ENTERED, None, 6.0),
+        ("car1", ARRIVED, None, 7.0),
+        ("car1", ENTERED, None, 9.0),
+        ("car1", IN, "W2C_0:C2E_0", 10.0),
+        ("ego", OUT, "S2C_0:C2N_0", 8.0),
+    ]
+    assert judge(skewed_yield, THROUGH_VS_YIELD, events) == set()
+
+
+def test_a_yield_junction_keeps_21801_on_the_major_road(skewed_yield: Intersection) -> None:
+    routes = {"ego": "W2C_0:C2N_0", "car1": "E2C_0:C2W_0"}
+    events = [
+        ("ego", ENTERED, None, 10.0),
+        ("car1", ARRIVED, None, 10.5),
+        ("ego", IN, "E2C_0:C2W_0", 11.0),
+        ("car1", OUT, "W2C_0:C2N_0", 13.0),
+    ]
+    assert judge(skewed_yield, routes, events) == {("ego", "car1", "leftTurnYieldsToOncoming")}
+
+
+def test_priority_stop_and_priority_differ_only_in_the_stop(
+    t_stop: Intersection, cache_dir: Path
+) -> None:
+    from service.core.network import load_intersection
+
+    t_yield = load_intersection("t-stop", control="priority", cache_dir=cache_dir)
+    assert {f.lane for f in t_yield.forks.values() if f.yield_sign} == {"S2C_0"}
+    events = [("ego", ARRIVED, None, 1.0), ("ego", ENTERED, None, 2.0)]
+    assert judge(t_stop, {"ego": "S2C_0:C2W_0"}, events) == {("ego", "stopAtSign")}
+    assert judge(t_yield, {"ego": "S2C_0:C2W_0"}, events) == set()
+
+
 # --- The files themselves -------------------------------------------------------------------
 
 

@@ -23,7 +23,7 @@ from service.core.network import (
     bundled_networks,
     load_intersection,
 )
-from tests.conftest import TOWN05, TOWN07
+from tests.conftest import DATA, TOWN05, TOWN07
 
 
 def test_bundled_networks_are_the_seven_documented_ones() -> None:
@@ -227,13 +227,22 @@ def test_override_is_cached(cache_dir: Path, town07_y: Intersection) -> None:
 
 def test_unsupported_control_type_is_refused_with_its_name() -> None:
     with pytest.raises(UnsupportedIntersection) as caught:
-        load_intersection(TOWN07, "358")
+        load_intersection(DATA / "junctions" / "skewed-unregulated.net.xml", "C")
     message = str(caught.value)
-    assert "'358'" in message and "'priority'" in message
+    assert "'C'" in message and "'unregulated'" in message
     assert (
-        "allway_stop, priority_stop, right_before_left, traffic_light, "
-        "traffic_light_right_on_red" in message
+        "SUMO junction types and their rule sets: allway_stop -> allway_stop, priority -> "
+        "priority, priority_stop -> priority_stop, right_before_left -> right_before_left, "
+        "traffic_light -> traffic_light, traffic_light_right_on_red -> traffic_light" in message
     )
+
+
+def test_a_priority_junction_loads_under_its_own_rule_set() -> None:
+    """SUMO's priority type: the minor road yields (CVC 21803), read from the links."""
+    junction = load_intersection(TOWN07, "358")
+    assert junction.control is ControlType.PRIORITY and not junction.overridden
+    assert {f.edge for f in junction.forks.values() if f.yield_sign} == {"41"}
+    assert not any(f.stop_sign for f in junction.forks.values())
 
 
 def test_a_real_signalized_junction_loads_with_its_fixed_time_program() -> None:
@@ -264,7 +273,7 @@ def test_unknown_network_lists_bundled() -> None:
 
 
 def test_unknown_control_type_lists_choices() -> None:
-    with pytest.raises(InvalidInput, match="allway_stop, priority_stop, right_before_left"):
+    with pytest.raises(InvalidInput, match="allway_stop, priority, priority_stop, right_before_l"):
         load_intersection("4way-stop", control="zipper")
 
 

@@ -1,5 +1,6 @@
-"""The major road of a priority_stop junction: chosen by geometry where every road in has
-the same priority, or named by the user; the rebuilt network is cached by it."""
+"""The major road of a priority_stop or priority junction: chosen by geometry where every
+road in has the same priority, read from the links, or named by the user; the rebuilt
+network is cached by it."""
 
 from __future__ import annotations
 
@@ -82,9 +83,10 @@ def test_a_native_priority_stop_junction_is_rebuilt_with_the_road_named(cache_di
         (["-45", "45"], "priority_stop", r"'45' is not a road into junction '1882'; roads into "
          r"it: -45, 4, 46"),
         (["-45", "nowhere"], "priority_stop", r"'nowhere' is not a road into"),
-        (["-45", "46"], "allway_stop", r"applies to a priority_stop junction; junction '1882' "
-         r"is allway_stop"),
-        (["-45", "46"], None, r"junction '1882' is traffic_light \(give --control priority_stop"),
+        (["-45", "46"], "allway_stop", r"applies to a priority_stop or priority junction; "
+         r"junction '1882' is allway_stop"),
+        (["-45", "46"], None, r"junction '1882' is traffic_light \(give --control priority_stop "
+         r"or priority"),
     ],
 )  # fmt: skip
 def test_a_wrong_major_road_is_refused_naming_the_roads_in(
@@ -108,3 +110,41 @@ def test_the_cached_network_is_keyed_by_the_major_road(tmp_path: Path) -> None:
     again = rebuild_with_control(TOWN05, "1882", "priority_stop", tmp_path, {"46": 2, "-45": 2})
     assert len({plain, through, stem}) == 3 and again == through
     assert '<edge id="-45" from="396" to="1882" priority="2"' in through.read_text()
+
+
+# Every priority junction of Town05 and Town07 and its minor road as SUMO's links give it
+# (tests/data/carla): where netconvert made a bent major road (Town07 358, 430, 642, 851,
+# 907: one road turns left into the other, which turns right out, its straight link "m")
+# and where a minor road's right turn that nobody crosses is "M" (Town05 720's 32).
+YIELDING = [
+    (TOWN05, "1930", {"-3"}), (TOWN05, "2062", {"-20"}), (TOWN05, "359", {"-48"}),
+    (TOWN05, "396", {"-44", "45"}), (TOWN05, "562", {"-42", "43"}),
+    (TOWN05, "720", {"-31", "32"}),
+    (TOWN07, "123", {"-37"}), (TOWN07, "146", {"-1"}), (TOWN07, "169", {"-36", "37"}),
+    (TOWN07, "260", {"-15"}), (TOWN07, "288", {"3"}), (TOWN07, "314", {"-67"}),
+    (TOWN07, "358", {"41"}), (TOWN07, "402", {"16"}), (TOWN07, "430", {"-58"}),
+    (TOWN07, "515", {"-53"}), (TOWN07, "543", {"-45"}), (TOWN07, "566", {"-8"}),
+    (TOWN07, "605", {"-29"}), (TOWN07, "642", {"-3"}), (TOWN07, "851", {"-12"}),
+    (TOWN07, "879", {"-18"}), (TOWN07, "907", {"43"}),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("town", "junction", "minor"), YIELDING,
+                         ids=[f"{t.stem}-{j}" for t, j, _ in YIELDING])  # fmt: skip
+def test_a_priority_junction_yields_on_the_minor_road_of_its_links(
+    town: Path, junction: str, minor: set[str]
+) -> None:
+    intersection = load_intersection(town, junction)
+    assert {fork.edge for fork in intersection.forks.values() if fork.yield_sign} == minor
+    # every link of a yielding road that crosses the major road is minor, as SUMO drives it
+    for route in intersection.routes.values():
+        if intersection.fork(route.fork).edge in minor and route.turn != "right":
+            assert route.link_state == "m", (junction, route.id)
+
+
+def test_major_names_the_road_that_keeps_the_right_of_way_at_a_yield(cache_dir: Path) -> None:
+    """--major on a priority junction: netconvert rebuilds it with those roads lifted, and
+    the others yield."""
+    made = load_intersection(TOWN07, "358", "priority", cache_dir, major_road=["41", "-40"])
+    assert made.major_road == ("41", "-40")
+    assert {fork.edge for fork in made.forks.values() if fork.yield_sign} == {"-35"}

@@ -30,6 +30,23 @@ def test_priority_at_a_priority_stop(
     assert priority(t_stop, t_stop.route(ego), t_stop.route(other)) == {"priority": expected}
 
 
+@pytest.mark.parametrize(
+    ("ego", "other", "expected"),
+    [
+        ("S2C_0:C2N_0", "W2C_0:C2E_0", "other"),  # the yield sign yields to the major road
+        ("W2C_0:C2E_0", "S2C_0:C2N_0", "ego"),
+        ("E2C_0:C2S_0", "W2C_0:C2E_0", "other"),  # on the major road the left turn yields
+        ("S2C_0:C2W_0", "N2C_0:C2S_0", "other"),  # two yield signs head-on: 21801
+        ("N2C_0:C2S_0", "S2C_0:C2W_0", "ego"),
+    ],
+)
+def test_priority_at_a_yield_sign(
+    skewed_yield: Intersection, ego: str, other: str, expected: str
+) -> None:
+    junction = skewed_yield
+    assert priority(junction, junction.route(ego), junction.route(other)) == {"priority": expected}
+
+
 def test_priority_at_an_uncontrolled_junction_goes_to_the_car_on_the_right(
     y_junction: Intersection,
 ) -> None:
