@@ -92,7 +92,7 @@ def _print_intersection(d: dict[str, Any], major_given: bool) -> None:
             [
                 f["lane"],
                 f"{f['heading']:.1f}",
-                "yes" if f["stop_sign"] else "no",
+                "yes" if f["stop_sign"] else "yield" if f["yield_sign"] else "no",
                 " ".join(f["to_its_right"]) or "-",
                 " ".join(f["opposite"]) or "-",
             ]

@@ -26,7 +26,7 @@ from service.core.motion.poses import PoseSample
 from service.core.network import Intersection
 from service.core.network.signals import COLOUR_WORDS
 from service.core.testcase import TestCase
-from service.pictures.junction import STOP_LINE, draw_roads, draw_stop_lines, frame_map
+from service.pictures.junction import draw_roads, draw_stop_lines, frame_map, sign_legend
 from service.pictures.labels import GAP, LabelPlacer, Spot
 from service.pictures.pedestrians import (
     GIF_DISC,
@@ -100,8 +100,7 @@ def draw_animation(
     draw_pavements(axes, intersection)
     draw_crosswalks(axes, intersection)
     draw_stop_lines(axes, intersection)
-    if any(fork.stop_sign for fork in intersection.forks.values()):
-        axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
+    sign_legend(axes, intersection)
     starts = [samples[0] for _, _, _, samples, _, _ in cars if samples]
     frame_map(axes, intersection, starts + [p.samples[0] for p in people if p.samples])
     patches = []

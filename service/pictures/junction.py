@@ -43,18 +43,31 @@ def draw_roads(axes: Axes, intersection: Intersection) -> None:
 
 
 STOP_LINE = "firebrick"  # a stop sign's line; other forks' lines are grey
+YIELD_LINE = "darkorange"  # a yield sign's line (the minor road of a priority junction), dashed
 
 
 def draw_stop_lines(axes: Axes, intersection: Intersection) -> None:
-    """Each fork's line across its lane at the junction: red with a stop sign, else grey
-    (lines, so that they clash with no event marker)."""
+    """Each fork's line across its lane at the junction: red with a stop sign, dashed
+    orange with a yield sign, else grey (lines, so that they clash with no event marker)."""
     for fork in intersection.forks.values():
         x, y = fork.stop_line
         heading = math.radians(fork.heading)  # degrees clockwise from north
         dx, dy = math.cos(heading) * fork.width / 2, -math.sin(heading) * fork.width / 2
-        colour, width = (STOP_LINE, 2.2) if fork.stop_sign else ("0.45", 1.0)
+        colour, width, style = (STOP_LINE, 2.2, "-") if fork.stop_sign else ("0.45", 1.0, "-")
+        if fork.yield_sign:
+            colour, width, style = YIELD_LINE, 2.2, (0, (1.5, 1.0))
         axes.plot([x - dx, x + dx], [y - dy, y + dy], color=colour, linewidth=width,
-                  solid_capstyle="butt", zorder=4)  # fmt: skip
+                  linestyle=style, solid_capstyle="butt", zorder=4)  # fmt: skip
+
+
+def sign_legend(axes: Axes, intersection: Intersection) -> None:
+    """Legend entries for the stop and yield signs the junction has."""
+    forks = intersection.forks.values()
+    if any(fork.stop_sign for fork in forks):
+        axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
+    if any(fork.yield_sign for fork in forks):
+        axes.plot([], [], color=YIELD_LINE, linewidth=2.2, linestyle=(0, (1.5, 1.0)),
+                  label="yield line (sign)")  # fmt: skip
 
 
 def _back_along(line: Any, metres: float, from_end: bool = True) -> tuple[float, float]:
@@ -100,7 +113,7 @@ def plot_intersection(
         axes.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.04), ncol=3,
                     fontsize=7, title="signals at t = 0 s", title_fontsize=7)  # fmt: skip
     for fork in intersection.forks.values():
-        sign = " (stop)" if fork.stop_sign else ""
+        sign = " (stop)" if fork.stop_sign else " (yield)" if fork.yield_sign else ""
         _label_outward(axes, f"{fork.lane}{sign}", _back_along(fork.approach, 1.5), fork.approach)
     for exit_lane in intersection.exits.values():
         start = _back_along(exit_lane.departure, 1.5, from_end=False)

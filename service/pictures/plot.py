@@ -26,7 +26,13 @@ from service.core.motion.poses import PoseSample
 from service.core.motion.queues import QueueCar, follows
 from service.core.network import Intersection
 from service.core.testcase import TestCase, readable_name, testcase_level
-from service.pictures.junction import STOP_LINE, draw_roads, draw_stop_lines, frame_map, save
+from service.pictures.junction import (
+    draw_roads,
+    draw_stop_lines,
+    frame_map,
+    save,
+    sign_legend,
+)
 from service.pictures.labels import GAP, LabelPlacer, Spot
 from service.pictures.pedestrians import (
     DISC,
@@ -298,8 +304,7 @@ def draw_testcase(
     draw_pavements(axes, intersection)
     draw_crosswalks(axes, intersection)
     draw_stop_lines(axes, intersection)
-    if any(fork.stop_sign for fork in intersection.forks.values()):
-        axes.plot([], [], color=STOP_LINE, linewidth=2.2, label="stop line (sign)")
+    sign_legend(axes, intersection)
     heads = SignalHeads(axes, intersection)
     heads.show(0.0)  # the moment of the starts' markers; the strip has the rest
     step = max(1, round(2.0 / testcase.timestep))

@@ -77,16 +77,16 @@ def road_of(roads: Sequence[ET.Element], start: tuple[float, float], heading: fl
 
 
 def _with_additions(text: str, intersection: Intersection) -> str:
-    """netconvert's text with what scengen adds: the stop signs, the crosswalks and the
+    """netconvert's text with what scengen adds: the stop and yield signs, the crosswalks and the
     pedestrian signals' heads (``crosswalks``), and the junction's reference to its traffic
     light's controller (``openscenario_signals``); the text as netconvert wrote it (the
     same bytes) where there is nothing to add."""
-    forks = [f for f in intersection.forks.values() if f.stop_sign]
+    forks = [f for f in intersection.forks.values() if f.stop_sign or f.yield_sign]
     crosswalks = f'type="{CROSSWALK}"' in text
     if not forks and not headed_links(intersection) and not crosswalks:
         return text
     root = ET.fromstring(text)
-    _add_stop_signs(root, intersection, forks)
+    _add_signs(root, intersection, forks)
     placed = replace_crosswalks(root, intersection)
     add_pedestrian_heads(root, intersection, placed)
     complete_signal_heads(root, intersection)
@@ -94,19 +94,22 @@ def _with_additions(text: str, intersection: Intersection) -> str:
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
-def _add_stop_signs(root: ET.Element, intersection: Intersection, forks: Sequence[Fork]) -> None:
+def _add_signs(root: ET.Element, intersection: Intersection, forks: Sequence[Fork]) -> None:
     """A stop sign (OpenDRIVE signal, German catalogue 206 as CARLA reads it) at the end of
-    every road whose lanes meet a stop line of the junction (``forks``)."""
+    every road whose lanes meet a stop line of the junction (``forks``), a yield sign (205)
+    at the end of every road of a priority junction's minor road."""
     if not forks:
         return
     roads = [r for r in root.iter("road") if r.get("junction") == "-1"]
     path = intersection.network_file
     net = parsed_network(path)
     signed: dict[str, ET.Element] = {}
+    kind: dict[str, tuple[str, str]] = {}  # edge -> (id prefix, catalogue type)
     for fork in forks:
         edge = net.getLane(fork.lane).getEdge()
         if edge.getID() in signed:
             continue
+        kind[edge.getID()] = ("stop", "206") if fork.stop_sign else ("yield", "205")
         left = max(edge.getLanes(), key=lambda lane: lane.getIndex())
         (x0, y0), (x1, y1) = left.getShape()[:2]
         norm = math.hypot(x1 - x0, y1 - y0) or 1.0
@@ -118,9 +121,10 @@ def _add_stop_signs(root: ET.Element, intersection: Intersection, forks: Sequenc
         if signals is None:
             signals = ET.SubElement(road, "signals")
         width = sum(lane.getWidth() for lane in net.getEdge(edge_id).getLanes())
+        name, catalogue = kind[edge_id]
         ET.SubElement(signals, "signal", {
             "s": f"{max(0.0, float(road.get('length', 0)) - 1.0):.4f}",
-            "t": f"{-width - 0.5:.4f}", "id": f"stop{number}", "name": f"stop {edge_id}",
+            "t": f"{-width - 0.5:.4f}", "id": f"{name}{number}", "name": f"{name} {edge_id}",
             "dynamic": "no", "orientation": "+", "zOffset": "1.5", "country": "DEU",
-            "type": "206", "subtype": "-1", "height": "0.8", "width": "0.8",
+            "type": catalogue, "subtype": "-1", "height": "0.8", "width": "0.8",
         })  # fmt: skip

@@ -42,6 +42,7 @@ def describe_intersection(
                 "edge": fork.edge,
                 "heading": round(fork.heading, 2),
                 "stop_sign": fork.stop_sign,
+                "yield_sign": fork.yield_sign,
                 "to_its_right": offered(intersection.to_its_right[fork.lane]),
                 "opposite": offered(intersection.opposite[fork.lane]),
                 "same_direction": offered(intersection.same_direction[fork.lane]),

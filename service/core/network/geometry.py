@@ -232,6 +232,7 @@ def junction_geometry(intersection: Intersection) -> dict[str, Any]:
             {
                 "lane": fork.lane,
                 "stop_sign": fork.stop_sign,
+                "yield_sign": fork.yield_sign,
                 "line": [
                     [round(x - dx, 2), round(y - dy, 2)],
                     [round(x + dx, 2), round(y + dy, 2)],

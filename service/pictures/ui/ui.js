@@ -278,7 +278,8 @@ function junctionDrawing(geometry, id) { // the junction and its approaches, nor
       svg("title", {}, `${path.route} (${path.turn})`)));
   }
   for (const stop of geometry.stop_lines) {
-    drawing.append(svg("polyline", { points: at(stop.line), stroke: stop.stop_sign ? "#b91c1c" : "#6b7280", "stroke-width": stop.stop_sign ? 3 : 1.5, "vector-effect": "non-scaling-stroke", class: "stop-line" }));
+    const signed = stop.stop_sign || stop.yield_sign;
+    drawing.append(svg("polyline", { points: at(stop.line), stroke: stop.stop_sign ? "#b91c1c" : stop.yield_sign ? "#ea580c" : "#6b7280", "stroke-width": signed ? 3 : 1.5, ...(stop.yield_sign ? { "stroke-dasharray": "3 2" } : {}), "vector-effect": "non-scaling-stroke", class: "stop-line" }));
   }
   for (const head of geometry.signal_heads || []) { // where each signal stands; its colours are a test-case's
     drawing.append(svg("polygon", { points: at(head.polygon), fill: "#4b5563", class: "signal-head", "data-head": headId(head) },
@@ -442,9 +443,11 @@ class Player {
     }
     c.setLineDash([]);
     for (const stop of this.geometry.stop_lines) {
-      c.beginPath(); c.strokeStyle = stop.stop_sign ? "#b91c1c" : "#6b7280"; c.lineWidth = stop.stop_sign ? 3 : 1.5;
+      c.beginPath(); c.strokeStyle = stop.stop_sign ? "#b91c1c" : stop.yield_sign ? "#ea580c" : "#6b7280"; c.lineWidth = stop.stop_sign || stop.yield_sign ? 3 : 1.5;
+      c.setLineDash(stop.yield_sign ? [4, 3] : []);
       const [a, b] = stop.line.map(([x, y]) => this.toScreen(x, y));
       c.moveTo(...a); c.lineTo(...b); c.stroke();
+      c.setLineDash([]);
     }
     this.walkersShown = [];
     for (const track of this.tracks) {

@@ -17,11 +17,13 @@ from service.core.errors import InvalidTrajectory
 from service.core.motion.poses import PoseSample, PoseTrack, generate_poses
 from service.core.network import Intersection, load_intersection
 from service.core.testcase import TestCase, new_testcase
+from tests.conftest import DATA
 from tests.helpers import drive_with_stops, retime, with_nonegos
 
 START = 40.0  # every car starts with its front 40 m before its stop line
 LINE = START - 0.5  # standing half a metre before the stop line
 DURATION = 20.0
+SKEWED_YIELD = str(DATA / "junctions" / "skewed-yield.net.xml")  # SUMO type priority
 
 Stops = list[tuple[float, float]]
 
@@ -80,6 +82,11 @@ SCENARIOS = [
              breaks=Driving([(25.0, 3.0), (44.0, 2.5)]),
              keeps=Driving([(25.0, 3.0), (43.0, 2.5)]),
              car_route="S2C_0:C2W_0", car=Driving([(LINE, 1.0)], crawl=2.0)),
+    # Minor road of a priority junction (yield sign): the ego slows to a halt for 0.5 s, then
+    # pulls out while car1 approaches on the major road at 3.5 m/s; waiting 8 s is fine.
+    Scenario("21803(a)", "yieldAtYieldSign", SKEWED_YIELD, "S2C_0:C2N_0",
+             breaks=Driving([(LINE, 0.5)]), keeps=Driving([(LINE, 8.0)]),
+             car_route="W2C_0:C2E_0", car=Driving([], cruise=3.5)),
     # Uncontrolled Y: the ego (10 m/s) and car1 from its right (8 m/s) enter 0.9 s apart.
     Scenario("21800(b)", "yieldOnSimultaneousEntry", "y-uncontrolled", "N2C_0:C2SE_0",
              breaks=Driving([], cruise=10.0), keeps=Driving([(38.0, 3.0)]),
@@ -220,3 +227,12 @@ def test_the_signal_rules_a_nonego_breaks_are_found() -> None:
     assert [(v.rule, v.law, v.events[0].kind) for v in broken] == [
         ("stopAtRed", "21453(a)", "entered")
     ]
+
+
+def test_a_yield_sign_asks_no_stop(tracks: dict[tuple[str, str], PoseTrack]) -> None:
+    """Alone at the yield sign the ego drives through at 8 m/s and passes (at a stop sign
+    that breaks 22450 (a): the 22450(a) scenario)."""
+    testcase = new_testcase(SKEWED_YIELD, "S2C_0:C2N_0", start_distance=START)
+    ego = Driving([]).samples(tracks[(SKEWED_YIELD, "S2C_0:C2N_0")])
+    verdict = check_testcase(testcase, ego, "hand-built", load_intersection(SKEWED_YIELD))
+    assert verdict.passed, verdict.reasons

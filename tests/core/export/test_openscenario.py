@@ -332,3 +332,24 @@ def test_stop_signs_stand_on_the_roads_into_the_junction(
             before_end = float(road.get("length", 0)) - float(signal.get("s", 0))
             assert before_end == pytest.approx(1.0, abs=1e-3)
     assert len(seen) == 8  # at the two signalized ones: none
+
+
+def test_yield_signs_stand_on_the_minor_roads_of_a_priority_junction(tmp_path: Path) -> None:
+    """A priority junction's minor road gets a yield sign (OpenDRIVE signal 205) on each of
+    its roads into the junction, at the road's end, and no stop sign."""
+    from service.core.testcase import new_testcase
+    from tests.conftest import DATA
+
+    case = new_testcase(DATA / "junctions" / "skewed-yield.net.xml", "S2C_0:C2N_0")
+    assert case.control == "priority" and case.rules == "priority"
+    export_openscenario(case, tmp_path)
+    root = ET.parse(tmp_path / "testcase.xodr").getroot()
+    signs = [(g.get("type"), g.get("name")) for g in root.iter("signal")]
+    assert sorted(signs) == [("205", "yield N2C"), ("205", "yield S2C")]
+    for road in root.iter("road"):
+        signal = road.find("signals/signal")
+        if signal is not None:
+            successor = road.find("link/successor")
+            assert successor is not None and successor.get("elementType") == "junction"
+            before_end = float(road.get("length", 0)) - float(signal.get("s", 0))
+            assert before_end == pytest.approx(1.0, abs=1e-3)
