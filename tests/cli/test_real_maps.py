@@ -111,13 +111,14 @@ def test_every_junction_works_or_is_refused_with_a_reason(
     town: Path, private_cache: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """`intersection` and `new` on every node of the map under its own control type and every
-    other one: the command works, or exits 2 with a one-line reason; an exception escaping
-    cli.main fails the test (the user would see its traceback). Where `intersection` works,
-    `new` works on every route tried: under allway_stop every route offered and two on side lanes,
-    named (a route, and the road before and after it, is the same under every control
-    type); under the others, the first route offered. Where it refuses, `new` refuses too.
-    About 25 s of CPU per town, most of it netconvert (one override per junction and
-    control type, as a user's first command runs it)."""
+    other one: the command works, or exits 2 with a one-line reason (every junction works
+    under its own type, priority ones under their yield signs, without --control); an
+    exception escaping cli.main fails the test (the user would see its traceback). Where
+    `intersection` works, `new` works on every route tried: under allway_stop every route
+    offered and two on side lanes, named (a route, and the road before and after it, is the
+    same under every control type); under the others, the first route offered. Where it
+    refuses, `new` refuses too. About 25 s of CPU per town, most of it netconvert (one
+    override per junction and control type, as a user's first command runs it)."""
     net = sumolib.net.readNet(str(town), withInternal=True)
     nodes = sorted(str(n.getID()) for n in net.getNodes() if n.getType() != "internal")
     outcomes: Counter[str] = Counter()
@@ -132,6 +133,12 @@ def test_every_junction_works_or_is_refused_with_a_reason(
             if outcome == "worked":
                 outcomes["forks at their limit line"] += _limit_lines(town, node, control)
                 described = json.loads(out)
+                if control is None:
+                    outcomes["own type worked"] += 1
+                    own_type = net.getNode(node).getType()
+                    assert described["control"] == own_type and not described["control_overridden"]
+                    yielding = [f for f in described["forks"] if f["yield_sign"]]
+                    assert bool(yielding) == (own_type == "priority"), node
                 routes = [r["id"] for r in described["routes"]]
                 side = sorted(s["lane"] for s in described["side_lanes"])
                 forks = [lane for lane in side if _ends_at(net, lane, node)]
@@ -144,13 +151,17 @@ def test_every_junction_works_or_is_refused_with_a_reason(
                 _, err = capsys.readouterr()
                 assert _outcome(code, err) == outcome, (node, control, route, err)
                 outcomes[f"new {outcome}"] += 1
-    # junctions of 3+ approaches, and of those the signalized ones (their own program is
-    # fixed-time: they work under the map's control type too)
-    junctions, signalized = {"Town05": (21, 15), "Town07": (22, 5)}[
+    # junctions of 3+ approaches: every one works under the map's own control type too (the
+    # signalized ones' programs are fixed-time; the others are of SUMO type priority, tested
+    # under their yield signs), and under each of the three overrides
+    junctions, own = {"Town05": (21, {"traffic_light": 15, "priority": 6}),
+                      "Town07": (22, {"traffic_light": 5, "priority": 17})}[
         town.name.removesuffix(".net.xml")
-    ]
-    assert outcomes["intersection worked"] == 3 * junctions + signalized
-    assert outcomes["intersection refused"] == 4 * len(nodes) - 3 * junctions - signalized
+    ]  # fmt: skip
+    assert sum(own.values()) == junctions
+    assert outcomes["own type worked"] == junctions
+    assert outcomes["intersection worked"] == 4 * junctions
+    assert outcomes["intersection refused"] == 4 * len(nodes) - 4 * junctions
     assert outcomes["new worked"] > 5 * junctions
     assert outcomes["forks at their limit line"] >= 3 * outcomes["intersection worked"]
 
