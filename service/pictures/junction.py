@@ -53,7 +53,8 @@ def draw_stop_lines(axes: Axes, intersection: Intersection) -> None:
         x, y = fork.stop_line
         heading = math.radians(fork.heading)  # degrees clockwise from north
         dx, dy = math.cos(heading) * fork.width / 2, -math.sin(heading) * fork.width / 2
-        colour, width, style = (STOP_LINE, 2.2, "-") if fork.stop_sign else ("0.45", 1.0, "-")
+        colour, width = (STOP_LINE, 2.2) if fork.stop_sign else ("0.45", 1.0)
+        style: str | tuple[int, tuple[float, float]] = "-"
         if fork.yield_sign:
             colour, width, style = YIELD_LINE, 2.2, (0, (1.5, 1.0))
         axes.plot([x - dx, x + dx], [y - dy, y + dy], color=colour, linewidth=width,
