@@ -23,6 +23,8 @@ from service.core.network import load_intersection
 from service.core.testcase import read_testcase
 from tests.conftest import TOWN05, TOWN07
 
+UNREGULATED = Path(__file__).parents[1] / "data" / "junctions" / "skewed-unregulated.net.xml"
+
 
 def run(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
@@ -104,7 +106,7 @@ def test_drive_lists_events(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     ("args", "message"),
     [
         (["intersection", "nowhere"], "is neither a bundled network"),
-        (["intersection", str(TOWN07), "--junction", "358"], "has control type 'priority'"),
+        (["intersection", str(UNREGULATED)], "has control type 'unregulated'"),
         (["intersection", str(TOWN07)], "name one with --junction"),
         (["new", "4way-stop", "--ego", "S2C_1:C2E_1"], "no connection from fork 'S2C_1'"),
         (["new", "4way-stop", "--ego", "Q_0:C2E_1"], "valid forks"),
@@ -137,7 +139,10 @@ def test_unknown_control_choice_exits_2() -> None:
     result = run("intersection", "4way-stop", "--control", "traffic_light_unregulated")
     assert result.returncode == 2
     assert "invalid choice: 'traffic_light_unregulated'" in result.stderr
-    assert "'allway_stop', 'priority_stop', 'right_before_left', 'traffic_light'" in result.stderr
+    assert (
+        "'allway_stop', 'priority', 'priority_stop', 'right_before_left', 'traffic_light'"
+        in result.stderr
+    )
 
 
 def _subclasses(root: type[errors.ScengenError]) -> list[type[errors.ScengenError]]:

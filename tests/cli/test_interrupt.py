@@ -11,6 +11,12 @@ import sys
 from pathlib import Path
 
 
+def _as_a_shell_starts_it() -> None:
+    """SIGINT at its default, as a shell starts a foreground command (a test runner's
+    worker may ignore it, and a child inherits that)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_stops_a_command_with_one_line_and_keeps_what_it_wrote(tmp_path: Path) -> None:
     folder = tmp_path / "ex"
     command = [sys.executable, "-m", "service", "example", "crosswalk", "-o", str(folder)]
@@ -20,6 +26,7 @@ def test_ctrl_c_stops_a_command_with_one_line_and_keeps_what_it_wrote(tmp_path: 
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,  # its own process group, as a terminal's foreground job
+        preexec_fn=_as_a_shell_starts_it,
     )
     assert process.stderr is not None
     told = []

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from service.core.checker.check import check_testcase
-from service.core.errors import InvalidInput, UnsupportedIntersection
+from service.core.errors import InvalidInput
 from service.core.export.openscenario import opendrive_text
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import PoseSample
@@ -119,8 +119,8 @@ def test_an_imported_map_s_only_junction_is_taken_with_a_control(
     xodr: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The map's one junction of three or more approaches (CARLA's plain priority) is
-    taken when --control says what it is; without one, the error names it and asks for a
-    control type."""
+    taken when --control says what it is; without one, under its own type: yield signs on
+    its minor road."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     junction = load_intersection(xodr, control="right_before_left", cache_dir=tmp_path)
     assert junction.junction == "1" and junction.control.value == "right_before_left"
@@ -129,9 +129,6 @@ def test_an_imported_map_s_only_junction_is_taken_with_a_control(
     environment = {**os.environ, "XDG_CACHE_HOME": str(tmp_path)}
     done = subprocess.run(command, capture_output=True, text=True, timeout=120, env=environment)
     assert done.returncode == 0 and "junction 1  control right_before_left" in done.stdout
-    with pytest.raises(
-        UnsupportedIntersection,
-        match=r"the only junction of 4way\.xodr with 3 "
-        r"or more approaches, '1', has control type 'priority'.*give --control",
-    ):
-        load_intersection(xodr, cache_dir=tmp_path)  # fmt: skip
+    own = load_intersection(xodr, cache_dir=tmp_path)
+    assert own.junction == "1" and own.control.value == "priority"
+    assert any(fork.yield_sign for fork in own.forks.values())
