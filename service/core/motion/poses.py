@@ -68,6 +68,8 @@ class DrivePlan:
     steps: int  # at least this many SUMO steps after the first sample (covers the duration)
     leave_distance: float  # SUMO odometer reading at which the back has left the junction
     connecting_lanes: tuple[str, ...]  # internal lanes the car must drive through
+    arrival_lane: int = 0  # the index of the last lane of the drive: SUMO picks, where a
+    # lane leads on to several lanes of the next road, the one that leads to it
     skip: float = 0.0  # metres driven before the start (the start lies on internal lanes)
     start_on: tuple[str, float] | None = None  # that internal lane and the front's position
     road: float = math.inf  # metres from the start to the end of its last lane (SUMO
@@ -191,6 +193,7 @@ def plan_drive(
         network_file=str(path),
         edges=tuple(lane.getEdge().getID() for lane in lanes),
         depart_lane=lanes[0].getIndex(),
+        arrival_lane=lanes[-1].getIndex(),
         depart_pos=depart_pos,
         speed=speed,
         length=length,
@@ -349,7 +352,7 @@ def _drive_one(traci: Any, plan: DrivePlan) -> list[PoseSample]:
         traci.route.add("route", list(plan.edges))
         traci.vehicle.add(
             "car", "route", typeID="car", depart="0", departLane=str(plan.depart_lane),
-            departPos=repr(plan.depart_pos), departSpeed="0",
+            departPos=repr(plan.depart_pos), departSpeed="0", arrivalLane=str(plan.arrival_lane),
         )  # fmt: skip
         traci.vehicle.setSpeedMode("car", 0)
         traci.vehicle.setLaneChangeMode("car", 0)
