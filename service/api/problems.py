@@ -110,6 +110,12 @@ DOMAIN: dict[type[errors.ScengenError], ProblemType] = {
     errors.SimulationFailed: _type(
         "simulation-failed", 422, "Simulation failed", "SUMO refused or broke off a drive."
     ),
+    errors.ClientFault: _type(
+        "client-fault",
+        422,
+        "Co-simulation client fault",
+        "The driving stack of a co-simulation never came, left early or left its route.",
+    ),
     errors.MemoryExceeded: _type(
         "memory-exceeded",
         504,

@@ -12,7 +12,7 @@ import os
 import sys
 from collections.abc import Sequence
 
-from service.cli import campaigns, exports, judging, networks, servers, testcases
+from service.cli import campaigns, cosim, exports, judging, networks, servers, testcases
 from service.cli.output import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
@@ -32,6 +32,7 @@ COMMANDS: tuple[Command, ...] = (
     testcases.extend,
     testcases.example,
     judging.evaluate,
+    cosim.cosim,
     exports.export,
     exports.plot,
     servers.serve,

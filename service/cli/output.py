@@ -17,13 +17,14 @@ from pathlib import Path
 
 from service.cli.table import Writes
 from service.core.checker.verdict import Verdict
-from service.core.errors import InvalidInput, ScengenError, UnsupportedIntersection
+from service.core.errors import ClientFault, InvalidInput, ScengenError, UnsupportedIntersection
 from service.core.files import replacing, write_atomically
 from service.core.motion.criticality_records import Criticality
 from service.core.sumo.run import guard_text
 from service.core.testcase import TestCase, dump_testcase, with_network_path
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
+EXIT_CLIENT = 4  # the co-simulated driving stack's fault (scengen cosim): no verdict
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report a command stopped by Ctrl-C
 
 
@@ -31,6 +32,8 @@ def exit_code(error: ScengenError) -> int:
     """The exit code for a domain error: the one place where errors become exit codes."""
     if isinstance(error, InvalidInput | UnsupportedIntersection):
         return EXIT_BAD_INPUT
+    if isinstance(error, ClientFault):
+        return EXIT_CLIENT
     return EXIT_FAILED
 
 

@@ -16,6 +16,8 @@
     ├── NoneFound                   an expected outcome: orderings existed, none was realised
     ├── NetworkBuildFailed          netconvert could not rebuild a network
     ├── SimulationFailed            SUMO refused or broke off a drive
+    ├── ClientFault                 a co-simulated driving stack never came, left before
+    │                               the end, or took the ego off its route
     └── BudgetExceeded              a solver or simulator call ran out of its time budget
         └── MemoryExceeded          a call needed more memory than a worker may use
 
@@ -102,6 +104,11 @@ class NetworkBuildFailed(ScengenError):
 
 class SimulationFailed(ScengenError):
     """Raised when SUMO refuses a drive or the car leaves the planned route."""
+
+
+class ClientFault(ScengenError):
+    """Raised when the driving stack of a co-simulation (``scengen cosim``) never connects,
+    leaves before the end, or takes the ego off its route: its fault, no verdict."""
 
 
 class BudgetExceeded(ScengenError):

@@ -155,6 +155,7 @@ def _subclasses(root: type[errors.ScengenError]) -> list[type[errors.ScengenErro
 @pytest.mark.parametrize("error", _subclasses(errors.ScengenError), ids=lambda e: e.__name__)
 def test_every_domain_error_has_an_exit_code(error: type[errors.ScengenError]) -> None:
     expected = 2 if issubclass(error, errors.InvalidInput | errors.UnsupportedIntersection) else 3
+    expected = 4 if issubclass(error, errors.ClientFault) else expected
     assert exit_code(error("x")) == expected
     if error.__module__ == errors.__name__:  # the core's tree in its docstring is complete
         assert error.__name__ in (errors.__doc__ or "")

@@ -43,6 +43,7 @@ from service.core.testcase import (
 )
 
 NAME = "testcase"
+COSIM_FILE = "cosim.py"  # service.core.sumo.cosim, copied beside run.py
 
 
 def sumocfg_text(testcase: TestCase, network: str, signals: bool = False) -> str:
@@ -121,6 +122,20 @@ from `run.py` replays the non-egos as above and calls `on_step(traci, row, prese
 step, where `row` is the ego's front bumper (`x`, `y`, `angle`, `speed`, `odometer`);
 set the ego's speed there (`traci.vehicle.setSpeed("ego", ...)`) and write the rows with
 `fcd_text(rows)`.
+
+## run.py --cosim PORT: your driving stack over TraCI
+
+    python run.py --cosim 8813 --fcd-output cosim.fcd.xml
+    scengen check {NAME}.json --ego cosim.fcd.xml --controller cosim
+
+SUMO runs the test-case as a TraCI server for two clients (`{COSIM_FILE}`, beside
+`run.py`): `run.py` is client order 1 and moves the non-egos as above, your driving stack
+connects to 127.0.0.1:PORT (`--host` for another address), calls `setOrder(2)` and drives
+the vehicle `ego` with TraCI commands, or with none (then SUMO's driver drives it). When the
+ego has passed its goal or the duration is over, SUMO closes the connection. Exit codes: 0
+with the trajectory written, 2 the port cannot be listened on, 3 SUMO failed or `--budget`
+ran out, 4 the client never came within `--wait`, left before the end or took the ego off
+its route. `scengen cosim` runs the same code and judges the ego at once.
 
 ## testcase.sumocfg: the plain `sumo` binary
 
@@ -227,6 +242,8 @@ def export_bundle(
     for name, source in networks.items():
         write_atomically(folder / name, source.read_bytes())
     write_atomically(folder / "run.py", Path(sumo_run.__file__).read_bytes())
+    cosim = Path(sumo_run.__file__).with_name(COSIM_FILE)
+    write_atomically(folder / COSIM_FILE, cosim.read_bytes())
     write_atomically(folder / GUARD_FILE, Path(rss_guard.__file__).read_bytes())
     write_atomically(
         folder / WORLD_FILE, Path(rss_guard.__file__).with_name(WORLD_FILE).read_bytes()
@@ -237,8 +254,8 @@ def export_bundle(
     ego, others = departures(testcase, junction)
     # the runner's files: types (also the .sumocfg's: the fcd-replay device reads its file,
     # and needs the non-egos' types, before the route files are loaded), every car's route
-    written = [*(folder / name for name in networks), folder / "run.py", folder / GUARD_FILE,
-               folder / WORLD_FILE]  # fmt: skip
+    written = [*(folder / name for name in networks), folder / "run.py", folder / COSIM_FILE,
+               folder / GUARD_FILE, folder / WORLD_FILE]  # fmt: skip
     written += [
         folder / name for name in write_run_files(testcase, ego, others, folder, network, junction)
     ]

@@ -404,16 +404,22 @@ def _sumo(use_traci: bool, name: str) -> tuple[Any, str]:
 
 def load_guard(here: Path, plan: dict[str, Any], params_file: Path | None) -> Any:
     """The RSS guard of ``rss_guard.py`` next to this file, for this plan."""
-    source = here / "rss_guard.py"
-    if not source.exists():
-        raise RunFailed(f"{source} is missing: the +rss controllers need it")
-    spec = importlib.util.spec_from_file_location("rss_guard", source)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["rss_guard"] = module  # dataclasses look their module up by name
-    spec.loader.exec_module(module)
+    module = _module(here, "rss_guard.py")
     params = module.load_params(params_file) if params_file is not None else None
     return module.RssGuard(plan.get("rss") or {}, params)
+
+
+def _module(here: Path, name: str) -> Any:
+    """The Python file ``name`` next to this one, loaded (RunFailed when it is missing)."""
+    source = here / name
+    if not source.exists():
+        raise RunFailed(f"{source} is missing: the bundle needs it beside run.py")
+    spec = importlib.util.spec_from_file_location(source.stem, source)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[source.stem] = module  # dataclasses look their module up by name
+    spec.loader.exec_module(module)
+    return module
 
 
 def guard_text(summary: dict[str, Any]) -> str:
@@ -445,12 +451,34 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--traci", action="store_true", help="use traci and the sumo binary, "
                         "not libsumo")  # fmt: skip
     parser.add_argument("--gui", action="store_true", help="watch it in sumo-gui (implies --traci)")
+    parser.add_argument("--cosim", type=int, metavar="PORT", help="co-simulation: wait for "
+                        "your driving stack as TraCI client 2 on PORT (README.md)")  # fmt: skip
+    parser.add_argument("--host", default="127.0.0.1", help="--cosim's address (default "
+                        "127.0.0.1: this machine only)")  # fmt: skip
+    parser.add_argument(
+        "--wait",
+        type=float,
+        default=60.0,
+        metavar="SECONDS",
+        help="--cosim: how long to wait for the client (default 60 s)",
+    )
+    parser.add_argument(
+        "--budget",
+        type=float,
+        default=600.0,
+        metavar="SECONDS",
+        help="--cosim: how long the run may take (default 600 s)",
+    )
     args = parser.parse_args(argv)
     try:
         plan = load_plan(args.plan)
     except (OSError, ValueError, RunFailed) as exc:
         print(f"run.py: cannot read the run plan: {exc}", file=sys.stderr)
         return 2
+    if args.cosim is not None:
+        cosim = _module(here, "cosim.py")
+        return int(cosim.bundle_main(sys.modules[__name__], importlib.import_module("traci"),
+                                     find_program("sumo"), args))  # fmt: skip
     controllers = plan["controllers"]
     if args.controller not in controllers:
         print(f"run.py: unknown controller {args.controller!r}; valid: "

@@ -1,0 +1,55 @@
+"""``scengen cosim``: a test-case as a co-simulation over TraCI, the driving stack under test
+connected as a second TraCI client and judged by the checker (docs/cosim.md)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from service.cli.arguments import JUNIT, NETWORK_FILE, TESTCASE, read_input, testcase_intersection
+from service.cli.output import EXIT_FAILED_CHECK, EXIT_OK, print_verdict, write_output
+from service.cli.table import arg, command
+from service.core.sim.cosim import COSIM_BUDGET, COSIM_WAIT, cosimulate_testcase
+
+
+@command(
+    "cosim",
+    "run a test-case as a TraCI server for your driving stack and judge it (exit 0 pass, "
+    "1 fail, 4 the client's fault)",
+    TESTCASE,
+    arg("--port", type=int, required=True, metavar="P", help="the port your TraCI client "
+        "connects to (0: any free port, printed)"),
+    arg("--host", default="127.0.0.1", metavar="H", help="the address to listen on (default "
+        "127.0.0.1, this machine only; another address lets other machines drive the ego)"),
+    arg("--wait", type=float, default=COSIM_WAIT, metavar="SECONDS", help="how long to wait "
+        f"for the client (default {COSIM_WAIT:g} s)"),
+    arg("--budget", type=float, default=COSIM_BUDGET, metavar="SECONDS", help="how long the "
+        f"run may take once the client came (default {COSIM_BUDGET:g} s)"),
+    arg("--json", action="store_true", help="print the verdict as JSON"),
+    JUNIT,
+    NETWORK_FILE,
+    description="Runs the test-case in SUMO as a TraCI server for two clients: scengen (order "
+    "1) moves every other road user along its recorded trajectory, your driving stack (order "
+    "2) drives the vehicle 'ego' with TraCI commands (or leaves it to SUMO's driver). When "
+    "the ego has passed its goal or the test-case's duration is over, SUMO closes the "
+    "connection and the ego's trajectory is judged as `evaluate` judges it. Exit codes: 0 "
+    "pass, 1 fail, 2 bad input, 3 SUMO failed or the budget ran out, 4 the client never came, "
+    "left before the end or took the ego off its route (docs/cosim.md).",
+)  # fmt: skip
+def cosim(args: argparse.Namespace) -> int:
+    testcase = read_input(args.testcase)
+    intersection = testcase_intersection(testcase, args)
+
+    def say(line: str) -> None:
+        print(f"scengen: {line}", file=sys.stderr, flush=True)
+
+    evaluation = cosimulate_testcase(testcase, intersection, args.port, args.host, args.wait,
+                                     args.budget, say)  # fmt: skip
+    verdict = evaluation.verdict
+    if args.junit:
+        write_output(args.junit, verdict.to_junit())
+    if args.json:
+        sys.stdout.write(verdict.to_json())
+    else:
+        print_verdict(verdict)
+    return EXIT_OK if verdict.passed else EXIT_FAILED_CHECK
