@@ -180,7 +180,7 @@ class WarmWorker:
             try:
                 process.stdin.write(FRAME.pack(len(request)) + request)
                 process.stdin.flush()
-                reply = _read_frame(process.stdout.fileno(), time.monotonic() + budget)
+                reply = read_frame(process.stdout.fileno(), time.monotonic() + budget)
             except TimeoutError:
                 self._stop()
                 raise BudgetExceeded(
@@ -216,7 +216,7 @@ class WarmWorker:
             self._stop()
 
 
-def _read_frame(fd: int, deadline: float) -> bytes:
+def read_frame(fd: int, deadline: float) -> bytes:
     """One frame from ``fd``; TimeoutError at the deadline, EOFError when the child is gone."""
     data = b""
     size: int | None = None
@@ -274,7 +274,7 @@ def _limit_memory() -> None:
         resource.setrlimit(resource.RLIMIT_DATA, (wanted, hard))
 
 
-def _enter_child() -> None:
+def enter_child() -> None:
     """This process is a budget child: die with the parent, cap the memory, and run nested
     calls here (the flag is set on the importable module, which the calls import: this file
     runs as ``__main__``)."""
@@ -285,7 +285,7 @@ def _enter_child() -> None:
 
 def _serve() -> None:
     """Child side: read one pickled call from stdin, write the pickled outcome to stdout."""
-    _enter_child()
+    enter_child()
     request = sys.stdin.buffer.read()
     out = sys.stdout.buffer
     sys.stdout = sys.stderr  # anything the call prints must not corrupt the answer
@@ -295,7 +295,7 @@ def _serve() -> None:
 
 def _serve_many() -> None:
     """Warm child side: answer framed calls from stdin until it closes."""
-    _enter_child()
+    enter_child()
     source, out = sys.stdin.buffer, sys.stdout.buffer
     sys.stdout = sys.stderr
     while header := source.read(FRAME.size):

@@ -389,10 +389,7 @@ def evaluate(
     inner = driver.inner if isinstance(driver, GuardedDriver) else driver
     reference = inner.reference if isinstance(inner, UserDriver) else None
     with tempfile.TemporaryDirectory(prefix="scengen-replay-") as folder:
-        ego, others = departures(testcase, junction)
-        network = str(junction.network_file.resolve())
-        write_run_files(testcase, ego, others, Path(folder), network, junction)
-        plan_file = str(Path(folder) / sumo_run.PLAN_FILE)
+        plan_file = str(prepare_replay(testcase, junction, Path(folder)))
         arguments = (plan_file, controller_spec(driver), driver.name, reference, rss_params)
         try:
             rows, error, guard = run_with_budget(run_replay, arguments, budget, "the replay")
@@ -401,11 +398,34 @@ def evaluate(
                 f"{exc.message}; no verdict on {controller} (raise the evaluation's budget)",
                 **exc.context,
             ) from None
+    return judge(testcase, rows, error, controller, junction, guard)
+
+
+def prepare_replay(testcase: TestCase, intersection: Intersection, folder: Path) -> Path:
+    """Write the runner's files for ``testcase`` into ``folder`` (every car's departure,
+    the network by its absolute path); the plan's path."""
+    ego, others = departures(testcase, intersection)
+    network = str(intersection.network_file.resolve())
+    write_run_files(testcase, ego, others, folder, network, intersection)
+    return folder / sumo_run.PLAN_FILE
+
+
+def judge(
+    testcase: TestCase,
+    rows: Sequence[sumo_run.Row],
+    error: str | None,
+    controller: str,
+    intersection: Intersection,
+    guard: dict[str, Any] | None = None,
+) -> Evaluation:
+    """The checker's verdict on the ego's rows of a replay, labelled ``controller``:
+    failed with ``error`` when the ego never moved, and with ``error`` among its errors
+    when something stopped its controller; ``guard``: the RSS guard's summary."""
     samples = [row_sample(row, testcase.ego.length) for row in rows]
     if len(samples) < 2:
         verdict = _failed(testcase, controller, error or "the ego never moved in SUMO")
         return Evaluation(replace(verdict, guard=guard), samples, error)
-    verdict = check_testcase(testcase, samples, controller, junction)
+    verdict = check_testcase(testcase, samples, controller, intersection)
     if error is not None:
         verdict = replace(verdict, errors=(*verdict.errors, error))
     return Evaluation(replace(verdict, guard=guard), samples, error)

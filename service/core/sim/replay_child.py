@@ -2,12 +2,23 @@
 
 Kept apart from service.core.sim.replay so that the child imports only what it runs (the
 runner, the controllers, libsumo), not the checker and the network model: every evaluation
-starts a fresh process.
+starts a fresh process. A Gymnasium environment's child (service.core.sim.gym_env) runs
+this module (``serve_episodes``): the same observation and the same clipping of the
+command as a user controller's (``observer``, ``apply_command``), the action from the
+parent.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import pickle
+import signal
+import sys
+import tempfile
+import traceback
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -50,13 +61,100 @@ def run_replay(
         except ScengenError as exc:
             return [], str(exc), summary()
         on_step = _user_step(user, name, plan, guard)
-    try:
+    with _sumo_errors(libsumo):
         rows, error = sumo_run.run(libsumo, Path(plan_file), controller, on_step, guard=guard)
         return rows, error, summary()
+
+
+@contextlib.contextmanager
+def _sumo_errors(libsumo: Any) -> Iterator[None]:
+    """The runner's and SUMO's errors as SimulationFailed."""
+    try:
+        yield
     except sumo_run.RunFailed as exc:
         raise SimulationFailed(str(exc)) from exc
     except libsumo.TraCIException as exc:
         raise SimulationFailed(f"SUMO refused the replay: {exc}") from exc
+
+
+EXTERNAL = {"kind": "external"}  # the runner leaves the ego's speed to ``on_step``
+Send = Callable[[tuple[Any, ...]], None]
+Receive = Callable[[], "tuple[Any, ...] | None"]
+
+
+def run_episode(
+    libsumo: Any, plan_file: str, send: Send, receive: Receive
+) -> tuple[list[sumo_run.Row], str | None, Observation | None]:
+    """One episode of a Gymnasium environment (service.core.sim.gym_env) in libsumo: at
+    every step where a user controller would be asked, send ``("observation",
+    Observation)`` and apply the acceleration of the ``("action", float)`` received,
+    exactly as a user controller's (``apply_command``); ``("stop",)`` ends the episode
+    early. The ego's rows, what stopped it early, and the observation after the last step
+    (None: no row)."""
+    plan = sumo_run.load_plan(Path(plan_file))
+    observe = observer(plan)
+
+    def on_step(traci: Any, row: sumo_run.Row, present: set[str]) -> str | None:
+        send(("observation", observe(traci, row, present)))
+        message = receive()
+        if message is None:  # the parent is gone
+            raise SystemExit(0)
+        if message[0] == "stop":
+            return "stopped by the environment's caller"
+        apply_command(traci, plan, row, float(message[1]))
+        return None
+
+    folder = Path(plan_file).parent
+    with _sumo_errors(libsumo), tempfile.TemporaryDirectory(prefix="scengen-gym-") as scratch:
+        types = sumo_run.write_types(plan, folder, EXTERNAL, Path(scratch) / "types.xml")
+        libsumo.start(["sumo", *sumo_run.sumo_arguments(plan, folder, types)])
+        try:
+            rows, error = sumo_run.drive(libsumo, plan, EXTERNAL, on_step)
+            present = set(libsumo.vehicle.getIDList())
+            last = observe(libsumo, rows[-1], present) if rows else None
+        finally:
+            libsumo.close()
+    return rows, error, last
+
+
+def serve_episodes() -> None:
+    """The child process of a Gymnasium environment (``python -m
+    service.core.sim.replay_child``): framed pickles on stdin and stdout
+    (service.core.budget's FRAME). It reads ``("episode", plan_file)``, runs it
+    (``run_episode``) and answers ``("done", rows, error, last observation)``, or
+    ``("error", ScengenError)`` / ``("crash", text)``; until stdin closes. It dies with its
+    parent and leaves Ctrl-C to it (the parent kills it)."""
+    from service.core.budget import FRAME, enter_child
+
+    enter_child()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    source = sys.stdin.buffer
+    out = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)  # whatever SUMO prints must not corrupt the answers
+
+    def send(message: tuple[Any, ...]) -> None:
+        data = pickle.dumps(message)
+        out.write(FRAME.pack(len(data)) + data)
+        out.flush()
+
+    def receive() -> tuple[Any, ...] | None:
+        header = source.read(FRAME.size)
+        if len(header) < FRAME.size:
+            return None
+        (size,) = FRAME.unpack(header)
+        return tuple(pickle.loads(source.read(size)))
+
+    import libsumo
+
+    while (request := receive()) is not None:
+        try:
+            send(("done", *run_episode(libsumo, str(request[1]), send, receive)))
+        except SystemExit:
+            return
+        except ScengenError as exc:
+            send(("error", exc))
+        except Exception as exc:  # reported, the parent decides
+            send(("crash", f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"))
 
 
 def _user_step(
@@ -64,49 +162,81 @@ def _user_step(
 ) -> sumo_run.OnStep:
     """The runner's hook for a user controller: observe, ask, clip (to the RSS guard's
     ceiling too, when guarded), set the ego's speed."""
-    timestep = float(plan["timestep"])
-    bounds = plan["bounds"]
-    ego = plan["ego"]
-    sizes = {car["id"]: (float(car["length"]), float(car["width"])) for car in plan["nonegos"]}
-    people = plan.get("pedestrians") or []
-    lanes: dict[str, Lanes] = {}  # every car's, from where it is at the first step
+    observe = observer(plan)
 
     def step(traci: Any, row: sumo_run.Row, present: set[str]) -> str | None:
-        for car in present - lanes.keys():
-            lanes[car] = route_lanes(traci, car)
-        x, y = sumo_run.front_to_centre(row["x"], row["y"], row["angle"], float(ego["length"]))
-        speed = row["speed"]
-        nonegos = sorted(present - {sumo_run.EGO})
-        observation = Observation(
-            t=row["t"],
-            timestep=timestep,
-            ego=Vehicle(sumo_run.EGO, x, y, row["angle"], speed, ego["length"], ego["width"]),
-            distance=row["odometer"],
-            to_stop_line=float(ego["start_distance"]) - row["odometer"],
-            lane=traci.vehicle.getLaneID(sumo_run.EGO),
-            others=tuple(_vehicle(traci, car, *sizes[car]) for car in nonegos),
-            a_min=bounds["a_min"],
-            a_max=bounds["a_max"],
-            v_max=bounds["v_max"],
-            leader=find_leader(traci, lanes, {car: sizes[car][0] for car in nonegos}),
-            signal=sumo_run.ego_signal(traci, plan),
-            pedestrians=pedestrians_seen(traci, people, round(row["t"] / timestep)),
-        )
+        observation = observe(traci, row, present)
         try:
             command = float(user.step(observation))
             if not math.isfinite(command):
                 raise ValueError(f"acceleration {command!r} is not a finite number")
         except Exception as exc:  # the user's code: any failure fails the evaluation
             return f"controller {name} raised {type(exc).__name__}: {exc}"
-        accel = min(command, bounds["a_max"])
-        if guard is not None:
-            accel = guard.limit(row["t"], accel)
-        accel = max(accel, bounds["a_min"])
-        new_speed = min(max(speed + accel * timestep, 0.0), bounds["v_max"])
-        traci.vehicle.setSpeed(sumo_run.EGO, new_speed)
+        apply_command(traci, plan, row, command, guard)
         return None
 
     return step
+
+
+Observer = Callable[[Any, sumo_run.Row, set[str]], Observation]
+
+
+def observer(plan: dict[str, Any]) -> Observer:
+    """What the ego observes at a step (``observe(traci, row, present)``): the plug-in
+    controller's Observation. It remembers every car's lanes from where the car is the
+    first time it is seen. After the ego has left (at its goal) the ego's part comes from
+    its last row, on no lane and with no leader."""
+    timestep = float(plan["timestep"])
+    bounds = plan["bounds"]
+    ego = plan["ego"]
+    sizes = {car["id"]: (float(car["length"]), float(car["width"])) for car in plan["nonegos"]}
+    ego_size = ego["length"], ego["width"]
+    people = plan.get("pedestrians") or []
+    lanes: dict[str, Lanes] = {}  # every car's, from where it is at the first step
+
+    def observe(traci: Any, row: sumo_run.Row, present: set[str]) -> Observation:
+        for car in present - lanes.keys():
+            lanes[car] = route_lanes(traci, car)
+        x, y = sumo_run.front_to_centre(row["x"], row["y"], row["angle"], float(ego["length"]))
+        nonegos = sorted(present - {sumo_run.EGO})
+        there = sumo_run.EGO in present
+        vehicle = Vehicle(sumo_run.EGO, x, y, row["angle"], row["speed"], *ego_size)
+        lengths = {car: sizes[car][0] for car in nonegos}
+        return Observation(
+            t=row["t"],
+            timestep=timestep,
+            ego=vehicle,
+            distance=row["odometer"],
+            to_stop_line=float(ego["start_distance"]) - row["odometer"],
+            lane=traci.vehicle.getLaneID(sumo_run.EGO) if there else "",
+            others=tuple(_vehicle(traci, car, *sizes[car]) for car in nonegos),
+            a_min=bounds["a_min"],
+            a_max=bounds["a_max"],
+            v_max=bounds["v_max"],
+            leader=find_leader(traci, lanes, lengths) if there else None,
+            signal=sumo_run.ego_signal(traci, plan),
+            pedestrians=pedestrians_seen(traci, people, round(row["t"] / timestep)),
+        )
+
+    return observe
+
+
+def apply_command(
+    traci: Any,
+    plan: dict[str, Any],
+    row: sumo_run.Row,
+    command: float,
+    guard: RssGuard | None = None,
+) -> None:
+    """Clip an acceleration command to the plan's bounds (and the RSS guard's ceiling,
+    when guarded), integrate it over one step, and set the ego's speed (within [0, v_max])."""
+    bounds = plan["bounds"]
+    accel = min(command, bounds["a_max"])
+    if guard is not None:
+        accel = guard.limit(row["t"], accel)
+    accel = max(accel, bounds["a_min"])
+    new_speed = min(max(row["speed"] + accel * float(plan["timestep"]), 0.0), bounds["v_max"])
+    traci.vehicle.setSpeed(sumo_run.EGO, new_speed)
 
 
 def pedestrians_seen(traci: Any, people: list[dict[str, Any]], step: int) -> tuple[Vehicle, ...]:
@@ -191,3 +321,7 @@ def _rear_along(
     if lane in ego_lanes:  # merging into the ego's lane from another
         return ego_lanes[lane] + position - length
     return None
+
+
+if __name__ == "__main__":
+    serve_episodes()
