@@ -238,6 +238,8 @@ def walk_people(traci: Any, people: list[dict[str, Any]], step: int) -> None:
     (``moveToXY`` before a step is where the person is after it), in the walking stage of
     that pose (the stages before it ended: ``removeStage(id, 0)``); or remove it when its
     trajectory ends at this step."""
+    if not people:
+        return  # no call to SUMO: over TraCI (run.py --traci, a co-simulation) each costs
     walking = set(traci.person.getIDList())
     for person in people:
         name, poses = person["id"], person["poses"]
