@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -15,6 +16,7 @@ from typing import Any
 
 import pytest
 
+from service import cli
 from service.core.generator.extension import extend_testcase
 from service.core.sim.cosim import cosimulate_testcase
 from service.core.sim.replay import evaluate
@@ -209,3 +211,20 @@ def test_a_bundle_runs_the_same_cosimulation(
     assert [v["rule"] for v in verdict["violations"]] == [v["rule"] for v in replayed["violations"]]
     assert verdict["goal"] == replayed["goal"]
     assert _left_behind(tmp_path) == []
+
+
+def test_bad_ports_and_limits_are_refused_in_one_line(
+    levels: dict[str, tuple[TestCase, Path]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, path = levels["4way-stop"]
+    with socket.create_server(("127.0.0.1", 0)) as taken:
+        port = str(taken.getsockname()[1])
+        for flags, said in [
+            (["--port", "70000"], "--port 70000 is not a port: give 1 to 65535, or 0"),
+            (["--port", port], f"cannot listen on 127.0.0.1:{port}: Address already in use"),
+            (["--port", "0", "--wait", "0"], "--wait must be a number of seconds above 0"),
+            (["--port", "0", "--budget", "nan"], "--budget must be a number of seconds above 0"),
+        ]:
+            assert cli.main(["cosim", str(path), *flags]) == 2
+            [line] = capsys.readouterr().err.strip().splitlines()
+            assert line.startswith("scengen: error: ") and said in line, line

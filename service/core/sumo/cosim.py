@@ -174,6 +174,9 @@ def cosimulate(
     controller = plan["controllers"]["sumo"]  # the ego's driver when the stack sends nothing
     try:
         relay = Relay(host, port)
+    except OverflowError:  # socket's word for a port out of range
+        raise ListenFailed(f"--port {port} is not a port: give 1 to 65535, or 0 for any free "
+                           "port") from None  # fmt: skip
     except OSError as exc:
         raise ListenFailed(
             f"cannot listen on {host}:{port}: {exc.strerror or exc} (another program listens "
