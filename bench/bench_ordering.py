@@ -37,18 +37,14 @@ import clingo
 import clingo.ast
 from clingolpx import ClingoLPXTheory
 
-from service.core.generator.extension import (
-    SEARCH_SHARES,
-    STEP1_SPEED,
-    _limits,
-    _new_ids,
-    _ordering_cars,
-    _queue,
-    _validate,
+from service.core.generator.additions import (
     automatic_starts,
-    checked_judge,
-    extend_testcase,
+    new_car_ids,
+    ordering_cars,
+    queue_of,
+    validate_routes,
 )
+from service.core.generator.extension import STEP1_SPEED, extend_testcase
 from service.core.generator.ordering import (
     Limits,
     Ordering,
@@ -59,6 +55,8 @@ from service.core.generator.ordering import (
     ordering_facts,
     stop_symbol,
 )
+from service.core.generator.search import SEARCH_SHARES, order_limits
+from service.core.generator.verification import checked_judge
 from service.core.motion.poses import generate_poses
 from service.core.network import Intersection
 from service.core.testcase import (
@@ -110,9 +108,9 @@ def step2_problem(name: str, old: TestCase, routes: Sequence[str], share: float)
     """The cars of Step 2 for ``routes`` added to ``old``, as extend_testcase builds them."""
     junction = load_testcase_intersection(old)
     judge = checked_judge(old, junction)
-    new_routes = _validate(old, junction, routes)
+    new_routes = validate_routes(old, junction, routes)
     ego_route = junction.route(old.ego.route.id)
-    ids = _new_ids(old, len(new_routes))
+    ids = new_car_ids(old, len(new_routes))
     starts = automatic_starts(old, judge, new_routes, None)
     tracks = generate_poses(
         junction,
@@ -124,10 +122,10 @@ def step2_problem(name: str, old: TestCase, routes: Sequence[str], share: float)
         old.ego.width,
     )
     new_tracks = dict(zip(ids, tracks[1:], strict=True))
-    cars = _ordering_cars(old, judge, junction, tracks[0], new_tracks, new_routes, ids)
+    cars = ordering_cars(old, judge, junction, tracks[0], new_tracks, new_routes, ids)
     tracks_of = {**new_tracks, "ego": tracks[0], "illegal": tracks[0]}
-    queue = _queue(old, judge, junction, cars, tracks_of, ids)
-    limits = _limits(old, share=share)
+    queue = queue_of(old, judge, junction, cars, tracks_of, ids)
+    limits = order_limits(old, share=share)
     return Problem(name, junction, cars, old.params.m, limits, len(old.nonegos), queue.bounds)
 
 

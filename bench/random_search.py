@@ -28,7 +28,7 @@ and nothing more:
   time step from 0 to the duration; distances stop at the end of the poses.
 - One trial samples three profiles independently (new car, solvability ego, complexity
   ego), builds the candidate document as the generator does and asks
-  ``service.core.generator.extension.verify_extension``; only None counts as a success. Cheap
+  ``service.core.generator.verification.verify_extension``; only None counts as a success. Cheap
   rejections come first, each one a rejection the judge itself would make: a certificate
   whose last sample is still short of the junction's exit cannot reach its goal, and the
   judge's own collision test (``first_collision``, on the very samples it will see)
@@ -57,7 +57,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from bench.cpu import cpu_seconds
-from service.core.generator.extension import verify_extension
+from service.core.generator.verification import verify_extension
 from service.core.motion.collisions import Motion, first_collision
 from service.core.motion.events import EventKind, compute_events
 from service.core.motion.poses import PoseSample, PoseTrack, generate_poses

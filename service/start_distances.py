@@ -2,7 +2,7 @@
 
 A body gives one number for every new car, null (automatic for all), or a list with one
 number or null (automatic for that car) per route, in the order of the routes: what
-``service.core.generator.extension.StartDistances`` takes. A wrong value gets one message that says
+``service.core.generator.additions.StartDistances`` takes. A wrong value gets one message that says
 what is allowed, not pydantic's one error per member of the union.
 """
 

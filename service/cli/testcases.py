@@ -25,12 +25,8 @@ from service.cli.arguments import (
 from service.cli.examples import EXAMPLES, evaluate_levels, run_example, write_testcase
 from service.cli.output import EXIT_OK, StepProgress, emit, output_file, print_table, progress
 from service.cli.table import arg, command
-from service.core.generator.extension import (
-    Extension,
-    StartDistances,
-    extend_testcase,
-    extend_testcases,
-)
+from service.core.generator.additions import StartDistances
+from service.core.generator.extension import Extension, extend_testcase, extend_testcases
 from service.core.generator.variety import MAX_COUNT, describe_variants, variant_name
 from service.core.motion.events import compute_events
 from service.core.motion.poses import generate_poses

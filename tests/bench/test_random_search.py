@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from bench.random_search import random_extension
-from service.core.generator.extension import verify_extension
 from service.core.generator.variety import distinct_count, signature
+from service.core.generator.verification import verify_extension
 from service.core.testcase import dump_testcase, load_testcase_intersection, new_testcase
 
 ROUTE = "SW2C_0:C2N_0"

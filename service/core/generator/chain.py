@@ -19,13 +19,9 @@ from dataclasses import dataclass
 
 from service.core.checker.check import Judge
 from service.core.errors import InvalidInput, NoMoreComplexTestCase, NoneFound
-from service.core.generator.extension import (
-    MAX_ORDERS,
-    Extension,
-    Progress,
-    checked_judge,
-    extend_testcase,
-)
+from service.core.generator.extension import MAX_ORDERS, Extension, extend_testcase
+from service.core.generator.search import Progress
+from service.core.generator.verification import checked_judge
 from service.core.network import Intersection
 from service.core.testcase import TestCase, load_testcase_intersection
 

@@ -20,10 +20,12 @@ from service.core.errors import (
     NoneFound,
     UnknownRoute,
 )
-from service.core.generator import extension
-from service.core.generator.extension import Extension, extend_testcase, verify_extension
+from service.core.generator import search
+from service.core.generator.extension import Extension, extend_testcase
 from service.core.generator.ordering import Ordering, OrderingSearch
+from service.core.generator.search import ExtensionSearch
 from service.core.generator.timing import TimingProblem
+from service.core.generator.verification import verify_extension
 from service.core.motion.invariants import motion_fault
 from service.core.motion.poses import PoseSample
 from service.core.testcase import (
@@ -255,28 +257,28 @@ def test_each_order_of_both_search_rounds_is_timed_by_its_own_problem(
     rounds: list[OrderingSearch] = []
     timing: list[tuple[Ordering, TimingProblem]] = []
     current: list[Ordering] = []
-    next_ordering, attempt = OrderingSearch.next_ordering, extension._Search.attempt
-    solve = extension.solve_timing
+    next_ordering, attempt = OrderingSearch.next_ordering, ExtensionSearch.attempt
+    solve = search.solve_timing
 
-    def drawing(search: OrderingSearch) -> Ordering | None:
-        if search not in rounds:
-            rounds.append(search)
-        found = next_ordering(search)
+    def drawing(self: OrderingSearch) -> Ordering | None:
+        if self not in rounds:
+            rounds.append(self)
+        found = next_ordering(self)
         if found is not None:
-            drawn.append((rounds.index(search), found))
+            drawn.append((rounds.index(self), found))
         return found
 
-    def attempting(search: Any, ordering: Ordering, *args: Any, **kwargs: Any) -> Any:
+    def attempting(self: ExtensionSearch, ordering: Ordering, *args: Any, **kwargs: Any) -> Any:
         current[:] = [ordering]
-        return attempt(search, ordering, *args, **kwargs)
+        return attempt(self, ordering, *args, **kwargs)
 
     def solving(problem: TimingProblem) -> Any:
         timing.append((current[0], problem))
         return solve(problem)
 
     monkeypatch.setattr(OrderingSearch, "next_ordering", drawing)
-    monkeypatch.setattr(extension._Search, "attempt", attempting)
-    monkeypatch.setattr(extension, "solve_timing", solving)
+    monkeypatch.setattr(ExtensionSearch, "attempt", attempting)
+    monkeypatch.setattr(search, "solve_timing", solving)
     old = new_testcase("4way-stop", "S2C_1:C2W_1", duration=14.4)
     new = extend_testcase(old, ["W2C_1:C2E_1"], start_distance=50.0).testcase
     assert {number for number, _ in drawn} == {0, 1}, "both rounds draw answer sets"

@@ -9,7 +9,7 @@ from clingodl import ClingoDLTheory
 
 from service.core.checker.check import Judge
 from service.core.checker.rules import asp_dir
-from service.core.generator.extension import _limits, _ordering_cars, _validate
+from service.core.generator.additions import ordering_cars, validate_routes
 from service.core.generator.ordering import (
     CarKind,
     OrderingCar,
@@ -17,6 +17,7 @@ from service.core.generator.ordering import (
     event_groups,
     stand_distance,
 )
+from service.core.generator.search import order_limits
 from service.core.motion.events import EventKind, LaneEvent
 from service.core.motion.poses import generate_poses
 from service.core.network import Intersection
@@ -117,13 +118,13 @@ def test_every_answer_set_comes_with_times_that_keep_its_relations(
     four_way: Intersection, seed: int
 ) -> None:
     old = new_testcase("4way-stop", "S2C_1:C2W_1", duration=25.0)
-    routes = _validate(old, four_way, ["W2C_0:C2E_0", "N2C_0:C2S_0"])
+    routes = validate_routes(old, four_way, ["W2C_0:C2E_0", "N2C_0:C2S_0"])
     ego_route = four_way.route(old.ego.route.id)
     tracks = generate_poses(
         four_way, [(ego_route, 30.0), *((r, 30.0) for r in routes)], 8.0, 25.0, 0.1
     )
     ids = ["car1", "car2"]
-    cars = _ordering_cars(
+    cars = ordering_cars(
         old,
         Judge(old, four_way),
         four_way,
@@ -132,7 +133,7 @@ def test_every_answer_set_comes_with_times_that_keep_its_relations(
         routes,
         ids,
     )
-    limits = _limits(old)
+    limits = order_limits(old)
     search = OrderingSearch(four_way, cars, old.params.m, seed, limits)
     drawn = [search.next_ordering() for _ in range(5)]
     assert all(ordering is not None for ordering in drawn)
