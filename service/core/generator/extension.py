@@ -59,8 +59,8 @@ from service.core.generator.timing import (
     TimingSolution,
     entry_window,
     plan_times,
-    solve_timing,
 )
+from service.core.generator.timing_solve import solve_timing
 from service.core.generator.variety import (
     AIMS,
     DISTINCT_GAP,
