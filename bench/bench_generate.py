@@ -33,7 +33,8 @@ from bench.paper_timing import solve_paper
 from service.cli.examples import EXAMPLES, run_example
 from service.core.errors import ScengenError
 from service.core.generator.extension import extend_testcase
-from service.core.generator.timing import TimingProblem, solve_timing
+from service.core.generator.timing import TimingProblem
+from service.core.generator.timing_solve import solve_timing
 from service.core.testcase import new_testcase
 
 BUDGET = 20.0

@@ -111,7 +111,7 @@ def step2_problem(name: str, old: TestCase, routes: Sequence[str], share: float)
     new_routes = validate_routes(old, junction, routes)
     ego_route = junction.route(old.ego.route.id)
     ids = new_car_ids(old, len(new_routes))
-    starts = automatic_starts(old, judge, new_routes, None)
+    starts, _ = automatic_starts(old, judge, new_routes, None, junction)
     tracks = generate_poses(
         junction,
         [(ego_route, old.ego.start.distance), *zip(new_routes, starts, strict=True)],

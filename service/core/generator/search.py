@@ -37,8 +37,8 @@ from service.core.generator.timing import (
     TimingProblem,
     entry_window,
     plan_times,
-    solve_timing,
 )
+from service.core.generator.timing_solve import solve_timing
 from service.core.generator.variety import (
     AIMS,
     DISTINCT_GAP,

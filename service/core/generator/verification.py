@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-from service.core.checker.check import Car, Judge, check_testcase
+from service.core.checker.check import Car, Judge
 from service.core.checker.rules import people_laws
 from service.core.checker.verdict import REAR_END, Verdict, Violation
 from service.core.errors import InvalidTestCase
@@ -173,17 +173,6 @@ def _gaps_kept(
             name = "the solvability certificate" if follower.id == solvability.id else None
             return f"{name or follower.id} does not keep its gap: {fault}"
     return None
-
-
-def complexity_kind(new: TestCase, junction: Intersection) -> dict[str, Any]:
-    """How the complexity certificate fails the new test-case: "right-of-way" (it violates
-    a new car's) or "rear-end" (it drives into a new car ahead of it), and the cars."""
-    assert new.certificates is not None
-    verdict = check_testcase(
-        new, [PoseSample(**s.model_dump()) for s in new.certificates.complexity],
-        "complexity", junction, criticality=False,
-    )  # fmt: skip
-    return certificate_kind(verdict)
 
 
 def certificate_kind(verdict: Verdict) -> dict[str, Any]:

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from service.core.generator.extension import Extension, extend_testcase
-from service.core.generator.timing import CRUISE
+from service.core.generator.timing_curves import CRUISE
 from service.core.motion.poses import PoseSample, generate_poses
 from service.core.network import Intersection, load_intersection
 from service.core.testcase import new_testcase

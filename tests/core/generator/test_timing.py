@@ -37,9 +37,9 @@ from service.core.generator.timing import (
     TimingSolution,
     order_core,
     plan_on_speed_grid,
-    solve_timing,
-    stop_lead,
 )
+from service.core.generator.timing_curves import stop_lead
+from service.core.generator.timing_solve import solve_timing
 from service.core.motion.invariants import motion_fault
 from service.core.motion.kinematics import DWELL, Bounds
 from service.core.testcase import Params

@@ -15,7 +15,7 @@ from service.core.checker.check import Judge, check_testcase
 from service.core.checker.verdict import REAR_END
 from service.core.errors import InvalidInput
 from service.core.generator.extension import extend_testcase
-from service.core.generator.timing import BEHIND
+from service.core.generator.timing_solve import BEHIND
 from service.core.motion.collisions import Motion, first_collision
 from service.core.motion.events import EventKind
 from service.core.motion.poses import PoseSample, PoseTrack, generate_poses

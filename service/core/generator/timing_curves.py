@@ -1,0 +1,415 @@
+"""Step 3's curves: each car's composite cubic Bezier d(t) through its knots at the times a
+plan (service.core.generator.timing) gave them, by HiGHS's simplex.
+
+One linear program per car, with the plan's knot times fixed: every piece's end distance
+and speed, so that the controls are in order (the car never backs up and makes no new
+event), the acceleration stays within the bounds at both ends of every piece (it is linear
+in between), the speed within v_max, zero at a stand, at least v_run while running a sign,
+the certificates' start speed; smoothest first (least peak acceleration, then least
+acceleration and jerk). Between two knots the curve has free knots at most ``PIECE``
+seconds apart. A follower keeps its gap behind the curves fitted before it and ahead of
+the old cars behind it at every time step (gap rows, added as they bind).
+
+``fit_curve`` fits one car, ``frontier`` the furthest a car can get behind the cars ahead,
+and ``Fitter`` every car's curves at a plan's times (what timing_aims and timing_solve
+call).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from service.core.generator.linear import (
+    Linear,
+    LinearProgram,
+    combine,
+    total,
+    value_of,
+)
+from service.core.generator.timing import WORK, CarPlan, Curve, Following, TimingProblem
+from service.core.motion.kinematics import SAME, Bounds
+
+PIECE = 2.0  # seconds: the longest piece of a curve (free knots between events)
+CLEARANCE = 0.01  # metres a free knot keeps from the knots around it (events stay sharp)
+STOP_LEAD = 0.1  # seconds before a stand when a stopping car is still faster than v_stop
+STOP_LEAD_BRAKING = 3.0  # ... or this many times v_stop over its strongest braking, when
+# that is longer (a pedestrian's gentle braking: a stand within 0.1 s of v_stop is too abrupt)
+CRUISE = 0.5  # share of v_max a car makes for after its last event (the curve's end)
+TAIL_WEIGHT = 1.0  # cost per m/s and second the speed misses that after the last event
+
+
+@dataclass(frozen=True)
+class _Boundary:
+    """A piece end of a curve: its time, and its distance when it is a knot (else free
+    within ``low``..``high``), its speed when fixed."""
+
+    t: float
+    distance: float | None
+    low: float
+    high: float
+    speed: float | None
+    least_speed: float = 0.0
+
+
+def stop_lead(v_stop: float, bounds: Bounds) -> float:
+    """Seconds before a stand when a stopping car is still faster than ``v_stop``:
+    STOP_LEAD, or longer where its braking is gentle (STOP_LEAD_BRAKING)."""
+    return max(STOP_LEAD, STOP_LEAD_BRAKING * v_stop / -bounds.a_min)
+
+
+def _boundaries(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -> list[_Boundary]:
+    """Piece ends: the start, the knots, and free knots at most PIECE apart between them.
+    Before a stand, the car keeps above v_stop from its previous knot until a lead
+    (``stop_lead``) before the stand, so that its stop begins when it is planned (the
+    checker's stop is the first moment at v_stop or below), not while it creeps up to the
+    line."""
+    times = [0.0, *knot_times, problem.duration]
+    distances = [0.0] + [k.distance for k in car.knots]
+    stopped = [False] + [k.stop for k in car.knots]
+    found = [_Boundary(times[0], 0.0, 0.0, 0.0, car.start_speed)]
+    before_stand = stop_lead(problem.v_stop, problem.bounds_of(car))
+    for j in range(1, len(times)):
+        last = j == len(times) - 1  # the end of the duration: the distance is free
+        low = distances[j - 1]
+        high = car.reach if last else distances[j]
+        stand = not last and high - low <= SAME
+        clearance = 0.0 if stand else min(CLEARANCE, (high - low) / 4)
+        stops_here = not last and stopped[j] and not stopped[j - 1]
+        lead = before_stand if stops_here and times[j] - times[j - 1] > before_stand else 0.0
+        floor = problem.v_stop if lead else 0.0
+        if floor and found[-1].speed is None:
+            previous = found[-1]
+            found[-1] = _Boundary(previous.t, previous.distance, previous.low, previous.high,
+                                  previous.speed, floor)  # fmt: skip
+        span = times[j] - lead - times[j - 1]
+        pieces = 1 if stand else max(1, math.ceil(span / PIECE - 1e-9))
+        for k in range(1, pieces + (1 if lead else 0)):
+            t = times[j - 1] + span * k / pieces
+            found.append(_Boundary(t, None, low + clearance, high - clearance, None, floor))
+        if last:
+            found.append(_Boundary(times[j], None, low + clearance, high, None))
+        else:
+            found.append(_Boundary(times[j], high, high, high, 0.0 if stopped[j] else None))
+    return found
+
+
+def _on_piece(
+    points: Sequence[_Boundary], d: Sequence[Linear], v: Sequence[Linear], t: float
+) -> tuple[int, Linear, Linear]:
+    """(piece, distance, speed) of the curve at time t, linear in the piece's unknowns:
+    with controls d0 + v0 h/3 and d1 - v1 h/3, d(t) = d0 (u^3 + 3u^2 s) + v0 u^2 s h
+    + d1 (3 u s^2 + s^3) - v1 u s^2 h and v(t) = u^2 v0 + s^2 v1 + 6us (d1 - d0)/h
+    - 2us (v0 + v1), for s the share of the piece and u = 1 - s."""
+    times = [p.t for p in points]
+    k = min(max(bisect.bisect_right(times, t) - 1, 0), len(points) - 2)
+    h = times[k + 1] - times[k]
+    s = (t - times[k]) / h
+    u = 1 - s
+    distance = combine((u**3 + 3 * u * u * s, d[k]), (u * u * s * h, v[k]),
+                       (3 * u * s * s + s**3, d[k + 1]), (-u * s * s * h, v[k + 1]))  # fmt: skip
+    speed = combine((u * u - 2 * u * s, v[k]), (s * s - 2 * u * s, v[k + 1]),
+                    (6 * u * s / h, d[k + 1]), (-6 * u * s / h, d[k]))  # fmt: skip
+    return k, distance, speed
+
+
+FOLLOW_SLACK = 0.05  # metres a planned follower keeps beyond the gap (samples are rounded)
+
+
+def _places(
+    follow: Following, name: str, fitted: dict[str, Curve], times: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """(places, speeds) at ``times`` of the other car of ``follow`` (fitted or old)."""
+    line = follow.leader_line if name == follow.leader else follow.follower_line
+    if follow.fixed:
+        rows = np.array(follow.fixed)
+        return np.interp(times, rows[:, 0], rows[:, 1]) - line, np.interp(
+            times, rows[:, 0], rows[:, 2]
+        )
+    at = np.array([fitted[name].at(float(t)) for t in times])
+    return at[:, 0] - line, at[:, 1]
+
+
+@dataclass(frozen=True)
+class _GapRow:
+    """One time step's gap condition on a curve: ``term <= bound`` (behind a leader) or
+    ``term >= bound`` (ahead of an old follower)."""
+
+    term: Linear
+    bound: float
+    behind: bool
+
+    def add_to(self, program: LinearProgram) -> None:
+        if self.behind:
+            program.at_most(self.term, self.bound)
+        else:
+            program.at_least(self.term, self.bound)
+
+    def holds(self, solution: dict[str, float]) -> bool:
+        """Whether the solution keeps the row, within the LP solver's tolerance."""
+        value = value_of(self.term, solution)
+        bound = self.bound
+        return value <= bound + ROW_TOLERANCE if self.behind else value >= bound - ROW_TOLERANCE
+
+
+def _following(
+    problem: TimingProblem,
+    car: CarPlan,
+    points: Sequence[_Boundary],
+    d: Sequence[Linear],
+    v: Sequence[Linear],
+    fitted: dict[str, Curve],
+) -> list[_GapRow]:
+    """The car keeps behind the cars ahead of it and ahead of the old cars behind it, at
+    every time step (the checker's samples), with FOLLOW_SLACK and the plan's headway:
+    one row per step at which the condition can bind."""
+    steps = round(problem.duration / problem.timestep)
+    step_times = np.round(np.arange(1, steps + 1) * problem.timestep, 9)
+    highs = [p.high for p in points]
+    lows = [p.low for p in points]
+    times = [p.t for p in points]
+    rows: list[_GapRow] = []
+    for follow in problem.follows:
+        if car.car not in (follow.leader, follow.follower):
+            continue
+        behind = car.car == follow.follower
+        if not behind and not follow.fixed:
+            continue  # a symbolic follower keeps behind this car when it is fitted
+        places, speeds = _places(
+            follow, follow.leader if behind else follow.follower, fitted, step_times
+        )
+        gap = follow.gap + FOLLOW_SLACK
+        for t, place, speed in zip(step_times.tolist(), places.tolist(), speeds.tolist(),
+                                   strict=True):  # fmt: skip
+            k = min(max(bisect.bisect_right(times, t) - 1, 0), len(points) - 2)
+            if behind:
+                rear = place - follow.leader_length
+                if rear >= follow.parting or (follow.joined and rear < 0):
+                    continue
+                bound = rear - gap + follow.follower_line
+                if bound >= highs[k + 1] + follow.headway * problem.bounds_of(car).v_max:
+                    continue  # the car cannot be that far yet
+                _, distance, pace = _on_piece(points, d, v, t)
+                rows.append(_GapRow(distance + pace * follow.headway, bound, True))
+            else:
+                if follow.joined and place < 0:
+                    continue  # the old follower has not reached the shared lane
+                needed = min(follow.parting, place + gap + follow.headway * max(speed, 0.0))
+                least = needed + follow.leader_length + follow.leader_line
+                if least <= lows[k]:
+                    continue
+                _, distance, _ = _on_piece(points, d, v, t)
+                rows.append(_GapRow(distance, least, False))
+    return rows
+
+
+ROW_TOLERANCE = 1e-6  # metres a solution may miss a gap row by (the LP solver's tolerance)
+GAP_ROUNDS = 12  # rounds of adding the violated gap rows before adding all of them
+
+
+def _solve_with_gaps(program: LinearProgram, rows: Sequence[_GapRow]) -> dict[str, float] | None:
+    """The optimum of ``program`` that keeps every gap row. Rows are added where the
+    optimum without them breaks them, round by round (most never bind, and each one makes
+    the optimisation slower); after GAP_ROUNDS rounds, all of them. A relaxation without
+    a solution has none with every row either."""
+    chosen: set[int] = set()
+    for _ in range(GAP_ROUNDS):
+        attempt = program.copy()
+        for index in sorted(chosen):
+            rows[index].add_to(attempt)
+        solution = attempt.solve()
+        if solution is None:
+            return None
+        broken = {index for index, row in enumerate(rows) if not row.holds(solution)}
+        if not broken:
+            return solution
+        chosen |= broken
+    for row in rows:
+        row.add_to(program)
+    return program.solve()
+
+
+def _pieces(
+    program: LinearProgram,
+    bounds: Bounds,
+    points: Sequence[_Boundary],
+    d: Sequence[Linear],
+    v: Sequence[Linear],
+) -> list[tuple[Linear, Linear, Linear]]:
+    """The rows every curve keeps on each piece: controls in order (it never backs up),
+    the speed in the middle within v_max, the acceleration at both ends within the bounds.
+    Per piece: (middle speed, acceleration at the start, at the end)."""
+    found = []
+    one = 1.0
+    for k in range(len(points) - 1):
+        h = points[k + 1].t - points[k].t
+        d0, d1, v0, v1 = d[k], d[k + 1], v[k], v[k + 1]
+        # Controls c1 = d0 + v0 h / 3 and c2 = d1 - v1 h / 3, multiplied out.
+        program.at_least(combine((one, d1), (-one, d0), (-h / 3, v0), (-h / 3, v1)), 0)
+        middle = combine((3 / h, d1), (-3 / h, d0), (-one, v0), (-one, v1))
+        program.at_most(middle, bounds.v_max)
+        start = combine((6 / h**2, d1), (-6 / h**2, d0), (-4 / h, v0), (-2 / h, v1))
+        end = combine((-6 / h**2, d1), (6 / h**2, d0), (2 / h, v0), (4 / h, v1))
+        for acceleration in (start, end):
+            program.at_least(acceleration, bounds.a_min)
+            program.at_most(acceleration, bounds.a_max)
+        found.append((middle, start, end))
+    return found
+
+
+def _unknowns(
+    program: LinearProgram, v_max: float, points: Sequence[_Boundary]
+) -> tuple[list[Linear], list[Linear]]:
+    """Every piece end's distance and speed: fixed where the point says, else variables."""
+    d: list[Linear] = []
+    v: list[Linear] = []
+    for k, point in enumerate(points):
+        if point.distance is not None:
+            d.append(Linear.of(point.distance))
+        else:
+            d.append(program.variable(f"d{k}", point.low, point.high))
+        if point.speed is not None:
+            v.append(Linear.of(point.speed))
+        else:
+            v.append(program.variable(f"v{k}", point.least_speed, v_max))
+    return d, v
+
+
+def _curve(points: Sequence[_Boundary], d: Sequence[Linear], v: Sequence[Linear],
+           solution: dict[str, float]) -> Curve:  # fmt: skip
+    distances = [_evaluate(term, solution) for term in d]
+    speeds = [_evaluate(term, solution) for term in v]
+    times = [float(p.t) for p in points]
+    controls = []
+    for k in range(len(points) - 1):
+        third = (times[k + 1] - times[k]) / 3
+        controls.append(
+            (distances[k] + speeds[k] * third, distances[k + 1] - speeds[k + 1] * third)
+        )
+    return Curve(tuple(times), tuple(distances), tuple(controls))
+
+
+def fit_curve(
+    problem: TimingProblem,
+    car: CarPlan,
+    knot_times: list[float],
+    fitted: dict[str, Curve] | None = None,
+) -> Curve | None:
+    """The smoothest curve of one car through its knots at the planned times, behind the
+    cars ahead of it (``fitted``: their curves) and ahead of the old cars behind it; None
+    when the bounds allow none (or the work limit was reached)."""
+    points = _boundaries(problem, car, knot_times)
+    bounds = problem.bounds_of(car)
+    program = LinearProgram(WORK)
+    d, v = _unknowns(program, bounds.v_max, points)
+    rows = _following(problem, car, points, d, v, fitted or {})
+    running = _running_span(car, knot_times)
+    peak = program.variable("peak")
+    cost: list[Linear] = [peak * 10]
+    for k, (middle, start, end) in enumerate(_pieces(program, bounds, points, d, v)):
+        h = points[k + 1].t - points[k].t
+        for acceleration in (start, end):
+            program.at_most(acceleration - peak, 0)
+            program.at_least(acceleration + peak, 0)
+            cost.append(program.magnitude(acceleration) * (h / 2))
+        if running is not None and running[0] <= points[k].t and points[k + 1].t <= running[1]:
+            for speed in (v[k], v[k + 1], middle):
+                program.at_least(speed, problem.v_run)
+        if points[k].least_speed and points[k + 1].least_speed:
+            program.at_least(middle, min(points[k].least_speed, points[k + 1].least_speed))
+    # After its last event the car gathers speed towards CRUISE of v_max, rather than keep
+    # whatever speed it left the junction with (a crawl out of the junction blocks the exit
+    # lane for every later car that leaves into it): the time its speed misses it costs.
+    last_knot = knot_times[-1] if knot_times else 0.0
+    for k in range(1, len(points)):
+        if points[k].t > last_knot:
+            miss = program.magnitude(v[k] - CRUISE * bounds.v_max)
+            cost.append(miss * (TAIL_WEIGHT * (points[k].t - points[k - 1].t)))
+    program.minimize(total(cost))
+    solution = _solve_with_gaps(program, rows)
+    return None if solution is None else _curve(points, d, v, solution)
+
+
+def frontier(
+    problem: TimingProblem, car: CarPlan, fitted: dict[str, Curve], cap: float = math.inf
+) -> Curve | None:
+    """The car's furthest progress behind the cars it follows (``fitted``: the symbolic
+    ones' curves) from its start, whatever its knots, never beyond ``cap``: a curve without
+    knots, pieces FRONTIER_PIECE long, that keeps every gap and bound and maximises the
+    distances of its piece ends. None when there is none."""
+    steps = max(1, math.ceil(problem.duration / FRONTIER_PIECE))
+    high = min(car.reach, cap)
+    points = [_Boundary(0.0, 0.0, 0.0, 0.0, car.start_speed)]
+    points += [_Boundary(problem.duration * k / steps, None, 0.0, high, None)
+               for k in range(1, steps + 1)]  # fmt: skip
+    program = LinearProgram(WORK)
+    bounds = problem.bounds_of(car)
+    d, v = _unknowns(program, bounds.v_max, points)
+    _pieces(program, bounds, points, d, v)
+    program.minimize(total(d[1:]) * -1.0)
+    solution = _solve_with_gaps(program, _following(problem, car, points, d, v, fitted))
+    return None if solution is None else _curve(points, d, v, solution)
+
+
+FRONTIER_PIECE = 1.0  # seconds: the pieces of a frontier (a stand on it ends on a piece end)
+
+
+def _evaluate(term: Linear, solution: dict[str, float]) -> float:
+    return value_of(term, solution)
+
+
+def _running_span(car: CarPlan, knot_times: list[float]) -> tuple[float, float] | None:
+    if car.run is None:
+        return None
+    return knot_times[car.run[0]], knot_times[car.run[1]]
+
+
+class Fitter:
+    """Every car's curve at planned times, remembered within one problem: a car whose knot
+    times did not change is not fitted again, and the car that failed last is tried first
+    (plans that differ mostly keep the same car's trouble)."""
+
+    def __init__(self, problem: TimingProblem) -> None:
+        self.problem = problem
+        self.order = [car.car for car in problem.cars]
+        self.cars = {car.car: car for car in problem.cars}
+        self.fitted: dict[tuple[Any, ...], Curve | None] = {}
+        self.failed: str | None = None  # the car whose curve did not fit last time
+        self.ahead: dict[str, Curve] = {}  # the curves fitted before it
+        self.leaders = {
+            car.car: sorted(
+                {f.leader for f in problem.follows if f.follower == car.car and not f.fixed}
+            )
+            for car in problem.cars
+        }
+
+    def _key(self, name: str, planned: dict[str, list[float]]) -> tuple[Any, ...]:
+        """A curve depends on its knot times and on those of the cars it follows."""
+        ahead = tuple(self._key(leader, planned) for leader in self.leaders[name])
+        return (name, tuple(planned[name]), ahead)
+
+    def fit_all(self, planned: dict[str, list[float]] | None) -> dict[str, Curve]:
+        """Every car's curve; empty unless all of them fit. A car that failed is tried
+        first next time, unless it follows another symbolic car (leaders come first)."""
+        if planned is None:
+            return {}
+        curves: dict[str, Curve] = {}
+        for name in self.order:
+            key = self._key(name, planned)
+            if key not in self.fitted:
+                self.fitted[key] = fit_curve(self.problem, self.cars[name], planned[name],
+                                             curves)  # fmt: skip
+            curve = self.fitted[key]
+            if curve is None:
+                self.failed, self.ahead = name, dict(curves)
+                if not self.leaders[name]:
+                    self.order.remove(name)
+                    self.order.insert(0, name)
+                return {}
+            curves[name] = curve
+        return {car.car: curves[car.car] for car in self.problem.cars}
