@@ -7,7 +7,7 @@ import argparse
 import sys
 
 from service.cli.arguments import JUNIT, NETWORK_FILE, TESTCASE, read_input, testcase_intersection
-from service.cli.output import EXIT_FAILED_CHECK, EXIT_OK, print_verdict, write_output
+from service.cli.output import report_verdict
 from service.cli.table import arg, command
 from service.core.sim.cosim import COSIM_BUDGET, COSIM_WAIT, cosimulate_testcase
 
@@ -45,11 +45,4 @@ def cosim(args: argparse.Namespace) -> int:
 
     evaluation = cosimulate_testcase(testcase, intersection, args.port, args.host, args.wait,
                                      args.budget, say)  # fmt: skip
-    verdict = evaluation.verdict
-    if args.junit:
-        write_output(args.junit, verdict.to_junit())
-    if args.json:
-        sys.stdout.write(verdict.to_json())
-    else:
-        print_verdict(verdict)
-    return EXIT_OK if verdict.passed else EXIT_FAILED_CHECK
+    return report_verdict(evaluation.verdict, args.json, args.junit)

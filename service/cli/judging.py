@@ -22,6 +22,7 @@ from service.cli.output import (
     guard_note,
     print_table,
     print_verdict,
+    report_verdict,
     short,
     write_output,
 )
@@ -58,13 +59,7 @@ def check(args: argparse.Namespace) -> int:
     verdict = check_testcase(
         testcase, ego, args.controller or args.ego.stem, testcase_intersection(testcase, args)
     )
-    if args.junit:
-        write_output(args.junit, verdict.to_junit())
-    if args.json:
-        sys.stdout.write(verdict.to_json())
-    else:
-        print_verdict(verdict)
-    return EXIT_OK if verdict.passed else EXIT_FAILED_CHECK
+    return report_verdict(verdict, args.json, args.junit)
 
 
 @command(

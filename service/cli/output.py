@@ -123,6 +123,18 @@ def short(verdict: Verdict) -> str:
     return "did not reach its exit"
 
 
+def report_verdict(verdict: Verdict, as_json: bool, junit: Path | None) -> int:
+    """One verdict as ``check`` and ``cosim`` give it: JUnit written when asked, JSON or
+    text on stdout; the exit code (0 pass, 1 fail)."""
+    if junit:
+        write_output(junit, verdict.to_junit())
+    if as_json:
+        sys.stdout.write(verdict.to_json())
+    else:
+        print_verdict(verdict)
+    return EXIT_OK if verdict.passed else EXIT_FAILED_CHECK
+
+
 def print_verdict(verdict: Verdict) -> None:
     status = "PASS" if verdict.passed else "FAIL"
     print(f"{status}  {verdict.testcase} / {verdict.controller}")
