@@ -9,17 +9,20 @@ import json
 import os
 import re
 import socket
+import struct
 import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+import traci.constants as tc
 
 from service import cli
 from service.core.generator.extension import extend_testcase
 from service.core.sim.cosim import cosimulate_testcase
 from service.core.sim.replay import evaluate
+from service.core.sumo.cosim import CloseWatch
 from service.core.testcase import (
     TestCase,
     dump_testcase,
@@ -228,3 +231,26 @@ def test_bad_ports_and_limits_are_refused_in_one_line(
             assert cli.main(["cosim", str(path), *flags]) == 2
             [line] = capsys.readouterr().err.strip().splitlines()
             assert line.startswith("scengen: error: ") and said in line, line
+
+
+def test_a_close_command_is_seen_before_sumo_gets_it() -> None:
+    """The relay reads the stack's TraCI messages, split anywhere, long commands among
+    them, and tells the close command (so scengen's next step knows the stack left, however
+    the threads are scheduled)."""
+
+    def command(cid: int, payload: bytes = b"") -> bytes:
+        size = len(payload) + 2
+        if size <= 255:
+            return struct.pack("!BB", size, cid) + payload
+        return struct.pack("!BiB", 0, size + 4, cid) + payload
+
+    def message(*commands: bytes) -> bytes:
+        body = b"".join(commands)
+        return struct.pack("!i", len(body) + 4) + body
+
+    step = message(command(tc.CMD_SIMSTEP, struct.pack("!d", 0.0)))
+    close = message(command(tc.CMD_SET_VEHICLE_VARIABLE, b"x" * 300), command(tc.CMD_CLOSE))
+    watch = CloseWatch()
+    assert not watch.seen_in(step) and not watch.seen_in(close[:7])
+    assert watch.seen_in(close[7:])
+    assert CloseWatch().seen_in(step + close) and not CloseWatch().seen_in(step + step)

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 CLIENT_ORDER = 2  # the driving stack's setOrder
+CMD_CLOSE = 0x7F  # TraCI's close command (traci.constants.CMD_CLOSE)
 SCENGEN_ORDER = 1
 SUMO_START = 60.0  # seconds SUMO may take to load the network and listen
 Row = dict[str, float]
@@ -91,9 +92,15 @@ class Relay:
 
 
 def _pump(source: socket.socket, target: socket.socket, ended: threading.Event | None) -> None:
-    """Copy ``source`` to ``target`` until ``source`` ends; then end ``target``'s writing."""
+    """Copy ``source`` to ``target`` until ``source`` ends; then end ``target``'s writing.
+    ``ended`` (the stack's side): set when the stack closes, before SUMO can know it (a
+    TraCI close command is seen before it is passed on), so that scengen's next step finds
+    it set whatever the threads' timing."""
+    closes = CloseWatch()
     try:
         while data := source.recv(65536):
+            if ended is not None and closes.seen_in(data):
+                ended.set()
             target.sendall(data)
     except OSError:
         pass
@@ -102,6 +109,46 @@ def _pump(source: socket.socket, target: socket.socket, ended: threading.Event |
             ended.set()
         with contextlib.suppress(OSError):
             target.shutdown(socket.SHUT_WR)
+
+
+class CloseWatch:
+    """Reads a TraCI client's bytes as its messages (a 4-byte length, then commands of a
+    1-byte length, or 0 and a 4-byte length, and an id) and tells when one holds the
+    close command."""
+
+    def __init__(self) -> None:
+        self._pending = b""
+        self._lost = False  # bytes that are no TraCI message: nothing more to read
+
+    def seen_in(self, data: bytes) -> bool:
+        """Whether the messages ``data`` completes hold a close command."""
+        self._pending += data
+        found = False
+        while not self._lost and len(self._pending) >= 4:
+            size = int.from_bytes(self._pending[:4], "big")
+            if size < 4:
+                self._lost = True
+            elif len(self._pending) < size:
+                break
+            else:
+                message, self._pending = self._pending[4:size], self._pending[size:]
+                found = found or _holds_close(message)
+        return found
+
+
+def _holds_close(message: bytes) -> bool:
+    offset = 0
+    while offset + 1 < len(message):
+        length, command = message[offset], message[offset + 1]
+        if length == 0 and offset + 6 <= len(message):  # a long command
+            length = int.from_bytes(message[offset + 1 : offset + 5], "big")
+            command = message[offset + 5]
+        if command == CMD_CLOSE:
+            return True
+        if length <= 0:
+            return False
+        offset += length
+    return False
 
 
 def free_port() -> int:
