@@ -32,7 +32,7 @@ from service.core.generator.ordering import (
 )
 from service.core.generator.timing import CarPlan, Following, Knot, TimingProblem, TimingSolution
 from service.core.generator.verification import certificate_kind, verify_candidate
-from service.core.generator.walkers import pedestrian_rows, walker_plan
+from service.core.generator.walkers import event_rows, pedestrian_rows, walker_plan
 from service.core.motion.events import EventKind
 from service.core.motion.invariants import ROUNDING, motion_fault
 from service.core.motion.poses import PoseSample, PoseTrack
@@ -279,15 +279,7 @@ def _candidate(
                 "length": old.ego.length,
                 "width": old.ego.width,
                 "trajectory": [_row(s) for s in trajectory],
-                "events": [
-                    {
-                        "kind": e.kind.value,
-                        "lane": e.lane,
-                        "t": round(e.time, 6),
-                        "distance": round(e.distance, 6),
-                    }
-                    for e in events
-                ],
+                "events": event_rows(events),
                 "added_in": level,
             }
         )

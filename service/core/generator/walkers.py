@@ -125,6 +125,15 @@ def walker_plan(plan: CarPlan, old: TestCase) -> CarPlan:
                    walking_bounds(old), CROSSING_PACE)  # fmt: skip
 
 
+def event_rows(events: Sequence[LaneEvent]) -> list[dict[str, Any]]:
+    """Lane events as a document's rows (a new car's or a new pedestrian's)."""
+    return [
+        {"kind": e.kind.value, "lane": e.lane, "t": round(e.time, 6),
+         "distance": round(e.distance, 6)}
+        for e in events
+    ]  # fmt: skip
+
+
 def pedestrian_rows(
     old: TestCase,
     junction: Intersection,
@@ -146,15 +155,7 @@ def pedestrian_rows(
                 "length": PEDESTRIAN_LENGTH,
                 "width": PEDESTRIAN_WIDTH,
                 "trajectory": [row(s) for s in trajectory],
-                "events": [
-                    {
-                        "kind": e.kind.value,
-                        "lane": e.lane,
-                        "t": round(e.time, 6),
-                        "distance": round(e.distance, 6),
-                    }
-                    for e in events
-                ],
+                "events": event_rows(events),
                 "added_in": level,
             }
         )
