@@ -15,8 +15,10 @@ choices and unsatisfiable cores by z3 over the rationals):
    service.core.motion.kinematics with a share of the bounds in reserve (``SHARES``: the
    curves then have room), smoothest first (the pace changes least from knot to knot); or
    knot times chosen with knot speeds from a grid (``plan_on_speed_grid``);
-2. the curves (service.core.generator.timing_curves), one car at a time with the plan's
-   knot times fixed.
+2. the curves (service.core.generator.timing_curves), one car at a time, each event
+   within a window around the plan's time in which every relation still holds
+   (service.core.generator.timing_windows): the plan guides the curves, it does not pin
+   them.
 
 When the plan is infeasible even with the full bounds, the relations of z3's unsatisfiable
 core go back to Step 2 (``order_core``): no speed profile can realise them together. Every
@@ -25,6 +27,7 @@ a clock: the same problem gives the same curves on an idle and on a saturated ma
 
 Step 3's modules, each importing only those before it: this one (the problem and its
 answer, the plans, the window of an event's times that variety aims within);
+``timing_windows`` (how far each planned time may move with the order kept);
 ``timing_curves`` (a car's curve through its planned knots, every car's curves at a plan's
 times); ``timing_aims`` (curves that keep aimed event times); ``timing_solve``
 (``solve_timing``: plans, then curves, and what is tried when they do not fit).

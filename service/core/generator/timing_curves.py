@@ -33,6 +33,7 @@ from service.core.generator.linear import (
     value_of,
 )
 from service.core.generator.timing import WORK, CarPlan, Curve, Following, TimingProblem
+from service.core.generator.timing_windows import Windows, event_windows
 from service.core.motion.kinematics import SAME, Bounds
 
 PIECE = 2.0  # seconds: the longest piece of a curve (free knots between events)
@@ -63,39 +64,63 @@ def stop_lead(v_stop: float, bounds: Bounds) -> float:
     return max(STOP_LEAD, STOP_LEAD_BRAKING * v_stop / -bounds.a_min)
 
 
-def _boundaries(problem: TimingProblem, car: CarPlan, knot_times: list[float]) -> list[_Boundary]:
-    """Piece ends: the start, the knots, and free knots at most PIECE apart between them.
-    Before a stand, the car keeps above v_stop from its previous knot until a lead
+def _anchors(
+    problem: TimingProblem, car: CarPlan, windows: Sequence[tuple[float, float]]
+) -> list[tuple[_Boundary, bool]]:
+    """The fixed points of a car's curve, with whether each is a stand: the start; each
+    knot at its planned time (a point window), or the start and end of its window (below
+    the knot's distance at the start, at or beyond it at the end: the event happens
+    within); the end of the duration (distance free up to ``reach``)."""
+    distances = [0.0] + [k.distance for k in car.knots] + [car.reach]
+    found = [(_Boundary(0.0, 0.0, 0.0, 0.0, car.start_speed), False)]
+    for j, (knot, (low, high)) in enumerate(zip(car.knots, windows, strict=True), start=1):
+        here = knot.distance
+        if high - low <= SAME:
+            found.append((_Boundary(low, here, here, here, 0.0 if knot.stop else None), knot.stop))
+            continue
+        clearance = min(CLEARANCE, (here - distances[j - 1]) / 4)
+        found.append((_Boundary(low, None, distances[j - 1], here - clearance, None), False))
+        found.append((_Boundary(high, None, here, distances[j + 1], None), False))
+    return found
+
+
+def _boundaries(
+    problem: TimingProblem, car: CarPlan, windows: Sequence[tuple[float, float]]
+) -> list[_Boundary]:
+    """Piece ends: the anchors (``_anchors``), and free knots at most PIECE apart between
+    them. Before a stand, the car keeps above v_stop from its previous anchor until a lead
     (``stop_lead``) before the stand, so that its stop begins when it is planned (the
     checker's stop is the first moment at v_stop or below), not while it creeps up to the
     line."""
-    times = [0.0, *knot_times, problem.duration]
-    distances = [0.0] + [k.distance for k in car.knots]
-    stopped = [False] + [k.stop for k in car.knots]
-    found = [_Boundary(times[0], 0.0, 0.0, 0.0, car.start_speed)]
+    anchors = _anchors(problem, car, windows)
+    found = [anchors[0][0]]
     before_stand = stop_lead(problem.v_stop, problem.bounds_of(car))
-    for j in range(1, len(times)):
-        last = j == len(times) - 1  # the end of the duration: the distance is free
-        low = distances[j - 1]
-        high = car.reach if last else distances[j]
-        stand = not last and high - low <= SAME
+    for j in range(1, len(anchors) + 1):
+        last = j == len(anchors)  # the end of the duration: the distance is free
+        previous, previous_stands = anchors[j - 1]
+        if last:
+            point, stands = _Boundary(problem.duration, None, previous.low, car.reach, None), False
+        else:
+            point, stands = anchors[j]
+        low, high = previous.low, point.high
+        stand = not last and point.distance is not None and high - low <= SAME
         clearance = 0.0 if stand else min(CLEARANCE, (high - low) / 4)
-        stops_here = not last and stopped[j] and not stopped[j - 1]
-        lead = before_stand if stops_here and times[j] - times[j - 1] > before_stand else 0.0
+        stops_here = stands and not previous_stands
+        span_all = point.t - previous.t
+        lead = before_stand if stops_here and span_all > before_stand else 0.0
         floor = problem.v_stop if lead else 0.0
         if floor and found[-1].speed is None:
-            previous = found[-1]
-            found[-1] = _Boundary(previous.t, previous.distance, previous.low, previous.high,
-                                  previous.speed, floor)  # fmt: skip
-        span = times[j] - lead - times[j - 1]
+            at = found[-1]
+            found[-1] = _Boundary(at.t, at.distance, at.low, at.high, at.speed, floor)
+        span = span_all - lead
         pieces = 1 if stand else max(1, math.ceil(span / PIECE - 1e-9))
         for k in range(1, pieces + (1 if lead else 0)):
-            t = times[j - 1] + span * k / pieces
+            t = previous.t + span * k / pieces
             found.append(_Boundary(t, None, low + clearance, high - clearance, None, floor))
         if last:
-            found.append(_Boundary(times[j], None, low + clearance, high, None))
+            found.append(_Boundary(point.t, None, low + clearance, high, None))
         else:
-            found.append(_Boundary(times[j], high, high, high, 0.0 if stopped[j] else None))
+            found.append(point)
     return found
 
 
@@ -297,18 +322,19 @@ def _curve(points: Sequence[_Boundary], d: Sequence[Linear], v: Sequence[Linear]
 def fit_curve(
     problem: TimingProblem,
     car: CarPlan,
-    knot_times: list[float],
+    windows: Sequence[tuple[float, float]],
     fitted: dict[str, Curve] | None = None,
 ) -> Curve | None:
-    """The smoothest curve of one car through its knots at the planned times, behind the
+    """The smoothest curve of one car through its knots within their windows
+    (service.core.generator.timing_windows; a point window: the planned time), behind the
     cars ahead of it (``fitted``: their curves) and ahead of the old cars behind it; None
     when the bounds allow none (or the work limit was reached)."""
-    points = _boundaries(problem, car, knot_times)
+    points = _boundaries(problem, car, windows)
     bounds = problem.bounds_of(car)
     program = LinearProgram(WORK)
     d, v = _unknowns(program, bounds.v_max, points)
     rows = _following(problem, car, points, d, v, fitted or {})
-    running = _running_span(car, knot_times)
+    running = _running_span(car, windows)
     peak = program.variable("peak")
     cost: list[Linear] = [peak * 10]
     for k, (middle, start, end) in enumerate(_pieces(program, bounds, points, d, v)):
@@ -325,7 +351,7 @@ def fit_curve(
     # After its last event the car gathers speed towards CRUISE of v_max, rather than keep
     # whatever speed it left the junction with (a crawl out of the junction blocks the exit
     # lane for every later car that leaves into it): the time its speed misses it costs.
-    last_knot = knot_times[-1] if knot_times else 0.0
+    last_knot = windows[-1][1] if windows else 0.0
     for k in range(1, len(points)):
         if points[k].t > last_knot:
             miss = program.magnitude(v[k] - CRUISE * bounds.v_max)
@@ -363,10 +389,14 @@ def _evaluate(term: Linear, solution: dict[str, float]) -> float:
     return value_of(term, solution)
 
 
-def _running_span(car: CarPlan, knot_times: list[float]) -> tuple[float, float] | None:
+def _running_span(
+    car: CarPlan, windows: Sequence[tuple[float, float]]
+) -> tuple[float, float] | None:
+    """From the earliest the car may reach the first knot of its run to the latest it may
+    reach the last: it keeps v_run throughout."""
     if car.run is None:
         return None
-    return knot_times[car.run[0]], knot_times[car.run[1]]
+    return windows[car.run[0]][0], windows[car.run[1]][1]
 
 
 class Fitter:
@@ -388,10 +418,10 @@ class Fitter:
             for car in problem.cars
         }
 
-    def _key(self, name: str, planned: dict[str, list[float]]) -> tuple[Any, ...]:
-        """A curve depends on its knot times and on those of the cars it follows."""
-        ahead = tuple(self._key(leader, planned) for leader in self.leaders[name])
-        return (name, tuple(planned[name]), ahead)
+    def _key(self, name: str, windows: Windows) -> tuple[Any, ...]:
+        """A curve depends on its knots' windows and on those of the cars it follows."""
+        ahead = tuple(self._key(leader, windows) for leader in self.leaders[name])
+        return (name, tuple(windows[name]), ahead)
 
     def fit_all(self, planned: dict[str, list[float]] | None) -> dict[str, Curve]:
         """Every car's curve; empty unless all of them fit. A car that failed is tried
@@ -399,10 +429,11 @@ class Fitter:
         if planned is None:
             return {}
         curves: dict[str, Curve] = {}
+        windows = event_windows(self.problem, planned)
         for name in self.order:
-            key = self._key(name, planned)
+            key = self._key(name, windows)
             if key not in self.fitted:
-                self.fitted[key] = fit_curve(self.problem, self.cars[name], planned[name],
+                self.fitted[key] = fit_curve(self.problem, self.cars[name], windows[name],
                                              curves)  # fmt: skip
             curve = self.fitted[key]
             if curve is None:

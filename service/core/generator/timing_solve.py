@@ -1,7 +1,9 @@
 """Step 3's solve: curves for every car that realise an order, or what failed.
 
 ``solve_timing`` tries plans (service.core.generator.timing) in turn and fits every car's
-curve at each plan's times (service.core.generator.timing_curves): the smooth plan first;
+curve to each plan, every event within its window around the planned time
+(service.core.generator.timing_windows, service.core.generator.timing_curves): the smooth
+plan first;
 then, when a speed-grid plan exists, plans again with a follower's knots behind its
 frontier (the furthest it can get behind the cars ahead), the smooth plan with continuous
 speeds, and speed-grid plans; with aims, only plans that keep them

@@ -37,9 +37,11 @@ from service.core.generator.timing import (
     TimingSolution,
     order_core,
     plan_on_speed_grid,
+    plan_times,
 )
 from service.core.generator.timing_curves import stop_lead
 from service.core.generator.timing_solve import solve_timing
+from service.core.generator.timing_windows import event_windows
 from service.core.motion.invariants import motion_fault
 from service.core.motion.kinematics import DWELL, Bounds
 from service.core.testcase import Params
@@ -333,3 +335,43 @@ def test_step3_cores_name_only_the_problems_own_relations_and_clash_alone(
         assert order_core(alone) is not None
     else:
         assert plan_on_speed_grid(alone, SHARES[-1])[0] is None
+
+
+@settings(
+    max_examples=40,
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+@given(problems(), st.data())
+def test_every_choice_of_times_within_the_windows_keeps_the_order(
+    case: tuple[TimingProblem, dict[str, Drive]], data: st.DataObject
+) -> None:
+    """The curves may pass an event anywhere within its window: any such times (the
+    windows' ends drawn at random) keep every relation with its margin, every car's knots
+    stay in order, a stand keeps its planned time, and each window holds the plan's time."""
+    problem, _ = case
+    planned = plan_times(problem, SHARES[0])
+    if planned is None:
+        return
+    windows = event_windows(problem, planned)
+    times: dict[str, float] = dict(problem.fixed)
+    for car in problem.cars:
+        chosen = []
+        for knot, t, (low, high) in zip(car.knots, planned[car.car], windows[car.car],
+                                         strict=True):  # fmt: skip
+            assert low <= t <= high
+            if knot.stop or knot.symbol is None:
+                assert low == high == t
+            chosen.append(data.draw(st.sampled_from([low, high, (low + high) / 2])))
+            if knot.symbol is not None:
+                times[knot.symbol] = chosen[-1]
+        assert all(a < b for a, b in itertools.pairwise(chosen)), "knots out of order"
+        assert all(high <= problem.duration - problem.margin + 1e-9
+                   for _, high in windows[car.car])  # fmt: skip
+    for kind, a, b in problem.relations:
+        gap = times[b] - times[a]
+        if kind == "lessThan":
+            assert gap >= problem.m + problem.margin - 1e-6, (kind, a, b, gap)
+        else:
+            assert abs(gap) <= problem.m - problem.margin + 1e-6, (kind, a, b, gap)
