@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 
-from service.core.generator.timing import TimingProblem
+from service.core.generator.timing import CarPlan, TimingProblem
 
 NARROWEST = 0.02  # seconds: a window narrower than this is the planned time itself
 Windows = dict[str, list[tuple[float, float]]]  # car -> (earliest, latest) of each knot
@@ -83,7 +83,7 @@ def event_windows(problem: TimingProblem, planned: dict[str, list[float]]) -> Wi
     return windows
 
 
-def _within_car(problem: TimingProblem, car, times: list[float],
+def _within_car(problem: TimingProblem, car: CarPlan, times: list[float],
                 found: list[tuple[float, float]]) -> list[tuple[float, float]]:  # fmt: skip
     """The windows narrowed so that the car's own limits still hold for every choice: the
     span of running a sign and of crossing its lane no longer than the plan allowed."""

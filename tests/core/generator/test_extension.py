@@ -214,7 +214,8 @@ def test_old_testcase_that_fails_its_own_checks_is_refused(y_extension: Extensio
 def test_a_tiny_budget_is_honoured() -> None:
     start = new_testcase("4way-stop", "S2C_1:C2W_1", duration=25.0)
     started = time.monotonic()
-    with pytest.raises(NoneFound, match=r"budget exhausted: the budget of 0\.01 s ran out") as error:
+    ran_out = r"budget exhausted: the budget of 0\.01 s ran out"
+    with pytest.raises(NoneFound, match=ran_out) as error:
         extend_testcase(start, ["W2C_0:C2E_0", "N2C_0:C2S_0", "E2C_1:C2S_1"], budget=0.01)
     assert error.value.context["budget_exhausted"] is True
     # The budget is checked between the steps and between answer sets; Step 1 (a SUMO
