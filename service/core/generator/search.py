@@ -35,6 +35,7 @@ from service.core.generator.timing import (
     CarPlan,
     TimingFailure,
     TimingProblem,
+    TimingSolution,
     entry_window,
     plan_times,
 )
@@ -94,10 +95,15 @@ class Deadline:
         )
 
 
+Aims = tuple[tuple[str, float], ...]  # (time symbol, aimed time): see ExtensionSearch._aims
+
+
 class ExtensionSearch:
     """Step 2 and 3 over one extension's cars: verified candidates, order by order
     (``orders``), then other timings of the verified orders (``timings``). Each answer set
-    is drawn once; the seed's aim (variety.seed_aim) is tried first for every order."""
+    is drawn once; the seed's aim (variety.seed_aim) is tried first for every order that
+    Step 3 can time at all (its own plan, without aims, solved first and kept: an order
+    without curves is not aimed, and its core goes back to Step 2)."""
 
     def __init__(
         self,
@@ -126,6 +132,7 @@ class ExtensionSearch:
         # from 0 again, so a number names different orders in the two rounds)
         self.windows: dict[Ordering, list[tuple[str, tuple[float, float], float | None]]] = {}
         self.problems: dict[Ordering, TimingProblem] = {}
+        self.solved: dict[tuple[Ordering, Aims], TimingSolution | TimingFailure] = {}
         for stage in ("ordering", "timing", "verification"):
             seconds[stage] = 0.0
 
@@ -166,8 +173,14 @@ class ExtensionSearch:
                 if same is not None:  # nothing new for the test-case, only for a certificate
                     attempts.append(Attempt(number, f"the same test-case order as #{same}"))
                     continue
-                outcome, candidate, core = self.attempt(ordering, aim, number + 1, apart=True)
-                if candidate is None and aim is not None:  # the order's own plan may still
+                if aim is not None and isinstance(self._solve(ordering, ()), TimingFailure):
+                    aimed = False  # no curves even for the order's own plan: aims add none
+                else:
+                    aimed = aim is not None
+                outcome, candidate, core = self.attempt(
+                    ordering, aim if aimed else None, number + 1, apart=aimed
+                )
+                if candidate is None and aimed:  # the order's own plan may still
                     self.say(f"step 2/3 answer set {number + 1}, aimed: {outcome}")
                     outcome, candidate, core = self.attempt(ordering, None, number + 1)
                 if core is not None:  # given the phases chosen: their bounds are part of it
@@ -259,6 +272,17 @@ class ExtensionSearch:
             windows.append((symbol, window, smooth[plan.car][index] if smooth else None))
         return windows
 
+    def _solve(self, ordering: Ordering, aims: Aims) -> TimingSolution | TimingFailure:
+        """Step 3 of an order with ``aims`` (none: the order's own plan), solved once."""
+        key = (ordering, aims)
+        if key not in self.solved:
+            self.deadline.check(self.attempts, "Step 3")
+            clock = time.monotonic()
+            problem = dataclasses.replace(self._problem(ordering), aims=aims)
+            self.solved[key] = solve_timing(problem)
+            self.seconds["timing"] += time.monotonic() - clock
+        return self.solved[key]
+
     def attempt(
         self, ordering: Ordering, aim: float | None, number: int, apart: bool = False
     ) -> tuple[str, TestCase | None, list[tuple[str, Any, Any]] | None]:
@@ -272,9 +296,9 @@ class ExtensionSearch:
         if aim is not None and not aims:
             seconds["timing"] += time.monotonic() - clock
             return "no window of entry times to aim in", None, None
-        problem = self._problem(ordering)
-        result = solve_timing(dataclasses.replace(problem, aims=aims))
         seconds["timing"] += time.monotonic() - clock
+        problem = self._problem(ordering)
+        result = self._solve(ordering, aims)
         if isinstance(result, TimingFailure):
             core = [ordering.relations[i] for i in result.core] if result.core else None
             return f"timing: {result.reason}", None, core

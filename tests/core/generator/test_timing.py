@@ -348,8 +348,9 @@ def test_every_choice_of_times_within_the_windows_keeps_the_order(
     case: tuple[TimingProblem, dict[str, Drive]], data: st.DataObject
 ) -> None:
     """The curves may pass an event anywhere within its window: any such times (the
-    windows' ends drawn at random) keep every relation with its margin, every car's knots
-    stay in order, a stand keeps its planned time, and each window holds the plan's time."""
+    windows' ends drawn at random) keep every relation with its margin (within the plan's
+    rounding to 0.1 ms), every car's knots stay in order, a stand keeps its planned time,
+    and each window holds the plan's time."""
     problem, _ = case
     planned = plan_times(problem, SHARES[0])
     if planned is None:
@@ -372,6 +373,6 @@ def test_every_choice_of_times_within_the_windows_keeps_the_order(
     for kind, a, b in problem.relations:
         gap = times[b] - times[a]
         if kind == "lessThan":
-            assert gap >= problem.m + problem.margin - 1e-6, (kind, a, b, gap)
+            assert gap >= problem.m + problem.margin - 1e-3, (kind, a, b, gap)
         else:
-            assert abs(gap) <= problem.m - problem.margin + 1e-6, (kind, a, b, gap)
+            assert abs(gap) <= problem.m - problem.margin + 1e-3, (kind, a, b, gap)
