@@ -28,6 +28,7 @@ a clock: the same problem gives the same curves on an idle and on a saturated ma
 Step 3's modules, each importing only those before it: this one (the problem and its
 answer, the plans, the window of an event's times that variety aims within);
 ``timing_windows`` (how far each planned time may move with the order kept);
+``timing_gaps`` (the rows that keep a curve behind the cars ahead, as arrays);
 ``timing_curves`` (a car's curve through its planned knots, every car's curves at a plan's
 times); ``timing_aims`` (curves that keep aimed event times); ``timing_solve``
 (``solve_timing``: plans, then curves, and what is tried when they do not fit).

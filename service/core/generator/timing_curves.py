@@ -8,7 +8,8 @@ in between), the speed within v_max, zero at a stand, at least v_run while runni
 the certificates' start speed; smoothest first (least peak acceleration, then least
 acceleration and jerk). Between two knots the curve has free knots at most ``PIECE``
 seconds apart. A follower keeps its gap behind the curves fitted before it and ahead of
-the old cars behind it at every time step (gap rows, added as they bind).
+the old cars behind it at every time step (service.core.generator.timing_gaps: rows added
+as they bind).
 
 ``fit_curve`` fits one car, ``frontier`` the furthest a car can get behind the cars ahead,
 and ``Fitter`` every car's curves at a plan's times (what timing_aims and timing_solve
@@ -17,13 +18,10 @@ call).
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
-
-import numpy as np
 
 from service.core.generator.linear import (
     Linear,
@@ -32,7 +30,8 @@ from service.core.generator.linear import (
     total,
     value_of,
 )
-from service.core.generator.timing import WORK, CarPlan, Curve, Following, TimingProblem
+from service.core.generator.timing import WORK, CarPlan, Curve, TimingProblem
+from service.core.generator.timing_gaps import gap_rows, solve_with_gaps
 from service.core.generator.timing_windows import Windows, event_windows
 from service.core.motion.kinematics import SAME, Bounds
 
@@ -124,141 +123,6 @@ def _boundaries(
     return found
 
 
-def _on_piece(
-    points: Sequence[_Boundary], d: Sequence[Linear], v: Sequence[Linear], t: float
-) -> tuple[int, Linear, Linear]:
-    """(piece, distance, speed) of the curve at time t, linear in the piece's unknowns:
-    with controls d0 + v0 h/3 and d1 - v1 h/3, d(t) = d0 (u^3 + 3u^2 s) + v0 u^2 s h
-    + d1 (3 u s^2 + s^3) - v1 u s^2 h and v(t) = u^2 v0 + s^2 v1 + 6us (d1 - d0)/h
-    - 2us (v0 + v1), for s the share of the piece and u = 1 - s."""
-    times = [p.t for p in points]
-    k = min(max(bisect.bisect_right(times, t) - 1, 0), len(points) - 2)
-    h = times[k + 1] - times[k]
-    s = (t - times[k]) / h
-    u = 1 - s
-    distance = combine((u**3 + 3 * u * u * s, d[k]), (u * u * s * h, v[k]),
-                       (3 * u * s * s + s**3, d[k + 1]), (-u * s * s * h, v[k + 1]))  # fmt: skip
-    speed = combine((u * u - 2 * u * s, v[k]), (s * s - 2 * u * s, v[k + 1]),
-                    (6 * u * s / h, d[k + 1]), (-6 * u * s / h, d[k]))  # fmt: skip
-    return k, distance, speed
-
-
-FOLLOW_SLACK = 0.05  # metres a planned follower keeps beyond the gap (samples are rounded)
-
-
-def _places(
-    follow: Following, name: str, fitted: dict[str, Curve], times: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """(places, speeds) at ``times`` of the other car of ``follow`` (fitted or old)."""
-    line = follow.leader_line if name == follow.leader else follow.follower_line
-    if follow.fixed:
-        rows = np.array(follow.fixed)
-        return np.interp(times, rows[:, 0], rows[:, 1]) - line, np.interp(
-            times, rows[:, 0], rows[:, 2]
-        )
-    at = np.array([fitted[name].at(float(t)) for t in times])
-    return at[:, 0] - line, at[:, 1]
-
-
-@dataclass(frozen=True)
-class _GapRow:
-    """One time step's gap condition on a curve: ``term <= bound`` (behind a leader) or
-    ``term >= bound`` (ahead of an old follower)."""
-
-    term: Linear
-    bound: float
-    behind: bool
-
-    def add_to(self, program: LinearProgram) -> None:
-        if self.behind:
-            program.at_most(self.term, self.bound)
-        else:
-            program.at_least(self.term, self.bound)
-
-    def holds(self, solution: dict[str, float]) -> bool:
-        """Whether the solution keeps the row, within the LP solver's tolerance."""
-        value = value_of(self.term, solution)
-        bound = self.bound
-        return value <= bound + ROW_TOLERANCE if self.behind else value >= bound - ROW_TOLERANCE
-
-
-def _following(
-    problem: TimingProblem,
-    car: CarPlan,
-    points: Sequence[_Boundary],
-    d: Sequence[Linear],
-    v: Sequence[Linear],
-    fitted: dict[str, Curve],
-) -> list[_GapRow]:
-    """The car keeps behind the cars ahead of it and ahead of the old cars behind it, at
-    every time step (the checker's samples), with FOLLOW_SLACK and the plan's headway:
-    one row per step at which the condition can bind."""
-    steps = round(problem.duration / problem.timestep)
-    step_times = np.round(np.arange(1, steps + 1) * problem.timestep, 9)
-    highs = [p.high for p in points]
-    lows = [p.low for p in points]
-    times = [p.t for p in points]
-    rows: list[_GapRow] = []
-    for follow in problem.follows:
-        if car.car not in (follow.leader, follow.follower):
-            continue
-        behind = car.car == follow.follower
-        if not behind and not follow.fixed:
-            continue  # a symbolic follower keeps behind this car when it is fitted
-        places, speeds = _places(
-            follow, follow.leader if behind else follow.follower, fitted, step_times
-        )
-        gap = follow.gap + FOLLOW_SLACK
-        for t, place, speed in zip(step_times.tolist(), places.tolist(), speeds.tolist(),
-                                   strict=True):  # fmt: skip
-            k = min(max(bisect.bisect_right(times, t) - 1, 0), len(points) - 2)
-            if behind:
-                rear = place - follow.leader_length
-                if rear >= follow.parting or (follow.joined and rear < 0):
-                    continue
-                bound = rear - gap + follow.follower_line
-                if bound >= highs[k + 1] + follow.headway * problem.bounds_of(car).v_max:
-                    continue  # the car cannot be that far yet
-                _, distance, pace = _on_piece(points, d, v, t)
-                rows.append(_GapRow(distance + pace * follow.headway, bound, True))
-            else:
-                if follow.joined and place < 0:
-                    continue  # the old follower has not reached the shared lane
-                needed = min(follow.parting, place + gap + follow.headway * max(speed, 0.0))
-                least = needed + follow.leader_length + follow.leader_line
-                if least <= lows[k]:
-                    continue
-                _, distance, _ = _on_piece(points, d, v, t)
-                rows.append(_GapRow(distance, least, False))
-    return rows
-
-
-ROW_TOLERANCE = 1e-6  # metres a solution may miss a gap row by (the LP solver's tolerance)
-GAP_ROUNDS = 12  # rounds of adding the violated gap rows before adding all of them
-
-
-def _solve_with_gaps(program: LinearProgram, rows: Sequence[_GapRow]) -> dict[str, float] | None:
-    """The optimum of ``program`` that keeps every gap row. Rows are added where the
-    optimum without them breaks them, round by round (most never bind, and each one makes
-    the optimisation slower); after GAP_ROUNDS rounds, all of them. A relaxation without
-    a solution has none with every row either."""
-    chosen: set[int] = set()
-    for _ in range(GAP_ROUNDS):
-        attempt = program.copy()
-        for index in sorted(chosen):
-            rows[index].add_to(attempt)
-        solution = attempt.solve()
-        if solution is None:
-            return None
-        broken = {index for index, row in enumerate(rows) if not row.holds(solution)}
-        if not broken:
-            return solution
-        chosen |= broken
-    for row in rows:
-        row.add_to(program)
-    return program.solve()
-
-
 def _pieces(
     program: LinearProgram,
     bounds: Bounds,
@@ -333,7 +197,9 @@ def fit_curve(
     bounds = problem.bounds_of(car)
     program = LinearProgram(WORK)
     d, v = _unknowns(program, bounds.v_max, points)
-    rows = _following(problem, car, points, d, v, fitted or {})
+    ends = [p.t for p in points]
+    rows = gap_rows(problem, car.car, bounds.v_max, ends, [p.low for p in points],
+                    [p.high for p in points], fitted or {})  # fmt: skip
     running = _running_span(car, windows)
     peak = program.variable("peak")
     cost: list[Linear] = [peak * 10]
@@ -357,7 +223,7 @@ def fit_curve(
             miss = program.magnitude(v[k] - CRUISE * bounds.v_max)
             cost.append(miss * (TAIL_WEIGHT * (points[k].t - points[k - 1].t)))
     program.minimize(total(cost))
-    solution = _solve_with_gaps(program, rows)
+    solution = solve_with_gaps(program, rows, ends, d, v)
     return None if solution is None else _curve(points, d, v, solution)
 
 
@@ -378,7 +244,10 @@ def frontier(
     d, v = _unknowns(program, bounds.v_max, points)
     _pieces(program, bounds, points, d, v)
     program.minimize(total(d[1:]) * -1.0)
-    solution = _solve_with_gaps(program, _following(problem, car, points, d, v, fitted))
+    ends = [p.t for p in points]
+    rows = gap_rows(problem, car.car, bounds.v_max, ends, [p.low for p in points],
+                    [p.high for p in points], fitted)  # fmt: skip
+    solution = solve_with_gaps(program, rows, ends, d, v)
     return None if solution is None else _curve(points, d, v, solution)
 
 

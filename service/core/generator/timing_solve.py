@@ -36,9 +36,36 @@ FRONTIER_ROUNDS = 3  # followers whose knots are planned again behind their fron
 BEHIND = "a follower planned behind the cars ahead"  # said of curves from such a plan
 
 Planner = Callable[[TimingProblem], "dict[str, list[float]] | None"]
+GridPlan = tuple["dict[str, list[float]] | None", "list[int] | None"]
 
 
-def _fit_behind(problem: TimingProblem, fitter: Fitter, planner: Planner) -> dict[str, Curve]:
+class _Made:
+    """The speed-grid plans and frontiers of one problem, each made once: the fall-backs
+    ask for the same ones again (a problem informed of a follower's frontier differs from
+    the one given only in its ``earliest`` times)."""
+
+    def __init__(self) -> None:
+        self.grids: dict[tuple[object, float], GridPlan] = {}
+        self.knots: dict[tuple[object, ...], list[tuple[str, float]] | None] = {}
+
+    def grid(self, problem: TimingProblem, share: float) -> GridPlan:
+        key = (problem.earliest, share)
+        if key not in self.grids:
+            self.grids[key] = plan_on_speed_grid(problem, share)
+        return self.grids[key]
+
+    def earliest_knots(
+        self, problem: TimingProblem, car: CarPlan, fitted: dict[str, Curve]
+    ) -> list[tuple[str, float]] | None:
+        key = (car.car, *sorted(fitted.items(), key=lambda item: item[0]))
+        if key not in self.knots:
+            self.knots[key] = _earliest_knots(problem, car, fitted)
+        return self.knots[key]
+
+
+def _fit_behind(
+    problem: TimingProblem, fitter: Fitter, planner: Planner, made: _Made
+) -> dict[str, Curve]:
     """After ``fitter`` failed on a follower's curve: every curve of plans by ``planner``
     that see the cars ahead of the follower better.
 
@@ -54,7 +81,7 @@ def _fit_behind(problem: TimingProblem, fitter: Fitter, planner: Planner) -> dic
         if name is None or name in done or not any(f.follower == name for f in problem.follows):
             break
         done.add(name)
-        earliest = _earliest_knots(problem, fitter.cars[name], fitter.ahead)
+        earliest = made.earliest_knots(problem, fitter.cars[name], fitter.ahead)
         if earliest is None:
             break
         informed = dataclasses.replace(
@@ -67,10 +94,10 @@ def _fit_behind(problem: TimingProblem, fitter: Fitter, planner: Planner) -> dic
 
 
 def _grid_plan(
-    problem: TimingProblem, share: float, smoothed: bool
+    problem: TimingProblem, share: float, smoothed: bool, made: _Made
 ) -> dict[str, list[float]] | None:
     """A speed-grid plan, smoothed with continuous speeds around it or as it is."""
-    grid = plan_on_speed_grid(problem, share)[0]
+    grid = made.grid(problem, share)[0]
     return plan_times(problem, share, grid) if grid and smoothed else grid
 
 
@@ -118,19 +145,20 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     if problem.aims:
         return solve_aimed(problem) or TimingFailure("no curves keep the aims")
     comfortable, largest = SHARES[0], SHARES[-1]
-    fitter = Fitter(problem)
+    fitter, made = Fitter(problem), _Made()
     smooth = plan_times(problem, comfortable)
     curves = fitter.fit_all(smooth)
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
-    edge, unreachable = plan_on_speed_grid(problem, largest)
+    edge, unreachable = made.grid(problem, largest)
     if edge is None:  # no grid plan: an order at the very edge of the bounds, or beyond
         core = order_core(problem) if smooth is None else None
         if core is not None:
             return TimingFailure("no event times can realise this order", tuple(core), True)
         reason = f"no speed profile within {round(largest * 100)} % of the bounds"
         return TimingFailure(reason, tuple(unreachable or ()))
-    curves = _fit_behind(problem, fitter, functools.partial(plan_times, share=comfortable))
+    planner = functools.partial(plan_times, share=comfortable)
+    curves = _fit_behind(problem, fitter, planner, made)
     if curves:
         return TimingSolution(
             curves, f"linear, {round(comfortable * 100)} % of the bounds, {BEHIND}"
@@ -139,15 +167,15 @@ def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
     if curves:
         return TimingSolution(curves, f"linear, {round(comfortable * 100)} % of the bounds")
     for share in SHARES:
-        grid = edge if share == largest else plan_on_speed_grid(problem, share)[0]
+        grid = made.grid(problem, share)[0]
         for smoothed in (True, False):
             planned = plan_times(problem, share, grid) if grid and smoothed else grid
             method = f"speed grid, {round(share * 100)} % of the bounds"
             curves = fitter.fit_all(planned)
             if curves:
                 return TimingSolution(curves, method)
-            planner = functools.partial(_grid_plan, share=share, smoothed=smoothed)
-            curves = _fit_behind(problem, fitter, planner)
+            planner = functools.partial(_grid_plan, share=share, smoothed=smoothed, made=made)
+            curves = _fit_behind(problem, fitter, planner, made)
             if curves:
                 return TimingSolution(curves, f"{method}, {BEHIND}")
     return TimingFailure("no curves within the bounds for the planned event times")
