@@ -119,7 +119,7 @@ def _plan(car: OrderingCar, ordering: Ordering, track: PoseTrack, stop_sign: boo
         runs = (arrival, entry)
     inside = (entry, leaves) if entry is not None and leaves is not None else None
     # No end of the road here: a car's trajectory ends where it leaves the map (_sample).
-    return CarPlan(car.car, tuple(knots), math.inf, car.start_speed, runs, inside)
+    return CarPlan(car.car, tuple(knots), math.inf, car.start_speed, runs, inside, arrival=arrival)
 
 
 def _on_grid(distance: float) -> float:

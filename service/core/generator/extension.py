@@ -38,9 +38,17 @@ from service.core.generator.additions import (
     validate_routes,
 )
 from service.core.generator.ordering import Ordering
-from service.core.generator.search import Attempt, Deadline, ExtensionSearch, Progress, not_found
+from service.core.generator.search import (
+    MAX_TIMINGS,
+    TIMINGS_PER_WANTED,
+    Attempt,
+    Deadline,
+    ExtensionSearch,
+    Progress,
+    not_found,
+)
 from service.core.generator.timing import TimingProblem
-from service.core.generator.variety import is_new, signature
+from service.core.generator.variety import AIM_POINTS, is_new, signature
 from service.core.generator.verification import checked_judge
 from service.core.generator.walkers import (
     NewPedestrians,
@@ -106,22 +114,28 @@ class Extensions:
     orders_tried: int  # answer sets drawn
     exhausted: bool  # every order of events was drawn
     timings_tried: int  # other timings of verified orders
+    timings_limited: bool = False  # their count (TIMINGS_PER_WANTED a wanted one) ran out
 
     def shortfall(self, wanted: int) -> str | None:
-        """Why fewer than ``wanted`` came back (None when that many did)."""
+        """Why fewer than ``wanted`` came back (None when that many did): which of the
+        search's counts ran out, the answer sets of Step 2 or the other timings, or that
+        every order was drawn and every point of its timings looked at."""
         have = len(self.found)
         if have >= wanted:
             return None
-        timings = f", and {self.timings_tried} other timings of the verified ones"
         if self.exhausted:
-            return (
-                f"{have} distinct extensions exist for these routes: all orders of events "
-                f"tried ({self.orders_tried}){timings if self.timings_tried else ''}"
+            orders = f"every order of events tried ({self.orders_tried} answer sets)"
+        else:
+            orders = f"the search's count of {self.orders_tried} answer sets ran out"
+        timings = ""
+        if self.timings_tried:
+            timings = f"; {self.timings_tried} other timings of the verified orders tried, " + (
+                f"their count ({TIMINGS_PER_WANTED} per extension wanted, at most "
+                f"{MAX_TIMINGS}) ran out"
+                if self.timings_limited
+                else f"all {AIM_POINTS} points of their entry and arrival windows looked at"
             )
-        return (
-            f"{have} distinct extensions found within the search's count of "
-            f"{self.orders_tried} answer sets{timings if self.timings_tried else ''}"
-        )
+        return f"{have} distinct extensions found: {orders}{timings}"
 
 
 def extend_testcases(
@@ -140,8 +154,9 @@ def extend_testcases(
 ) -> Extensions:
     """Up to ``count`` verified extensions (as ``extend_testcase`` makes one) that differ
     from each other and from ``avoid`` (variety.Signature): different orders of events
-    first, each answer set at most once; then other timings of the verified orders, aimed
-    at the points of variety.AIMS of the new cars' entry windows. Raises what
+    first, each answer set at most once (those alike in the test-case's cars ruled out
+    once one of them is verified); then other timings of the verified orders, aimed at the
+    points of variety.aim_points over the new cars' entry and arrival windows. Raises what
     ``extend_testcase`` raises when there is none; fewer than ``count`` is not an error
     (``Extensions.shortfall`` says why). ``walks``: new pedestrians, one on each walk
     (docs/pedestrians.md), with the new cars or without them."""
@@ -235,7 +250,9 @@ def extend_testcases(
         )
     if not found:
         raise not_found(old, junction, cars, queue.bounds, seed, routes, attempts, search.exhausted)
-    return Extensions(found, len(search.tried), search.exhausted, len(search.variants))
+    return Extensions(
+        found, len(search.tried), search.exhausted, len(search.variants), search.timings_limited
+    )
 
 
 def _note_shortened(

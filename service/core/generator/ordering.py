@@ -17,7 +17,7 @@ import functools
 import itertools
 import math
 import random
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 from enum import StrEnum
 from pathlib import Path
@@ -507,6 +507,20 @@ class OrderingSearch:
         for car in sorted(self.symbolic):
             stop = f'stoppedAtForkAtTime("{car}",_,{stop_symbol(car)})'
             literals.append(stop if car in ordering.stops else f"not {stop}")
+        self._add_constraint(literals)
+
+    def block_alike(
+        self,
+        relations: Sequence[tuple[str, clingo.Symbol, clingo.Symbol]],
+        stops: Collection[str],
+        cars: Collection[str],
+    ) -> None:
+        """Rule out every answer set with all of ``relations`` in which, of ``cars``, just
+        those of ``stops`` stop at their sign (the answer sets alike in these)."""
+        literals = [f"{kind}({a},{b})" for kind, a, b in relations]
+        for car in sorted(cars):
+            stop = f'stoppedAtForkAtTime("{car}",_,{stop_symbol(car)})'
+            literals.append(stop if car in stops else f"not {stop}")
         self._add_constraint(literals)
 
     def forbid(self, relations: Sequence[tuple[str, clingo.Symbol, clingo.Symbol]]) -> None:

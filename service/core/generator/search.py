@@ -41,9 +41,11 @@ from service.core.generator.timing import (
 )
 from service.core.generator.timing_solve import solve_timing
 from service.core.generator.variety import (
-    AIMS,
+    AIM_POINTS,
     DISTINCT_GAP,
+    LATTICE,
     Signature,
+    aim_points,
     is_new,
     seed_aim,
     signature,
@@ -58,6 +60,7 @@ from service.core.testcase import TestCase
 # then, when those are exhausted, every order the full bounds allow.
 SEARCH_SHARES = (0.7, 1.0)
 TIMINGS_PER_WANTED = 3  # other timings extend_testcases tries per extension still wanted
+MAX_TIMINGS = 60  # ... and at most this many in one call (each costs a plan and a verdict)
 
 Progress = Callable[[str], None]
 
@@ -124,6 +127,8 @@ class ExtensionSearch:
         self.tracks, self.added, self.seed, self.judge = tracks, added, seed, judge
         self.deadline, self.say, self.seconds, self.attempts = deadline, say, seconds, attempts
         self.tried: list[Ordering] = []
+        self.verified: list[Ordering] = []  # of every test-case order, the first verified
+        self.timings_limited = False  # timings() stopped at its count
         self.exhausted = False
         self.problem: TimingProblem | None = None  # of the last verified candidate
         self.variants: list[tuple[int, float]] = []  # (answer set, aim) of every timing tried
@@ -152,6 +157,8 @@ class ExtensionSearch:
                 search.block(ordering)
             for relations in ruled_out:
                 search.forbid(relations)
+            for ordering in self.verified:
+                self._block_alike(search, ordering)
             seconds["ordering"] += time.monotonic() - clock
             self.exhausted = False
             while len(attempts) < max_orders:
@@ -190,9 +197,26 @@ class ExtensionSearch:
                 self.say(f"step 2/3 answer set {number + 1}: {outcome}")
                 if candidate is not None:
                     self.keys[self._key(ordering)] = number + 1
+                    self.verified.append(ordering)
+                    self._block_alike(search, ordering)
                     yield ordering, candidate
             if not self.exhausted:
                 return
+
+    def _block_alike(self, search: OrderingSearch, ordering: Ordering) -> None:
+        """Rule out the answer sets that differ from a verified order only in how the
+        certificates drive (the same test-case: ``_key``), so that the search's count goes
+        to other test-cases: for an order with relations among the test-case's cars, or
+        where there are no two such cars to relate (else a constraint without relations
+        would rule out orders with other relations too)."""
+        test = [
+            relation
+            for relation, named in zip(ordering.relations, ordering.named, strict=True)
+            if test_relations([" ".join(named)])
+        ]
+        if test or len(self.old.road_users) + len(self.added.everyone) < 2:
+            cars = set(self.added.everyone)
+            search.block_alike(test, ordering.stops & cars, cars)
 
     def _key(self, ordering: Ordering) -> tuple[tuple[str, ...], frozenset[str]]:
         """What of an order the test-case keeps (variety.Signature): the relations among
@@ -205,23 +229,33 @@ class ExtensionSearch:
         self, verified: Sequence[Ordering], taken: list[Signature], wanted: int
     ) -> Iterator[tuple[Ordering, TestCase]]:
         """Up to ``wanted`` more candidates from the verified orders, aimed at the points
-        of variety.AIMS in turn (each point in every order before the next point), those
+        of variety.aim_points in turn (each point in every order before the next point), those
         that differ from ``taken`` (which the caller extends with every one it keeps); at
-        most TIMINGS_PER_WANTED x ``wanted`` timings are tried (a count). A point whose
-        entry times are close to those of one taken is passed over without solving."""
+        most TIMINGS_PER_WANTED x ``wanted`` timings are tried, and at most MAX_TIMINGS (a
+        count). A point whose entry and arrival times are close to
+        those of one taken is passed over without solving."""
         given, tried = 0, 0
-        for aim in AIMS:
+        points = {ordering: aim_points(self._lattice_step(ordering)) for ordering in verified}
+        for rank in range(AIM_POINTS):
             for ordering in verified:
-                if given >= wanted or tried >= TIMINGS_PER_WANTED * wanted:
+                aim, arrival = points[ordering][rank]
+                if given >= wanted:
+                    return
+                if tried >= min(TIMINGS_PER_WANTED * wanted, MAX_TIMINGS):
+                    self.timings_limited = True
                     return
                 aims = self._aims(ordering, aim)
-                if not aims or _near(aims, taken):
+                if not aims:
+                    continue
+                arrivals = self._arrival_aims(ordering, aims, arrival)
+                if self._near(ordering, aims, arrivals, taken):
                     continue
                 number = self.keys[self._key(ordering)]
                 self.variants.append((number, aim))
                 tried += 1
-                outcome, candidate, _ = self.attempt(ordering, aim, number)
-                self.say(f"step 3 answer set {number} at {aim:g} of its timings: {outcome}")
+                outcome, candidate, _ = self.attempt(ordering, aim, number, arrival=arrival)
+                where = f"{aim:.4g}" + ("" if arrival is None else f", {arrival:.4g}")
+                self.say(f"step 3 answer set {number} at {where} of its timings: {outcome}")
                 if candidate is None or not is_new(signature(candidate), taken):
                     continue
                 given += 1
@@ -246,6 +280,61 @@ class ExtensionSearch:
                 target = min(sides, key=lambda t: abs(t - target), default=target)
             aims.append((symbol, round(target, 4)))
         return tuple(aims)
+
+    def _lattice_step(self, ordering: Ordering) -> float | None:
+        """The share of the first new car's entry window that LATTICE x DISTINCT_GAP
+        seconds make (None without a window)."""
+        if ordering not in self.windows:
+            self.windows[ordering] = self._windows(ordering)
+        if not self.windows[ordering]:
+            return None
+        _, (low, high), _ = self.windows[ordering][0]
+        return LATTICE * DISTINCT_GAP / (high - low) if high > low else None
+
+    def _arrival_aims(self, ordering: Ordering, aims: Aims, share: float | None) -> Aims:
+        """Each new car's arrival at its line aimed at ``share`` of the window of arrival
+        times that its aimed entry (in ``aims``) leaves; none without a share, for a car
+        that arrives where it starts, or where the window is empty."""
+        if share is None:
+            return ()
+        problem, entries = self._problem(ordering), dict(aims)
+        found = []
+        for plan in problem.cars:
+            entry = _entry_symbol(plan)
+            if plan.car not in self.added.everyone or plan.arrival is None or entry is None:
+                continue
+            arrival = plan.knots[plan.arrival].symbol
+            if entry not in entries or arrival is None or arrival == entry:
+                continue
+            held = ((entry, entries[entry]),)
+            given = dataclasses.replace(
+                problem, earliest=problem.earliest + held, latest=problem.latest + held
+            )
+            window = entry_window(given, arrival)
+            if window is not None:
+                low, high = window
+                found.append((arrival, round(low + share * (high - low), 4)))
+        return tuple(found)
+
+    def _near(
+        self, ordering: Ordering, aims: Aims, arrivals: Aims, taken: Sequence[Signature]
+    ) -> bool:
+        """Whether a test-case taken (of any order: its signature tells the orders apart
+        only after solving) has every new car within DISTINCT_GAP of the aimed entry and,
+        where one is aimed, the aimed arrival: solving would give no new test-case."""
+        owner = {k.symbol: plan.car for plan in self._problem(ordering).cars for k in plan.knots}
+        entries = {owner[symbol]: t for symbol, t in aims}
+        arrived = {owner[symbol]: t for symbol, t in arrivals}
+        return any(
+            mark.cars
+            and all(
+                car.car in entries
+                and abs(car.entry - entries[car.car]) < DISTINCT_GAP
+                and (car.car not in arrived or abs(car.arrival - arrived[car.car]) < DISTINCT_GAP)
+                for car in mark.cars
+            )
+            for mark in taken
+        )
 
     def _problem(self, ordering: Ordering) -> TimingProblem:
         """Step 3's problem of an order (made once: the windows and every timing use it)."""
@@ -284,21 +373,29 @@ class ExtensionSearch:
         return self.solved[key]
 
     def attempt(
-        self, ordering: Ordering, aim: float | None, number: int, apart: bool = False
+        self,
+        ordering: Ordering,
+        aim: float | None,
+        number: int,
+        apart: bool = False,
+        arrival: float | None = None,
     ) -> tuple[str, TestCase | None, list[tuple[str, Any, Any]] | None]:
         """The outcome of timing and judging one order, aimed at ``aim`` of the new cars'
-        entry windows (None: the smoothest plan): what happened, the verified candidate
-        (or None), and the relations that cannot hold together (a core, or None)."""
+        entry windows (None: the smoothest plan) and ``arrival`` of the arrival windows
+        those entries leave (None: as the plan has it): what happened, the verified
+        candidate (or None), and the relations that cannot hold together (a core, or
+        None)."""
         old, seconds = self.old, self.seconds
         self.deadline.check(self.attempts, "Step 3")
         clock = time.monotonic()
         aims = self._aims(ordering, aim, apart) if aim is not None else ()
+        arrivals = self._arrival_aims(ordering, aims, arrival)
         if aim is not None and not aims:
             seconds["timing"] += time.monotonic() - clock
             return "no window of entry times to aim in", None, None
         seconds["timing"] += time.monotonic() - clock
         problem = self._problem(ordering)
-        result = self._solve(ordering, aims)
+        result = self._solve(ordering, aims + arrivals)
         if isinstance(result, TimingFailure):
             core = [ordering.relations[i] for i in result.core] if result.core else None
             return f"timing: {result.reason}", None, core
@@ -315,15 +412,12 @@ class ExtensionSearch:
             candidate.provenance["timing_aim"] = {
                 "share": aim, "entries": {s: round(t, 3) for s, t in aims}
             }  # fmt: skip
+            if arrivals:
+                candidate.provenance["timing_aim"] |= {
+                    "arrival_share": arrival, "arrivals": {s: round(t, 3) for s, t in arrivals}
+                }  # fmt: skip
         self.problem = problem
         return f"verified ({result.method})", candidate, None
-
-
-def _near(aims: Sequence[tuple[str, float]], taken: Sequence[Signature]) -> bool:
-    """Whether the first aimed entry is within half of DISTINCT_GAP of the entry of a
-    test-case taken (of any order: its signature tells the orders apart after solving)."""
-    _, target = aims[0]
-    return any(abs(mark.cars[0].entry - target) < DISTINCT_GAP / 2 for mark in taken if mark.cars)
 
 
 def _entry_symbol(plan: CarPlan) -> str | None:

@@ -82,6 +82,7 @@ class CarPlan:
     # walking bounds); None: the problem's, a car's
     crossing: float | None = None  # its own least average speed inside (a pedestrian's on
     # its crosswalk); None: the problem's
+    arrival: int | None = None  # knot index of arriving at its line (None: at its start)
 
 
 @dataclass(frozen=True)

@@ -11,16 +11,20 @@ their parents' cars). The signature is read from the test-case itself (its prove
 its new cars' events), so test-cases from a store, a campaign or another process compare
 the same way.
 
-Within one order, the timings differ by where the new cars enter the junction: Step 3 can
-aim at a point of each new car's window of entry times (``timing.entry_window``).
-``AIMS`` lists the points, as shares of the window, in the order they are tried: the ends
-first, then halves, quarters and eighths, so any first k spread over the window. A seed
-picks a point of ``seed_aim``'s sequence, so that seeds 1, 2, 3, ... land on points apart.
+Within one order, the timings differ by when the new cars arrive at their line and enter
+the junction: Step 3 can aim at a point of each new car's window of entry times
+(``timing.entry_window``) and, given that entry, of its window of arrival times.
+``AIMS`` lists the entry points, as shares of the window, in the order they are tried: the
+ends first, then halves, quarters and eighths, so any first k spread over the window. A
+seed picks a point of ``seed_aim``'s sequence, so that seeds 1, 2, 3, ... land on points
+apart. ``--count`` goes on over both windows at once (``aim_points``) until it has its
+test-cases or its count of points runs out.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -30,6 +34,46 @@ from service.core.testcase import MAX_NAME_LENGTH, Pedestrian, TestCase, testcas
 DISTINCT_GAP = 1.0  # seconds: new cars entering the junction this far apart make a new test-case
 AIMS = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875)  # shares of the entry window
 MAX_COUNT = 50  # distinct extensions one call (CLI, API, batch item) asks for at most
+AIM_POINTS = 256  # points of the timings --count looks at, at most (a count)
+LATTICE = 1.02  # entries aimed this many DISTINCT_GAPs apart are distinct test-cases
+AimPoint = tuple[float, float | None]  # (share of the entry window, of the arrival window)
+
+
+def aim_points(step: float | None = None) -> list[AimPoint]:
+    """Where ``--count`` aims in the timings of an order, in turn. With ``step`` (the share
+    of the entry window that LATTICE x DISTINCT_GAP seconds make): the entry at every
+    multiple of it, the halves of the window first, so that as many entries as the window
+    holds DISTINCT_GAP apart are aimed at; without: the points of AIMS. The arrival as the
+    plan has it for these; then the points of the Halton sequence over the entry window
+    and the window of arrival times that the aimed entry leaves (bases 2 and 3).
+    AIM_POINTS in all (points near a test-case already found are passed over without
+    solving)."""
+    points: list[AimPoint] = []
+    if step is not None and 0 < step < 1:
+        last = math.floor(1 / step)
+        multiples: dict[int, None] = {}
+        k = 0
+        while len(multiples) < last + 1:
+            multiples.setdefault(round(_radical_inverse(k, 2) * last), None)
+            k += 1
+        points += [(j * step, None) for j in multiples]
+    else:
+        points += [(aim, None) for aim in AIMS]
+    n = 1
+    while len(points) < AIM_POINTS:
+        points.append((_radical_inverse(n, 2), _radical_inverse(n, 3)))
+        n += 1
+    return points[:AIM_POINTS]
+
+
+def _radical_inverse(n: int, base: int) -> float:
+    """The van der Corput point of ``n`` in ``base`` (the digits of n mirrored)."""
+    point, scale = 0.0, 1.0 / base
+    while n:
+        n, digit = divmod(n, base)
+        point += digit * scale
+        scale /= base
+    return point
 
 
 @dataclass(frozen=True)
@@ -139,12 +183,7 @@ def seed_aim(seed: int) -> float | None:
     ...), so that the first seeds spread over the window and no two seeds share a point."""
     if seed <= 0:
         return None
-    point, scale, n = 0.0, 0.5, seed
-    while n:
-        n, bit = divmod(n, 2)
-        point += bit * scale
-        scale /= 2
-    return point
+    return _radical_inverse(seed, 2)
 
 
 def describe_variants(testcases: Sequence[TestCase]) -> list[str]:
@@ -180,7 +219,11 @@ def _aimed(aim: dict[str, Any] | None) -> str:
         return "smoothest timing"
     share = float(aim["share"])
     ends = {0.0: "the earliest entry", 1.0: "the latest entry"}
-    return f"timing aimed at {ends.get(share, f'{share * 100:g} % of the entry window')}"
+    said = f"timing aimed at {ends.get(share, f'{share * 100:.3g} % of the entry window')}"
+    arrival = aim.get("arrival_share")
+    if arrival is not None:
+        said += f" and {float(arrival) * 100:.3g} % of the arrival window"
+    return said
 
 
 def order_key(mark: Signature) -> tuple[tuple[str, ...], tuple[str, ...]]:

@@ -172,3 +172,42 @@ def test_a_car_that_enters_where_it_arrives_cannot_stop_before_the_line() -> Non
     )
     car = OrderingCar("car1", CarKind.NEW, "f", ":C_0_0", events)
     assert stand_distance(car) is None
+
+
+def test_what_step3_rules_out_stays_out_of_every_later_answer_set(four_way: Intersection) -> None:
+    """Refusals teach Step 2: once relations are forbidden (an untimeable order's core) no
+    later answer set has all of them; once an order is blocked as alike (its relations
+    among the test-case's cars and its new cars' stops), no later one repeats them."""
+    old = new_testcase("4way-stop", "S2C_1:C2W_1", duration=25.0)
+    routes = validate_routes(old, four_way, ["W2C_0:C2E_0", "N2C_0:C2S_0"])
+    tracks = generate_poses(
+        four_way,
+        [(four_way.route(old.ego.route.id), 30.0), *((r, 30.0) for r in routes)],
+        8.0,
+        25.0,
+        0.1,
+    )
+    ids = ["car1", "car2"]
+    cars = ordering_cars(old, Judge(old, four_way), four_way, tracks[0],
+                         dict(zip(ids, tracks[1:], strict=True)), routes, ids)  # fmt: skip
+    search = OrderingSearch(four_way, cars, old.params.m, 0, order_limits(old))
+    first = search.next_ordering()
+    assert first is not None
+    core = list(first.relations[:2])
+    search.forbid(core)
+    second = search.next_ordering()
+    assert second is not None
+    among_new = [
+        relation
+        for relation, named in zip(second.relations, second.named, strict=True)
+        if '"ego"' not in " ".join(named) and '"illegal"' not in " ".join(named)
+    ]
+    assert among_new  # the two new cars meet: their order is part of the test-case
+    search.block_alike(among_new, second.stops & set(ids), ids)
+    later = [search.next_ordering() for _ in range(8)]
+    assert all(ordering is not None for ordering in later)
+    for ordering in later:
+        assert ordering is not None
+        assert not set(core) <= set(ordering.relations)
+        alike = set(among_new) <= set(ordering.relations)
+        assert not (alike and ordering.stops & set(ids) == second.stops & set(ids))
