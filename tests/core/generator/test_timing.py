@@ -216,6 +216,17 @@ def assert_invariants(problem: TimingProblem, car: CarPlan, curve: Curve) -> Non
             assert abs(curve.at(begin + DWELL / 2)[1]) < 1e-6
 
 
+def assert_relations_hold(problem: TimingProblem, times: dict[str, float]) -> None:
+    """Every order relation holds between ``times`` with its margin (within the plan's
+    rounding to 0.1 ms)."""
+    for kind, a, b in problem.relations:
+        gap = times[b] - times[a]
+        if kind == "lessThan":
+            assert gap >= problem.m + problem.margin - 1e-3, (kind, a, b, gap)
+        else:
+            assert abs(gap) <= problem.m - problem.margin + 1e-3, (kind, a, b, gap)
+
+
 @settings(
     max_examples=30,
     deadline=None,
@@ -239,12 +250,7 @@ def test_step3_keeps_every_invariant_on_solvable_problems(
         for knot in car.knots:
             if knot.symbol is not None:
                 times[knot.symbol] = crossing(curve, knot.distance)
-    for kind, a, b in problem.relations:
-        gap = times[b] - times[a]
-        if kind == "lessThan":
-            assert gap >= problem.m + problem.margin - 1e-3, (kind, a, b, gap)
-        else:
-            assert abs(gap) <= problem.m - problem.margin + 1e-3, (kind, a, b, gap)
+    assert_relations_hold(problem, times)
 
 
 def _transport_like() -> tuple[LinearProgram, Linear, list[Linear]]:
@@ -370,9 +376,4 @@ def test_every_choice_of_times_within_the_windows_keeps_the_order(
         assert all(a < b for a, b in itertools.pairwise(chosen)), "knots out of order"
         assert all(high <= problem.duration - problem.margin + 1e-9
                    for _, high in windows[car.car])  # fmt: skip
-    for kind, a, b in problem.relations:
-        gap = times[b] - times[a]
-        if kind == "lessThan":
-            assert gap >= problem.m + problem.margin - 1e-3, (kind, a, b, gap)
-        else:
-            assert abs(gap) <= problem.m - problem.margin + 1e-3, (kind, a, b, gap)
+    assert_relations_hold(problem, times)
