@@ -315,8 +315,8 @@ def test_examples_produce_verified_chains(name: str, tmp_path: Path) -> None:
         assert result.stdout.endswith(
             "t-junction, the paper's table (seed 0):\n"
             "controller              level 0  level 1\n"
-            "sumo                    pass     pass\n"
-            "certificate:complexity  —        FAIL 21801(a) car1 (TTC 1.5 s)\n"
+            "sumo                    pass     pass (TTC 3.4 s)\n"
+            "certificate:complexity  —        FAIL 21801(a) car1 (TTC 1.2 s)\n"
         ), result.stdout
     else:
         assert "the paper's table" not in result.stdout

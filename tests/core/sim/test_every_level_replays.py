@@ -48,7 +48,8 @@ CHAINS = {
         ),
         2,
     ),
-    "queue": (_queue_root, 2),  # at seed 0: at seed 7 no more complex test-case exists at level 2
+    "queue": (_queue_root, 2),  # at seed 2: at seeds 0, 1, 3 and 5 the chain ends before
+    # level 2 with a proof that no more complex test-case exists
     "town05-396": (
         lambda: new_testcase(
             TOWN05, "-44_1:-9_1", junction="396", control="allway_stop", duration=DURATION
@@ -83,7 +84,7 @@ CHAINS = {
 def test_every_level_replays_with_every_controller_on_the_map(name: str) -> None:
     make_root, levels = CHAINS[name]
     root = make_root()
-    seed = 0 if name == "queue" else 7
+    seed = 2 if name == "queue" else 7
     chain = [growth.extension.testcase for growth in grow_chain(root, levels, seed=seed)]
     assert len(chain) == levels
     intersection = load_testcase_intersection(root)
