@@ -200,7 +200,7 @@ def against_paper(problems: list[TimingProblem]) -> None:
     ours, paper, solved = [], [], 0
     for problem in problems:
         clock = time.perf_counter()
-        solve_timing(problem)
+        solve_timing.__wrapped__(problem)  # not the remembered answer
         ours.append(time.perf_counter() - clock)
         clock = time.perf_counter()
         outcome = solve_paper(problem, PAPER_BUDGET)

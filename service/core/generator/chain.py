@@ -7,7 +7,8 @@ no car uses first; only when none of them gives an extension, those that join a 
 group, first every route gets up to ROUTE_ORDERS answer sets (a count, not a clock), in
 that order; when none of them gave an extension, those whose search was cut short get the
 generator's full MAX_ORDERS (starting over: the search is deterministic, so the first
-ROUTE_ORDERS are tried again). The time budget only stops the call.
+ROUTE_ORDERS are drawn again, and their Step 3 is remembered, timing_solve.solve_timing).
+The time budget only stops the call.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ then, when a speed-grid plan exists, plans again with a follower's knots behind 
 frontier (the furthest it can get behind the cars ahead), the smooth plan with continuous
 speeds, and speed-grid plans; with aims, only plans that keep them
 (service.core.generator.timing_aims). When no plan exists, the relations that cannot hold
-together go back to Step 2.
+together go back to Step 2. Answers are remembered by problem (``REMEMBERED``).
 """
 
 from __future__ import annotations
@@ -130,8 +130,16 @@ def _passes(curve: Curve, distance: float, timestep: float) -> float:
     )
 
 
+REMEMBERED = 128  # Step 3 answers kept per process (a chain's second round asks again
+# for up to ROUTE_ORDERS per route it retries)
+
+
+@functools.lru_cache(maxsize=REMEMBERED)
 def solve_timing(problem: TimingProblem) -> TimingSolution | TimingFailure:
-    """Curves for every car, or what failed. First the smooth plan with the comfortable
+    """Curves for every car, or what failed; remembered by problem (the answer depends on
+    the problem alone: a chain's route that gets more answer sets in a second round draws
+    its first ones again, and their Step 3 is not done twice). Callers do not change the
+    answer. First the smooth plan with the comfortable
     share of the bounds; when its curves do not fit and a speed-grid plan exists within the
     largest share (checked first: most orders that fail, fail here), the smooth plan with
     its followers planned behind the cars ahead, the smooth plan again with continuous

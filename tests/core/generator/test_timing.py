@@ -377,3 +377,21 @@ def test_every_choice_of_times_within_the_windows_keeps_the_order(
         assert all(high <= problem.duration - problem.margin + 1e-9
                    for _, high in windows[car.car])  # fmt: skip
     assert_relations_hold(problem, times)
+
+
+@settings(max_examples=3, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])  # fmt: skip
+@given(problems())
+def test_step3_is_remembered_by_problem_and_gives_the_same_answer(
+    case: tuple[TimingProblem, dict[str, Drive]],
+) -> None:
+    """A problem equal to one solved before (a chain's second round draws its first
+    answer sets again) gets the remembered answer, and that is the answer solving it
+    afresh gives."""
+    problem, _ = case
+    first = solve_timing(problem)
+    hits = solve_timing.cache_info().hits
+    again = solve_timing(dataclasses.replace(problem))  # equal, not the same object
+    assert again is first
+    assert solve_timing.cache_info().hits == hits + 1
+    assert solve_timing.__wrapped__(problem) == first
