@@ -46,12 +46,14 @@ from service.core.generator.additions import (
 )
 from service.core.generator.extension import STEP1_SPEED, extend_testcase
 from service.core.generator.ordering import (
-    Limits,
     Ordering,
-    OrderingCar,
     OrderingSearch,
-    QueueBounds,
     SearchLimitReached,
+)
+from service.core.generator.ordering_facts import (
+    Limits,
+    OrderingCar,
+    QueueBounds,
     ordering_facts,
     stop_symbol,
 )

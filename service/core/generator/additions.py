@@ -17,7 +17,12 @@ from dataclasses import dataclass
 from service.core.checker.check import Judge
 from service.core.errors import InvalidInput, NoMoreComplexTestCase
 from service.core.generator.following import QueueMember, queue_bounds
-from service.core.generator.ordering import CarKind, OrderingCar, QueueBounds, timed_events
+from service.core.generator.ordering_facts import (
+    CarKind,
+    OrderingCar,
+    QueueBounds,
+    timed_events,
+)
 from service.core.generator.timing import TICK
 from service.core.generator.walkers import NewPedestrians
 from service.core.motion.events import LaneEvent, compute_events

@@ -21,9 +21,9 @@ from service.core.generator.additions import Added, Queue, car_events
 from service.core.generator.following import CERTIFICATES
 from service.core.generator.linear import GRID
 from service.core.generator.merging import exit_followings
-from service.core.generator.ordering import (
+from service.core.generator.ordering import Ordering
+from service.core.generator.ordering_facts import (
     CarKind,
-    Ordering,
     OrderingCar,
     event_groups,
     stand_distance,

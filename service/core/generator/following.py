@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import clingo
 
-from service.core.generator.ordering import (
+from service.core.generator.ordering_facts import (
     START,
     CarKind,
     OrderingCar,

@@ -20,7 +20,12 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
-from service.core.generator.ordering import CarKind, Ordering, OrderingCar, timed_events
+from service.core.generator.ordering import Ordering
+from service.core.generator.ordering_facts import (
+    CarKind,
+    OrderingCar,
+    timed_events,
+)
 from service.core.generator.timing import Following
 from service.core.motion.events import EventKind
 from service.core.network import Intersection

@@ -23,12 +23,14 @@ from service.core.errors import NoMoreComplexTestCase, NoneFound
 from service.core.generator.additions import Added, Queue
 from service.core.generator.candidate import judged_candidate, safety_margin, timing_problem
 from service.core.generator.ordering import (
-    Limits,
     Ordering,
-    OrderingCar,
     OrderingSearch,
-    QueueBounds,
     SearchLimitReached,
+)
+from service.core.generator.ordering_facts import (
+    Limits,
+    OrderingCar,
+    QueueBounds,
 )
 from service.core.generator.timing import (
     SHARES,

@@ -16,7 +16,11 @@ from typing import Any
 
 from service.core.checker.check import Judge
 from service.core.errors import InvalidInput
-from service.core.generator.ordering import CROSSING_PACE, CarKind, OrderingCar
+from service.core.generator.ordering_facts import (
+    CROSSING_PACE,
+    CarKind,
+    OrderingCar,
+)
 from service.core.generator.timing import CarPlan
 from service.core.motion.events import LaneEvent, pedestrian_events
 from service.core.motion.kinematics import Bounds

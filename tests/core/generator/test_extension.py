@@ -22,7 +22,10 @@ from service.core.errors import (
 )
 from service.core.generator import search
 from service.core.generator.extension import Extension, extend_testcase
-from service.core.generator.ordering import Ordering, OrderingSearch
+from service.core.generator.ordering import (
+    Ordering,
+    OrderingSearch,
+)
 from service.core.generator.search import ExtensionSearch
 from service.core.generator.timing import TimingProblem
 from service.core.generator.verification import verify_extension

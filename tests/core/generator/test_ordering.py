@@ -10,10 +10,10 @@ from clingodl import ClingoDLTheory
 from service.core.checker.check import Judge
 from service.core.checker.rules import asp_dir
 from service.core.generator.additions import ordering_cars, validate_routes
-from service.core.generator.ordering import (
+from service.core.generator.ordering import OrderingSearch
+from service.core.generator.ordering_facts import (
     CarKind,
     OrderingCar,
-    OrderingSearch,
     event_groups,
     stand_distance,
 )
