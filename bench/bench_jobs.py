@@ -1,14 +1,19 @@
-"""Benchmark: batch throughput on Celery with one and with two workers (same run, same batch).
+"""Benchmark: batch throughput on Celery with one and with two workers (same run, same batch),
+and a campaign on this machine with one and with two workers.
 
 Run with `make bench-jobs` (part of `make bench`). Needs the machine's PostgreSQL and Redis
 (as the tests do). For each worker count it creates a fresh database, starts `scengen serve`
 (SCENGEN_EXECUTOR=celery) and that many `scengen worker --concurrency 1` processes, submits
 one batch of independent extensions (the four-way example, seeds 0..N-1) and times it from
-submission to the last item. The ratio of the two throughputs goes into docs/benchmarks.md.
+submission to the last item. Then `scengen campaign` (CAMPAIGN: 8 chains of depth 3 on the
+four-way stop, judged by SUMO's driver) with `--workers 1` and `--workers 2`, each in a
+fresh folder, timed from start to end, and their outcomes compared (`python -m
+bench.bench_jobs --campaign`: that part alone). The ratios go into docs/benchmarks.md.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import secrets
@@ -29,6 +34,8 @@ import redis
 from service.api.schemas import EXAMPLE_NEW_ROUTE, example_testcase
 
 ITEMS = 12
+CAMPAIGN = ["campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "3", "--chains", "8",
+            "--controller", "sumo", "--duration", "45", "--seed", "0"]  # fmt: skip
 POSTGRES = "postgresql://postgres@127.0.0.1:5432/test"
 BROKER = "redis://127.0.0.1:6379/9"
 
@@ -117,7 +124,46 @@ def main() -> None:
             throughput[workers] = ITEMS / seconds * 60
             print(f"| {workers} | {seconds:.1f} s | {throughput[workers]:.1f} |")
     print(f"ratio two/one workers: {throughput[2] / throughput[1]:.2f}")
+    campaigns()
+
+
+def campaigns() -> None:
+    """The campaign with one and two local workers: wall time, speed-up, same outcome."""
+    print()
+    print(f"# scengen {' '.join(CAMPAIGN)} --workers W")
+    print("| workers | wall time | CPU time (children) | outcome |")
+    print("|---|---|---|---|")
+    seconds, outcomes = {}, {}
+    with tempfile.TemporaryDirectory(prefix="scengen-bench-campaign-") as folder:
+        for workers in (1, 2):
+            out = Path(folder) / f"w{workers}"
+            before = os.times()
+            clock = time.perf_counter()
+            done = subprocess.run(
+                [sys.executable, "-m", "service", *CAMPAIGN, "--workers", str(workers),
+                 "-o", str(out)], capture_output=True, text=True, check=False,
+            )  # fmt: skip
+            seconds[workers] = time.perf_counter() - clock
+            after = os.times()
+            cpu = after.children_user + after.children_system
+            cpu -= before.children_user + before.children_system
+            if done.returncode not in (0, 1):
+                raise SystemExit(f"the campaign failed: {done.stderr[-2000:]}")
+            outcome = json.loads((out / "campaign.json").read_text())
+            outcomes[workers] = _without_evaluations(outcome)
+            same = "the same as 1" if outcomes[workers] == outcomes[1] else "DIFFERS from 1"
+            print(f"| {workers} | {seconds[workers]:.1f} s | {cpu:.1f} s | {same} |", flush=True)
+    print(f"speed-up two/one workers: {seconds[1] / seconds[2]:.2f}")
+
+
+def _without_evaluations(outcome: dict[str, Any]) -> dict[str, Any]:
+    """The outcome less its evaluations' ids (they name the job, which each run makes)."""
+    for chain in outcome["chains"]:
+        for level in chain["levels"]:
+            for verdict in level["verdicts"].values():
+                verdict.pop("evaluation", None)
+    return outcome
 
 
 if __name__ == "__main__":
-    main()
+    campaigns() if sys.argv[1:] == ["--campaign"] else main()

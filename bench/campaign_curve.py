@@ -133,7 +133,12 @@ def table(outcome: dict[str, Any]) -> list[str]:
 def criticality_table(outcome: dict[str, Any]) -> list[str]:
     """Each controller's median of each criticality measure by level, and whether it grows
     (nothing when no verdict was measured: a campaign stored before verdicts had it)."""
-    from service.core.criticality_by_level import LABELS, MEASURES, UNITS, criticality_trend
+    from service.core.campaign.criticality_by_level import (
+        LABELS,
+        MEASURES,
+        UNITS,
+        criticality_trend,
+    )
 
     levels = outcome["levels"]
     if not any(lv["controllers"][c].get("criticality", {}).get("measured")

@@ -25,7 +25,7 @@ from typing import Any
 
 from service.cli.output import make_folder
 from service.core import errors
-from service.core.campaign import campaign_junit
+from service.core.campaign.outcome import campaign_junit
 from service.core.errors import InvalidInput, ScengenError
 from service.core.files import write_atomically
 from service.core.network import bundled_networks, resolve_network
@@ -45,8 +45,13 @@ LOCK_FILE = ".campaign.lock"  # held while a run works in the folder
 OWNER = "scengen-campaign"  # the only worker of a folder's store
 
 
-def open_store(folder: Path) -> tuple[Store, Settings]:
-    settings = Settings(data_dir=folder, database_url=f"sqlite:///{folder.resolve()}/{STATE_FILE}")
+def open_store(folder: Path, workers: int | None = None) -> tuple[Store, Settings]:
+    """The folder's store, and the settings of a run in it (``workers``: steps at once;
+    None: the environment's SCENGEN_WORKERS, else the machine's cores)."""
+    database = f"sqlite:///{folder.resolve()}/{STATE_FILE}"
+    settings = Settings(data_dir=folder, database_url=database)
+    if workers is not None:
+        settings = settings.model_copy(update={"workers": workers})
     return Store(settings.database, settings.cache_dir), settings
 
 
@@ -65,10 +70,12 @@ def network_id(store: Store, network: str) -> str:
 
 
 def run_folder_campaign(
-    spec: dict[str, Any], folder: Path, say: Callable[[str], None]
+    spec: dict[str, Any], folder: Path, say: Callable[[str], None], workers: int | None = None
 ) -> dict[str, Any]:
     """Run (or resume) the campaign ``spec`` (a campaign item with ``network`` a bundled name
-    or a file) in ``folder`` and write its results there; its outcome."""
+    or a file) in ``folder`` with ``workers`` steps at once (None: SCENGEN_WORKERS, else
+    the machine's cores) and write its results there; its outcome (the same for any
+    ``workers``)."""
     parse_batch({"items": [{"kind": "campaign", **spec}]})  # bad input makes no folder
     make_folder(folder)
     lock = (folder / LOCK_FILE).open("w")
@@ -77,7 +84,7 @@ def run_folder_campaign(
     except BlockingIOError:
         lock.close()
         raise InvalidInput(f"another scengen campaign is running in {folder}") from None
-    store, settings = open_store(folder)
+    store, settings = open_store(folder, workers)
     try:
         spec = {**spec, "network": network_id(store, spec["network"])}
         batch = parse_batch({"name": "scengen campaign", "items": [{"kind": "campaign", **spec}]})

@@ -77,6 +77,14 @@ from service.core.sim.controllers import controller_names, resolve_driver
         "common cause",
     ),
     arg("--markdown", action="store_true", help="print the paper's table as Markdown"),
+    arg(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="steps (levels grown, verdicts) run at once, each in a process of its own "
+        "(1-64; default: the machine's cores, or SCENGEN_WORKERS); the outcome is the "
+        "same for any N",
+    ),
     output("DIR", required=True),
     description="Grows CHAINS chains per ego route to DEPTH levels (one new car per level, "
     "on a route chosen as `extend`'s automatic choice does, steered towards rules no "
@@ -88,7 +96,7 @@ from service.core.sim.controllers import controller_names, resolve_driver
 )
 def campaign(args: argparse.Namespace) -> int:
     from service.cli.campaign_folder import elapsed_printer, run_folder_campaign
-    from service.core.campaign import (
+    from service.core.campaign.outcome import (
         campaign_paper_table,
         criticality_table,
         diversity_table,
@@ -124,7 +132,11 @@ def campaign(args: argparse.Namespace) -> int:
     }
     if program is not None:
         spec["signals"] = program.to_document()
-    outcome = run_folder_campaign(spec, args.output, elapsed_printer(time.monotonic()))
+    if args.workers is not None and not 1 <= args.workers <= 64:
+        args.usage.error(f"--workers: give 1 to 64 steps at once, not {args.workers}")
+    outcome = run_folder_campaign(
+        spec, args.output, elapsed_printer(time.monotonic()), args.workers
+    )
     if args.markdown:
         sys.stdout.write(campaign_paper_table(outcome).markdown())
     elif args.table == "paper":

@@ -15,9 +15,9 @@ from typing import Any
 
 from service.cli.output import write_output
 from service.core.budget import WarmWorker
+from service.core.campaign.paper_table import PAPER_CONTROLLERS, PaperTable, paper_table
 from service.core.errors import ScengenError
 from service.core.generator.extension import extend_testcase
-from service.core.paper_table import PAPER_CONTROLLERS, PaperTable, paper_table
 from service.core.sim.controllers import CertificateDriver, resolve_driver
 from service.core.sim.replay import REPLAY_BUDGET, evaluate
 from service.core.testcase import (

@@ -25,13 +25,13 @@ from service.cli.arguments import (
 from service.cli.examples import EXAMPLES, evaluate_levels, run_example, write_testcase
 from service.cli.output import EXIT_OK, StepProgress, emit, output_file, print_table, progress
 from service.cli.table import arg, command
+from service.core.campaign.paper_table import PAPER_CONTROLLERS
 from service.core.generator.additions import StartDistances
 from service.core.generator.extension import Extension, extend_testcase, extend_testcases
 from service.core.generator.variety import MAX_COUNT, describe_variants, variant_name
 from service.core.motion.events import compute_events
 from service.core.motion.poses import generate_poses
 from service.core.network import Intersection, bundled_networks, load_intersection
-from service.core.paper_table import PAPER_CONTROLLERS
 from service.core.sim.controllers import resolve_driver
 from service.core.testcase import (
     DEFAULT_START_DISTANCE,

@@ -2,17 +2,27 @@
 
 Every step runs in a killable child process (``ItemWork.call``) and is remembered as soon as
 it is done: test-cases and evaluations in the store (and in the item's lists), the end of a
-chain and the outcome so far in the item's memos. A retried item runs the campaign's loop
-again and every step done before answers from memory, so it goes on where it stopped.
+chain and the outcome so far in the item's memos. A retried item runs the campaign again
+and every step done before answers from memory, so it goes on where it stopped. Up to
+``Settings.workers`` steps run at once (service.core.campaign.growing), each from a thread
+of its own: what the steps share is kept under a lock.
 """
 
 from __future__ import annotations
 
 import hashlib
+import threading
 from collections.abc import Callable, Sequence
 from typing import Any, Protocol
 
-from service.core.campaign import CHAIN_ENDS, CampaignPlan, resummarized, run_campaign
+from service.core.campaign.growing import (
+    CHAIN_ENDS,
+    run_campaign,
+)
+from service.core.campaign.outcome import (
+    CampaignPlan,
+    resummarized,
+)
 from service.core.errors import InvalidInput, ScengenError, UnknownNetwork, choices
 from service.core.network.signals import program_from_document
 from service.core.testcase import NetworkRef, Signals, TestCase, dump_testcase, parse_testcase
@@ -85,7 +95,9 @@ class JobCampaign:
         self.ref = NetworkRef(ref=network.id, sha256=network.sha256)
         self.budget_per_level = spec.budget_per_level or work.settings.extend_budget
         self.progress = "starting"
-        self.recalled = False  # the step in hand was answered from memory (a resumed item)
+        self.lock = threading.Lock()  # over the lists, the progress and their record
+        self.step = threading.local()  # .recalled: the thread's step was answered from
+        # memory (a resumed item)
 
     def run(self) -> dict[str, Any]:
         junction, control = self.network.junction_and_control(self.spec.junction,
@@ -129,13 +141,14 @@ class JobCampaign:
             budget_per_level=self.budget_per_level,
         )
         return run_campaign(
-            plan, self, [(rule, law) for rule, law in laws], self._progress, self._save
-        )
+            plan, self, [(rule, law) for rule, law in laws], self._progress, self._save,
+            self.work.settings.workers,
+        )  # fmt: skip
 
     # CampaignSteps
 
     def root(self, ego: str) -> tuple[str, TestCase]:
-        self.recalled = False
+        self.step.recalled = False
 
         def create() -> str:
             request = {"ego_route": ego, "junction": self.junction, "control": self.control,
@@ -162,7 +175,7 @@ class JobCampaign:
         stem: str,
         avoid: Sequence[tuple[str, TestCase]],
     ) -> tuple[str, TestCase, str]:
-        self.recalled = False
+        self.step.recalled = False
 
         def compute() -> dict[str, str]:
             avoided = tuple(dump_testcase(other) for _, other in avoid)
@@ -187,7 +200,7 @@ class JobCampaign:
     def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
         key = self.item.evaluation_id(ident, controller)
         stored = self.work.store.evaluation(key)
-        self.recalled = stored is not None
+        self.step.recalled = stored is not None
         if stored is None:
             budget = self.spec.budget or self.work.settings.evaluate_budget
             result = self.work.call(
@@ -199,9 +212,10 @@ class JobCampaign:
             stored = self.work.store.add_evaluation(
                 ident, controller, result["verdict"], result["seconds"], key, result["drive"]
             )
-        if key not in self.evaluated:
-            self.evaluated.append(key)
-            self._record()
+        with self.lock:
+            if key not in self.evaluated:
+                self.evaluated.append(key)
+                self._record()
         return {**stored.verdict, "evaluation": key}
 
     # memory
@@ -213,9 +227,10 @@ class JobCampaign:
         return record.testcase
 
     def _made(self, ident: str) -> None:
-        if ident not in self.made:
-            self.made.append(ident)
-            self._record()
+        with self.lock:
+            if ident not in self.made:
+                self.made.append(ident)
+                self._record()
 
     def _remembered(self, key: str, compute: Callable[[], Any]) -> Any:
         found = self.work.jobs.memo(self.item.job, self.item.position, key)
@@ -223,7 +238,7 @@ class JobCampaign:
             found = compute()
             self._remember(key, found)
         else:
-            self.recalled = True
+            self.step.recalled = True
         return found
 
     def _remember(self, key: str, value: Any) -> None:
@@ -237,9 +252,11 @@ class JobCampaign:
 
     def _progress(self, message: str, done: int, total: int) -> None:
         # a step answered from memory was done before the restart: say so, not what it did
-        said = f"resuming, {done} steps read back" if self.recalled else message
-        self.progress = f"{done}/{total}: {said}"
-        self._record()
+        recalled = getattr(self.step, "recalled", False)
+        said = f"resuming, {done} steps read back" if recalled else message
+        with self.lock:
+            self.progress = f"{done}/{total}: {said}"
+            self._record()
 
     def _save(self, outcome: dict[str, Any]) -> None:
         self._remember(OUTCOME, outcome)

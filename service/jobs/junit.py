@@ -4,7 +4,7 @@ in each name); and every item that failed as an error with its reason."""
 
 from __future__ import annotations
 
-from service.core.campaign import campaign_cases
+from service.core.campaign.outcome import campaign_cases
 from service.core.checker.verdict import JUnitCase, Verdict, junit_document, verdict_case
 from service.jobs.campaign_steps import OUTCOME
 from service.jobs.store import ItemRecord, JobRecord, JobStore

@@ -28,7 +28,7 @@ import pytest
 from matplotlib.colors import to_rgb
 from playwright.sync_api import Page
 
-from service.core.campaign import run_campaign
+from service.core.campaign.growing import run_campaign
 from service.core.checker.check import until_goal
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import PoseSample
@@ -44,7 +44,7 @@ from service.pictures.report import report_html
 from service.pictures.signals import SIGNAL_COLOURS
 from service.store import Store
 from tests.api.test_docs_browser import SCREENSHOTS, external, opened_page
-from tests.core.test_campaign import RULES, FakeSteps, plan
+from tests.core.campaign.test_campaign import RULES, FakeSteps, plan
 from tests.pictures.crossings import straight_walk, with_pedestrians
 from tests.servers import Server
 
@@ -422,13 +422,13 @@ def test_the_campaign_plots_each_criticality_measure_by_level_beside_the_failure
     page.wait_for_selector("#criticality")
     weak = page.locator(".criticality-card[data-controller='weak']")
     assert weak.locator(".failure-rate").inner_text() == (
-        "failed: level 0 0/1 0% (0–79%) · level 1 0/1 0% (0–79%) · level 2 2/2 100% (34–100%)"
+        "failed: level 0 0/1 0% (0–79%) · level 1 0/2 0% (0–66%) · level 2 2/2 100% (34–100%)"
         " · level 3 2/2 100% (34–100%)"
     )
     assert (
         weak.locator(".trend")
         .inner_text()
-        .startswith("criticality grows: median TTC 3 → 2.25 → 1.25 s (levels 1–3)")
+        .startswith("criticality grows: median TTC 3.25 → 2.25 → 1.25 s (levels 1–3)")
     )
     ttc = weak.locator(".criticality-plot[data-measure='ttc']")
     assert ttc.locator(".level-tick").all_text_contents() == ["0", "1", "2", "3"]
@@ -437,7 +437,7 @@ def test_the_campaign_plots_each_criticality_measure_by_level_beside_the_failure
         level: ttc.locator(f"g.level[data-level='{level}'] circle").evaluate_all(values)
         for level in (0, 1, 2, 3)
     }
-    assert dots == {0: [], 1: ["3"], 2: ["2", "2.5"], 3: ["1", "1.5"]}
+    assert dots == {0: [], 1: ["3", "3.5"], 2: ["2", "2.5"], 3: ["1", "1.5"]}
     # the median of a more critical level is drawn lower: TTC falls from level to level
     heights = [
         float(ttc.locator(f"g.level[data-level='{level}'] .median").get_attribute("y1") or 0)
@@ -452,9 +452,10 @@ def test_the_campaign_plots_each_criticality_measure_by_level_beside_the_failure
 def test_the_campaign_shows_each_share_with_its_interval_and_each_levels_diversity(
     browser_page: tuple[Page, list[str]], tmp_path: Path
 ) -> None:
-    """Over hand-made verdicts (tests/core/test_campaign.py's fake): the level table and
-    the plot carry each share's Wilson interval, the diversity table each level's
-    measures, and an outcome stored before campaigns kept them still shows its shares."""
+    """Over hand-made verdicts (tests/core/campaign/test_campaign.py's fake): the level
+    table and the plot carry each share's Wilson interval, the diversity table each
+    level's measures, and an outcome stored before campaigns kept them still shows its
+    shares."""
     page, _ = browser_page
     outcome = run_campaign(plan(), FakeSteps(), RULES)
     job = "d" * 32
@@ -484,8 +485,7 @@ def test_the_campaign_shows_each_share_with_its_interval_and_each_levels_diversi
         assert bars.count() == 4  # one per level
         assert bars.nth(2).locator("title").text_content() == "weak, level 2: 2/2 100% (34–100%)"
         rows = page.locator("#diversity tbody tr").all_inner_texts()
-        assert rows[3].split("\t") == ["3", "2", "2", "1", "2: yieldToInside, yieldToRight",
-                                       "—", "—"]  # fmt: skip
+        assert rows[3].split("\t") == ["3", "2", "1", "1", "1: yieldToInside", "—", "—"]
 
 
 # t-signal's own program with an offset: at t = 0 the light is 31 s into its 38 s cycle

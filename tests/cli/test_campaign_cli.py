@@ -1,7 +1,8 @@
 """`scengen campaign` and `scengen report` as a user runs them: a campaign killed with
-kill -9 halfway resumes when the same command runs again and ends with the outcome an
-uninterrupted run gives; the report opens without a server; a different campaign in the
-same folder is refused; bad input is a one-line error."""
+kill -9 halfway resumes when the same command runs again (with two workers) and ends
+with the outcome an uninterrupted run with one worker gives; the report opens without a
+server; a different campaign in the same folder is refused; bad input is a one-line
+error."""
 
 from __future__ import annotations
 
@@ -56,7 +57,7 @@ def test_a_killed_campaign_resumes_and_ends_as_an_uninterrupted_one(tmp_path: Pa
     os.killpg(child.pid, signal.SIGKILL)
     child.wait()
     assert not (resumed / "campaign.json").exists()
-    again = scengen(*COMMAND, "-o", str(resumed))
+    again = scengen(*COMMAND, "--workers", "2", "-o", str(resumed))
     assert again.returncode == 1, again.stderr  # rolling through the stop sign fails
     assert "resuming the campaign" in again.stderr
     # what was made before the kill is remembered, not made again: the root and chain 1's
@@ -66,7 +67,7 @@ def test_a_killed_campaign_resumes_and_ends_as_an_uninterrupted_one(tmp_path: Pa
     assert "1/8:" not in again.stderr and "2/8:" not in again.stderr
     assert again.stderr.count("chain 1: level 1 grown") <= 1  # the progress it stopped at
     fresh = tmp_path / "fresh"
-    uninterrupted = scengen(*COMMAND, "-o", str(fresh))
+    uninterrupted = scengen(*COMMAND, "--workers", "1", "-o", str(fresh))
     assert uninterrupted.returncode == 1, uninterrupted.stderr
     assert without_evaluation_ids(resumed) == without_evaluation_ids(fresh)
     assert re.search(r"^level +test-cases +sumo +sumo-rolling-stop$", again.stdout, re.M)
@@ -113,6 +114,9 @@ def test_bad_campaign_input_is_a_one_line_error(tmp_path: Path) -> None:
     guarded_replay = scengen(*COMMAND[:-1], "certificate:complexity+rss", "-o", str(tmp_path / "g"))
     assert guarded_replay.returncode == 2 and "cannot be guarded" in guarded_replay.stderr
     assert "sumo-rolling-stop+rss" in guarded_replay.stderr  # the guarded ones it could use
+    no_workers = scengen(*COMMAND, "--workers", "0", "-o", str(tmp_path / "w"))
+    assert no_workers.returncode == 2 and "--workers: give 1 to 64" in no_workers.stderr
+    assert not (tmp_path / "w").exists()
     not_a_folder = scengen("report", str(tmp_path), "-o", str(tmp_path / "r.html"))
     assert not_a_folder.returncode == 2 and "not a campaign folder" in not_a_folder.stderr
 
@@ -124,8 +128,8 @@ def test_the_summary_prints_the_papers_table_and_criticality_by_level(
     measures are tested in the core)."""
     from service.cli import campaign_folder, campaigns
     from service.cli.main import main
-    from service.core.campaign import run_campaign
-    from tests.core.test_campaign import RULES, FakeSteps, plan
+    from service.core.campaign.growing import run_campaign
+    from tests.core.campaign.test_campaign import RULES, FakeSteps, plan
 
     outcome = run_campaign(plan(), FakeSteps(measured=True), RULES)
     monkeypatch.setattr(campaign_folder, "run_folder_campaign", lambda *_: outcome)
@@ -134,13 +138,13 @@ def test_the_summary_prints_the_papers_table_and_criticality_by_level(
                "--controller", "strong", "--controller", "weak", "-o", str(tmp_path)]  # fmt: skip
     assert main([*command, "--table", "paper"]) == 1
     out = capsys.readouterr().out
-    assert "weak        pass     pass (TTC 3.0 s)  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n" in out
+    assert "weak        pass     pass 2/2  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n" in out
     assert "criticality of weak by level (median (min–max) n=test-cases that have it):" in out
     assert re.search(r"^2 +2/2 +2\.25 \(2–2\.5\) n=2 +— +— +4\.5 \(4–5\) n=2$", out, re.M), out
-    assert "criticality of weak grows: median TTC 3 → 2.25 → 1.25 s (levels 1–3)" in out
+    assert "criticality of weak grows: median TTC 3.25 → 2.25 → 1.25 s (levels 1–3)" in out
     assert "criticality of strong does not grow: median distance 5 → 5 → 5 m" in out
     assert main([*command, "--markdown"]) == 1
-    row = "| weak | pass | pass (TTC 3.0 s) | 2/2 FAIL 21800(a) | 2/2 FAIL 21800(a) |"
+    row = "| weak | pass | pass 2/2 | 2/2 FAIL 21800(a) | 2/2 FAIL 21800(a) |"
     assert row in capsys.readouterr().out
 
 
@@ -157,7 +161,7 @@ def test_a_campaign_holds_no_repeated_test_case_at_any_level(tmp_path: Path) -> 
     wrote, and the documents themselves), the campaign counts them all as distinct, the
     shares carry the Wilson interval, and the diversity is that of the files."""
     from service.cli.campaign_folder import open_store, testcase_file_name
-    from service.core.campaign import resummarized
+    from service.core.campaign.outcome import resummarized
     from service.core.generator.variety import Signature, distinct_count, signature
     from service.core.testcase import dump_testcase, read_testcase
 

@@ -16,7 +16,7 @@ from service.api.public import job_public, store_fetch
 from service.api.routes.networks import junction_geometry
 from service.api.schemas import MAX_OFFSET, JobPage, JobPublic
 from service.api.state import AppState, State, Token, json_answer
-from service.core.campaign import campaign_junit
+from service.core.campaign.outcome import campaign_junit
 from service.core.export import Flavour
 from service.jobs import tasks
 from service.jobs.batch import Batch, CampaignItem

@@ -22,9 +22,9 @@ import pytest
 import shapely
 
 from service.cli.output import describe_criticality
+from service.core.campaign.criticality_by_level import level_criticality, overall_value
 from service.core.checker.check import Judge, check_testcase, judged_samples
 from service.core.checker.verdict import Verdict
-from service.core.criticality_by_level import level_criticality, overall_value
 from service.core.generator.extension import extend_testcase
 from service.core.motion.criticality import Mover, route_path
 from service.core.motion.events import EventKind, rectangles

@@ -4,8 +4,11 @@ what it reports. One test grows a real level to check that held-back routes come
 
 from __future__ import annotations
 
+import hashlib
 import json
 import re
+import threading
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -13,7 +16,8 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
-from service.core.campaign import (
+from service.core.campaign.growing import run_campaign
+from service.core.campaign.outcome import (
     EGO_ONLY_RULES,
     CampaignPlan,
     campaign_junit,
@@ -24,10 +28,9 @@ from service.core.campaign import (
     diversity_table,
     failure_table,
     resummarized,
-    run_campaign,
     wilson_interval,
 )
-from service.core.errors import NoMoreComplexTestCase
+from service.core.errors import NoMoreComplexTestCase, ScengenError
 from service.core.generator.chain import candidate_routes, grow
 from service.core.network import Intersection
 from service.core.testcase import TestCase, new_testcase
@@ -39,14 +42,14 @@ BREAKS = {"r1": "yieldToInside", "r2": "yieldToInside", "r3": "yieldToRight"}
 class FakeSteps:
     """Routes r1, r2, r3 in that order unless held back; r1 and r2 break yieldToInside, r3
     yieldToRight; a level's signature is its parent and its route. Test-cases to avoid are
-    passed over only ``avoiding`` (else the fake repeats them, as a campaign did before it
-    avoided). The controller 'weak' fails from level 2 on, 'strong' never. With
+    passed over unless ``avoiding`` is False (the fake then repeats them, as a campaign did
+    before it avoided). The controller 'weak' fails from level 2 on, 'strong' never. With
     ``measured``, verdicts beyond level 0 carry criticality: weak's TTC falls with the level
     (a chain of seed s 0.5 (s - 7) s above another) and so does its distance (2 m per
     second of TTC); strong has no TTC and keeps 5 m from every car."""
 
     def __init__(
-        self, end_at: int | None = None, measured: bool = False, avoiding: bool = False
+        self, end_at: int | None = None, measured: bool = False, avoiding: bool = True
     ) -> None:
         self.measured, self.avoiding = measured, avoiding
         self.avoided: list[list[str]] = []
@@ -135,11 +138,12 @@ def test_every_level_is_judged_by_every_controller_and_summarised() -> None:
     outcome = run_campaign(plan(), steps, RULES, lambda *a: told.append(a), saved.append)
     # the root is judged once per ego; each chain's levels by each controller
     assert len(steps.evaluated) == 2 + 2 * 3 * 2
-    assert [seed for _, seed, _ in steps.grown] == [7, 7, 7, 8, 8, 8]  # chain c: seed + c
+    # level by level (a wave of every chain), chain c with seed 7 + c
+    assert [seed for _, seed, _ in steps.grown] == [7, 8, 7, 8, 7, 8]
     assert told[-1][1] == told[-1][2] == plan().steps  # the progress reaches its total
-    assert saved[-1] == outcome and len(saved) > 2  # saved after every level
+    assert saved[-1] == outcome and len(saved) > 2  # saved after every wave
     weak = [level["controllers"]["weak"] for level in outcome["levels"]]
-    assert [lv["testcases"] for lv in outcome["levels"]] == [1, 1, 2, 2]  # distinct ones
+    assert [lv["testcases"] for lv in outcome["levels"]] == [1, 2, 2, 2]  # distinct ones
     assert [s["failed"] for s in weak] == [0, 0, 2, 2]
     assert weak[2]["rules"] == {"yieldToInside": 2} and weak[2]["share"] == 1.0
     assert [c["first_failure"] for c in outcome["chains"]] == [{"strong": None, "weak": 2}] * 2
@@ -159,8 +163,8 @@ def test_criticality_by_level_and_the_papers_table_in_the_outcome() -> None:
     }  # fmt: skip
     trend = outcome["criticality_trend"]
     assert trend["weak"]["grows"] is True  # TTC and distance fall, the others never arose
-    # level 1 is one test-case (both chains add r1 first): chain 1's, with seed 7
-    assert trend["weak"]["measures"]["ttc"]["medians"] == [[1, 3.0], [2, 2.25], [3, 1.25]]
+    # TTC 4 - level + 0.5 (seed - 7): seeds 7 and 8 at every level
+    assert trend["weak"]["measures"]["ttc"]["medians"] == [[1, 3.25], [2, 2.25], [3, 1.25]]
     assert trend["strong"]["grows"] is False  # 5 m at every level: no closer call
     assert trend["strong"]["measures"]["distance"]["flat"] == [[1, 2], [2, 3]]
     assert trend["strong"]["measures"]["distance"]["breaks"] == []
@@ -169,9 +173,9 @@ def test_criticality_by_level_and_the_papers_table_in_the_outcome() -> None:
                              "car": "car2"}  # fmt: skip
     assert kept["criticality"]["overall"]["ttc"]["value"] == 2.0 and kept["guard"] is None
     assert campaign_paper_table(outcome).text() == (
-        "controller  level 0  level 1           level 2            level 3\n"
-        "strong      pass     pass              pass 2/2           pass 2/2\n"
-        "weak        pass     pass (TTC 3.0 s)  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n"
+        "controller  level 0  level 1   level 2            level 3\n"
+        "strong      pass     pass 2/2  pass 2/2           pass 2/2\n"
+        "weak        pass     pass 2/2  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n"
     )
     rows = criticality_table(outcome, "weak")
     assert rows is not None and rows[0][:3] == ["level", "failed", "TTC (s)"]
@@ -211,11 +215,11 @@ def test_route_choice_holds_back_routes_whose_rules_are_covered() -> None:
     steps = FakeSteps()
     outcome = run_campaign(plan(), steps, RULES)
     routes = [[lv["route"] for lv in chain["levels"][1:]] for chain in outcome["chains"]]
-    # r1 covers yieldToInside and waits; r2 is unknown, so it may cover another rule: it
-    # comes next, breaks only yieldToInside too and waits; r3 covers yieldToRight. Once
+    # Level 1: nothing is known, chain 1 takes r1 and chain 2, avoiding it, r2; both break
+    # yieldToInside only, so in the next wave both wait and r3 covers yieldToRight. Once
     # every rule a new car can make harder is covered, nothing is held back.
-    assert routes[0] == ["r1", "r2", "r3"]
-    assert [last for _, _, last in steps.grown] == [(), ("r1",), ("r1", "r2"), (), (), ()]
+    assert routes == [["r1", "r3", "r1"], ["r2", "r3", "r1"]]
+    assert [last for _, _, last in steps.grown] == [(), (), ("r1", "r2"), ("r1", "r2"), (), ()]
     coverage = {c["rule"]: c for c in outcome["coverage"]}
     assert coverage["yieldToInside"]["covered"] and coverage["yieldToRight"]["covered"]
     assert not coverage["stopAtSign"]["coverable"]  # the ego's own rule
@@ -225,7 +229,7 @@ def test_route_choice_holds_back_routes_whose_rules_are_covered() -> None:
 def test_ego_only_rules_are_the_laws_of_the_ego_alone() -> None:
     # a rule the laws state as violatesRuleAt(V, Rule, ...) names no other car: no new car
     # can make a test-case test it more, so a campaign never counts it as uncovered
-    laws = Path(__file__).resolve().parents[2] / "asp" / "laws"
+    laws = Path(__file__).resolve().parents[3] / "asp" / "laws"
     heads = {
         rule
         for path in laws.glob("*.lp")
@@ -260,7 +264,7 @@ def test_junit_has_a_case_per_chain_level_and_controller() -> None:
         "4way-stop C S2C_0:C2N_0 chain 1 level 0 (root-S2C_0:C2N_0) / weak",
         "4way-stop C S2C_0:C2N_0 chain 1 level 1 (root-S2C_0:C2N_0/r1) / strong",
     ]
-    assert names[-1] == "4way-stop C S2C_0:C2N_0 chain 2 level 3 (root-S2C_0:C2N_0/r1/r1/r1) / weak"
+    assert names[-1] == "4way-stop C S2C_0:C2N_0 chain 2 level 3 (root-S2C_0:C2N_0/r2/r3/r1) / weak"
     assert len(set(names)) == len(names)
 
 
@@ -269,10 +273,7 @@ def test_levels_are_named_by_chain_and_level() -> None:
     after the root, its chain and its level."""
     steps = FakeSteps()
     outcome = run_campaign(plan(), steps, RULES)
-    assert (
-        steps.stems
-        == ["4way-stop C S2C_0:C2N_0 chain 1"] * 3 + ["4way-stop C S2C_0:C2N_0 chain 2"] * 3
-    )
+    assert steps.stems == ["4way-stop C S2C_0:C2N_0 chain 1", "4way-stop C S2C_0:C2N_0 chain 2"] * 3
     second = outcome["chains"][1]
     assert second["name"] == "4way-stop C S2C_0:C2N_0 chain 2"
     assert [level["name"] for level in second["levels"]] == [
@@ -293,18 +294,19 @@ def test_held_back_routes_are_tried_after_the_others(four_way: Intersection) -> 
 
 
 def test_a_level_avoids_what_earlier_chains_grew_from_the_same_parent() -> None:
-    steps = FakeSteps()  # repeats what it should avoid: the summary counts it once
+    steps = FakeSteps(avoiding=False)  # repeats what it should avoid: counted once
     outcome = run_campaign(plan(), steps, RULES)
-    # chain 2 grows from the root (chain 1's level 1 is avoided) and from root/r1 (so is
-    # chain 1's level 2); its level 3 grows from root/r1/r1, a parent no chain had before
-    assert steps.avoided == [[], [], [], ["root-S2C_0:C2N_0/r1"],
-                             ["root-S2C_0:C2N_0/r1/r2"], []]  # fmt: skip
-    assert [lv["grown"] for lv in outcome["levels"]] == [1, 1, 2, 2]
-    avoiding = FakeSteps(avoiding=True)
+    # in every wave chain 2 shares chain 1's parent (the fake repeated chain 1's level) and
+    # is told to avoid what chain 1 grew from it
+    assert steps.avoided == [[], ["root-S2C_0:C2N_0/r1"], [], ["root-S2C_0:C2N_0/r1/r2"],
+                             [], ["root-S2C_0:C2N_0/r1/r2/r3"]]  # fmt: skip
+    assert [lv["grown"] for lv in outcome["levels"]] == [1, 1, 1, 1]
+    assert len(steps.evaluated) == 2 * 4  # one verdict per test-case and controller
+    avoiding = FakeSteps()
     apart = run_campaign(plan(chains=3, depth=2), avoiding, RULES)
-    assert avoiding.avoided[2:] == [
-        ["root-S2C_0:C2N_0/r1"], [],  # chain 2 took r3: a parent of its own at level 2
-        ["root-S2C_0:C2N_0/r1", "root-S2C_0:C2N_0/r3"], [],
+    assert avoiding.avoided == [
+        [], ["root-S2C_0:C2N_0/r1"], ["root-S2C_0:C2N_0/r1", "root-S2C_0:C2N_0/r2"],
+        [], [], [],  # three parents of their own at level 2: nothing to avoid
     ]  # fmt: skip
     firsts = [chain["levels"][1]["testcase"] for chain in apart["chains"]]
     assert len(set(firsts)) == 3 and [lv["testcases"] for lv in apart["levels"]] == [1, 3, 3]
@@ -359,16 +361,16 @@ def test_shares_count_distinct_test_cases_with_their_interval() -> None:
     outcome = run_campaign(plan(), steps, RULES)
     assert outcome["schema"] == "scengen/campaign/2"
     level_one = outcome["levels"][1]
-    assert level_one["controllers"]["weak"]["interval"] == {"lower": 0.0, "upper": 0.7935}
+    assert level_one["controllers"]["weak"]["interval"] == {"lower": 0.0, "upper": 0.6576}
     assert outcome["levels"][2]["controllers"]["weak"]["interval"] == {"lower": 0.3424,
                                                                         "upper": 1.0}  # fmt: skip
-    assert level_one["diversity"] == {"orders": 1, "routes": 1, "rules": ["yieldToInside"],
+    assert level_one["diversity"] == {"orders": 2, "routes": 1, "rules": ["yieldToInside"],
                                       "arrival": None, "entry": None}  # fmt: skip
     rows = diversity_table(outcome)
     assert rows is not None and rows[0][:6] == ["level", "test-cases", "grown", "orders",
                                                 "routes", "rules broken"]  # fmt: skip
-    assert rows[3][5] == "1: yieldToInside"  # r2 and r1
-    assert rows[4] == ["3", "2", "2", "2", "1", "2: yieldToInside, yieldToRight", "—", "—"]
+    assert rows[2][5] == "1: yieldToInside"  # r1 and r2
+    assert rows[3] == ["2", "2", "2", "1", "1", "1: yieldToRight", "—", "—"]  # r3 twice
     # an outcome stored before levels kept their signature is counted anew from the
     # test-cases (by id where one is gone), and so are its intervals and its diversity
     stored = json.loads(json.dumps(outcome))
@@ -381,4 +383,54 @@ def test_shares_count_distinct_test_cases_with_their_interval() -> None:
     assert resummarized(stored, steps.made.get) == outcome
     assert resummarized(outcome, steps.made.get) is outcome
     by_id = resummarized(stored, lambda _: None)
-    assert [lv["testcases"] for lv in by_id["levels"]] == [1, 1, 2, 2]
+    assert [lv["testcases"] for lv in by_id["levels"]] == [1, 2, 2, 2]
+
+
+class ShuffledSteps(FakeSteps):
+    """FakeSteps whose steps take a while, longer or shorter by the step (so that with
+    several workers they finish in another order than they were asked in)."""
+
+    def __init__(self, fail_at: str | None = None, **options: Any) -> None:
+        super().__init__(**options)
+        self.fail_at = fail_at
+        self.lock = threading.Lock()
+        self.running, self.most = 0, 0
+
+    def _wait(self, key: str) -> None:
+        with self.lock:
+            self.running += 1
+            self.most = max(self.most, self.running)
+        time.sleep(0.002 * (int(hashlib.sha256(key.encode()).hexdigest(), 16) % 10))
+        with self.lock:
+            self.running -= 1
+
+    def grow(self, parent: str, testcase: TestCase, *args: Any) -> tuple[str, TestCase, str]:
+        self._wait(f"{parent}/{args[0]}")
+        return super().grow(parent, testcase, *args)
+
+    def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
+        self._wait(f"{ident}/{controller}")
+        if ident == self.fail_at:
+            raise ScengenError(f"the replay of {ident} failed")
+        return super().evaluate(ident, testcase, controller)
+
+
+def test_the_outcome_is_the_same_for_any_number_of_workers() -> None:
+    one = run_campaign(plan(chains=3), ShuffledSteps(measured=True), RULES, workers=1)
+    for workers in (2, 4):
+        steps = ShuffledSteps(measured=True)
+        told: list[tuple[str, int, int]] = []
+        many = run_campaign(plan(chains=3), steps, RULES,
+                            lambda *a, told=told: told.append(a), workers=workers)  # fmt: skip
+        assert json.dumps(many) == json.dumps(one)  # byte for byte
+        assert steps.most > 1  # steps did run at once
+        assert [done for _, done, _ in told] == sorted(done for _, done, _ in told)
+        assert told[-1][1] == told[-1][2] == plan(chains=3).steps
+
+
+def test_a_failing_step_ends_the_campaign_with_its_error() -> None:
+    steps = ShuffledSteps(fail_at="root-S2C_0:C2N_0/r2")
+    with pytest.raises(ScengenError, match="the replay of root-S2C_0:C2N_0/r2 failed"):
+        run_campaign(plan(), steps, RULES, workers=2)
+    with pytest.raises(ValueError, match="workers must be at least 1"):
+        run_campaign(plan(), FakeSteps(), RULES, workers=0)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from service.core.criticality_by_level import (
+from service.core.campaign.criticality_by_level import (
     criticality_trend,
     distribution,
     level_criticality,

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from service.core.paper_table import cause_text, failure_cause, paper_cell, paper_table
+from service.core.campaign.paper_table import cause_text, failure_cause, paper_cell, paper_table
 
 
 def verdict(**changes: Any) -> dict[str, Any]:

@@ -1,30 +1,15 @@
-"""Campaigns: where does a controller start to fail as test-cases grow more complex?
+"""A campaign's outcome: what its chains show about where a controller starts to fail.
 
-A campaign grows ``chains`` chains per ego route, each to ``depth`` levels (one new car per
-level, chosen the way ``service.core.generator.chain.grow`` chooses), and judges every level, the
-ego-only root included, with every controller. ``run_campaign`` is the loop; the work it
-asks for (a root, a level, a verdict) is done by a ``CampaignSteps`` that remembers what it
-did, so that a campaign run again after a crash continues where it stopped: the loop is
-deterministic, and every step it already took answers from memory.
-
-Route choice is steered towards rules no complexity certificate has broken yet: a route
-whose earlier certificates (for this ego route) broke only rules already covered is tried
-after the others of its group. Chain ``c`` of every ego route has seed ``seed + c``.
-
-Chains are grown one after the other, each to its depth, and no two hold the same
-test-case at a level: a level grown from a parent avoids the test-cases that earlier chains
-of the ego grew from that same parent at that level (``service.core.generator.variety``;
-children of different parents always differ), so a level that would repeat one takes the
-next distinct test-case.
-
-``summarize`` turns the chains into the campaign's outcome: per level the distinct
-test-cases (by their signature; a campaign stored before levels kept one counts by id)
-and their diversity, and per controller the share of the distinct test-cases it fails
-with its Wilson score interval, the rules it breaks, its collisions and goal misses, and the
-distribution of each criticality measure (``service.core.criticality_by_level``); per
-controller whether criticality grows with the level; per chain the first level each
-controller fails; and the rule coverage of the rule set. ``campaign_paper_table`` is the
-outcome as the seed paper's table (``service.core.paper_table``).
+``summarize`` turns the chains (service.core.campaign.growing grows them) into the
+campaign's outcome: per level the distinct test-cases (by their signature; a campaign
+stored before levels kept one counts by id) and their diversity, and per controller the
+share of the distinct test-cases it fails with its Wilson score interval, the rules it
+breaks, its collisions and goal misses, and the distribution of each criticality measure
+(``service.core.campaign.criticality_by_level``); per controller whether criticality
+grows with the level; per chain the first level each controller fails; and the rule
+coverage of the rule set. ``campaign_junit`` is the outcome as JUnit,
+``campaign_paper_table`` as the seed paper's table (``service.core.campaign.paper_table``),
+and the other tables are what the command line prints.
 """
 
 from __future__ import annotations
@@ -34,10 +19,9 @@ from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from statistics import NormalDist
-from typing import Any, Protocol
+from typing import Any
 
-from service.core.checker.verdict import JUnitCase, junit_document, overall_properties
-from service.core.criticality_by_level import (
+from service.core.campaign.criticality_by_level import (
     LABELS,
     MEASURES,
     UNITS,
@@ -45,10 +29,10 @@ from service.core.criticality_by_level import (
     distribution,
     level_criticality,
 )
-from service.core.errors import BudgetExceeded, NoMoreComplexTestCase, NoneFound
+from service.core.campaign.paper_table import PaperTable, paper_table
+from service.core.checker.verdict import JUnitCase, junit_document, overall_properties
 from service.core.generator.variety import Signature, is_new, order_key, signature
-from service.core.paper_table import PaperTable, failure_cause, paper_table
-from service.core.testcase import TestCase, name_stem, readable_name
+from service.core.testcase import TestCase
 
 # 2: distinct test-cases per level (levels keep their signature), shares over them with a
 # Wilson interval, diversity; every field of 1 is still there
@@ -56,14 +40,11 @@ CAMPAIGN_SCHEMA = "scengen/campaign/2"
 CONFIDENCE = 0.95  # of the failure shares' Wilson score intervals
 REAR_END_RULE = "rearEnd"  # a complexity certificate that runs into a new car ahead of it
 REAR_END_LAW = "21703"  # CVC: following too closely
-# What ends a chain before its depth: no more complex test-case exists, none was found
-# within the search's counts, or the level's budget ran out (the message says which).
-CHAIN_ENDS = (NoMoreComplexTestCase, NoneFound, BudgetExceeded)
 # Rules of one road user alone (no one else's right-of-way): the ego's stops, which a
 # complexity certificate keeps since it passes the old test-case, and a pedestrian's own
 # (21950 (b), 21456), which no ego can break; no new road user makes a test-case test them.
 # They are the rules asp/laws/ states as violatesRuleAt(V, Rule, ...)
-# (tests/core/test_campaign.py).
+# (tests/core/campaign/test_campaign.py).
 EGO_ONLY_RULES = frozenset(
     {"stopAtSign", "stopAtRed", "stopAtRedArrow", "stopBeforeRightOnRed",
      "leavesCurbIntoHazard", "walkAgainstSignal"}
@@ -102,196 +83,6 @@ class CampaignPlan:
         """Upper bound of the work: levels grown plus verdicts."""
         per_chain = self.depth * (1 + len(self.controllers))
         return len(self.egos) * (len(self.controllers) + self.chains * per_chain)
-
-
-class CampaignSteps(Protocol):
-    """The work of a campaign, each step remembered (a second call answers from memory)."""
-
-    def root(self, ego: str) -> tuple[str, TestCase]:
-        """The ego-only test-case of this ego route: its id and itself."""
-        ...
-
-    def grow(
-        self,
-        parent: str,
-        testcase: TestCase,
-        seed: int,
-        last: tuple[str, ...],
-        stem: str,
-        avoid: Sequence[tuple[str, TestCase]],
-    ) -> tuple[str, TestCase, str]:
-        """The next level: id, test-case (named ``STEM level N``) and the route added;
-        routes in ``last`` are tried after the others of their group; it differs from every
-        test-case of ``avoid`` (id and test-case: service.core.generator.chain.grow). A
-        chain ends at one of CHAIN_ENDS."""
-        ...
-
-    def evaluate(self, ident: str, testcase: TestCase, controller: str) -> dict[str, Any]:
-        """The controller's verdict (``Verdict.to_dict``) with ``evaluation``: its id."""
-        ...
-
-
-Progress = Callable[[str, int, int], None]  # message, steps done, steps at most
-
-
-def run_campaign(
-    plan: CampaignPlan,
-    steps: CampaignSteps,
-    rules: Sequence[tuple[str, str]],
-    progress: Progress | None = None,
-    saved: Callable[[dict[str, Any]], None] | None = None,
-) -> dict[str, Any]:
-    """Grow and judge the campaign; its outcome (``summarize``). ``rules`` are the rule
-    set's (rule, law) pairs; ``saved`` gets the outcome so far after every level."""
-    chains: list[dict[str, Any]] = []
-    done = 0
-    total = plan.steps
-
-    def tell(message: str) -> None:
-        nonlocal done
-        done += 1
-        if progress is not None:
-            progress(message, done, total)
-
-    def publish() -> None:
-        if saved is not None:
-            saved(summarize(plan, chains, rules))
-
-    for ego in plan.egos:
-        root_id, root = steps.root(ego)
-        made = {root_id: root}  # this ego's test-cases by id
-        root_verdicts = {}
-        for controller in plan.controllers:
-            root_verdicts[controller] = _compact(steps.evaluate(root_id, root, controller))
-            tell(f"{ego}: level 0 / {controller}")
-        for chain in range(plan.chains):
-            seed = plan.seed + chain
-            stem = chain_name(root, chain)
-            record: dict[str, Any] = {"ego": ego, "chain": chain, "seed": seed, "end": None}
-            record["name"] = stem
-            record["levels"] = [_level(0, root_id, root, None, root_verdicts)]
-            chains.append(record)
-            parent_id, parent = root_id, root
-            for level in range(1, plan.depth + 1):
-                last = _covered_routes(chains, ego, rules)
-                avoid = [(i, made[i]) for i in _siblings(chains, ego, level, parent_id)]
-                try:
-                    parent_id, parent, route = steps.grow(parent_id, parent, seed, last, stem,
-                                                          avoid)  # fmt: skip
-                except CHAIN_ENDS as end:
-                    record["end"] = f"level {level}: {end.message}"
-                    done += (plan.depth - level + 1) * (1 + len(plan.controllers))
-                    break
-                made[parent_id] = parent
-                tell(f"{ego} chain {chain + 1}: level {level} grown ({route})")
-                verdicts = {}
-                for controller in plan.controllers:
-                    verdicts[controller] = _compact(steps.evaluate(parent_id, parent, controller))
-                    tell(f"{ego} chain {chain + 1}: level {level} / {controller}")
-                record["levels"].append(_level(level, parent_id, parent, route, verdicts))
-                publish()
-            if record["end"] is not None:
-                publish()
-    outcome = summarize(plan, chains, rules)
-    if saved is not None:
-        saved(outcome)
-    return outcome
-
-
-def chain_name(root: TestCase, chain: int) -> str:
-    """What the levels of chain ``chain`` (from 0) grown from ``root`` are named before
-    their level: the root's name without its level, and the chain, as in
-    ``4way-stop C S2C_0:C2N_0 chain 2`` (its level 3: ``... chain 2 level 3``)."""
-    return f"{name_stem(root.name or readable_name(root))} chain {chain + 1}"
-
-
-def _siblings(chains: Sequence[dict[str, Any]], ego: str, level: int, parent: str) -> list[str]:
-    """The test-cases that this ego's chains grew from ``parent`` at ``level`` so far: the
-    next chain's level must differ from each (a child of another parent always does)."""
-    found: list[str] = []
-    for chain in chains:
-        levels = chain["levels"]
-        if chain["ego"] != ego or len(levels) <= level or levels[level - 1]["testcase"] != parent:
-            continue
-        if levels[level]["testcase"] not in found:
-            found.append(levels[level]["testcase"])
-    return found
-
-
-def _level(
-    level: int, ident: str, testcase: TestCase, route: str | None, verdicts: dict[str, Any]
-) -> dict[str, Any]:
-    provenance = testcase.provenance or {}
-    certificate = provenance.get("complexity_certificate", {})
-    return {
-        "level": level,
-        "testcase": ident,
-        "name": testcase.name,
-        "duration": testcase.duration,
-        "route": route,
-        "new_cars": list(provenance.get("new_nonegos", [])),
-        "breaks": _broken(testcase),
-        "rear_end": list(certificate.get("rear_end", [])),
-        "signature": signature(testcase).to_dict(),
-        "verdicts": verdicts,
-    }
-
-
-def _broken(testcase: TestCase) -> list[str]:
-    """The rules the complexity certificate of ``testcase`` breaks against its new cars."""
-    provenance = testcase.provenance or {}
-    rules = {item["rule"] for item in provenance.get("complexity_certificate_violates", [])}
-    if provenance.get("complexity_certificate", {}).get("rear_end"):
-        rules.add(REAR_END_RULE)
-    return sorted(rules)
-
-
-def _compact(verdict: dict[str, Any]) -> dict[str, Any]:
-    """What a campaign keeps of a verdict: the cause the paper's table shows, and the
-    criticality measures and the guard's counts as the verdict has them (null if not).
-    Its collisions and rules are those until the goal, where the judgement ends;
-    ``after_goal`` counts the records after it (information, never a failure)."""
-    after = verdict.get("after_goal") or {}
-    return {
-        "evaluation": verdict.get("evaluation"),
-        "passed": bool(verdict["passed"]),
-        "rules": sorted({v["rule"] for v in verdict["violations"]}),
-        "collisions": len(verdict["collisions"]),
-        "goal_reached": bool(verdict["goal"]["reached"]),
-        "after_goal": len(after.get("collisions", ())) + len(after.get("violations", ())),
-        "errors": list(verdict["errors"]),
-        "reasons": list(verdict["reasons"]),
-        "cause": failure_cause(verdict),
-        "criticality": verdict.get("criticality"),
-        "guard": _guard_counts(verdict.get("guard")),
-    }
-
-
-def _guard_counts(guard: dict[str, Any] | None) -> dict[str, Any] | None:
-    """The guard's record without its spans (they stay in the stored evaluation)."""
-    if guard is None:
-        return None
-    return {key: value for key, value in guard.items() if key != "spans"}
-
-
-def _covered_routes(
-    chains: Sequence[dict[str, Any]], ego: str, rules: Sequence[tuple[str, str]]
-) -> tuple[str, ...]:
-    """Routes of this ego whose certificates so far broke only covered rules (tried last)."""
-    covered = _covered(chains)
-    if all(rule in covered or rule in EGO_ONLY_RULES for rule, _ in rules):
-        return ()  # everything is covered: no route is held back
-    seen: dict[str, set[str]] = {}
-    for chain in chains:
-        if chain["ego"] != ego:
-            continue
-        for level in chain["levels"][1:]:
-            seen.setdefault(level["route"], set()).update(level["breaks"])
-    return tuple(sorted(r for r, broken in seen.items() if broken <= covered))
-
-
-def _covered(chains: Sequence[dict[str, Any]]) -> set[str]:
-    return {rule for chain in chains for level in chain["levels"] for rule in level["breaks"]}
 
 
 def summarize(
