@@ -10,11 +10,12 @@ deterministic, and every step it already took answers from memory.
 
 The chains grow in waves, one level of every chain at a time. Within a wave the steps are
 independent and run at once on up to ``workers`` threads (each step's own work runs in a
-process of its own, service.jobs.runner): the chains that share a parent grow in one step,
-one after the other in chain order, each avoiding the test-cases the chains before it grew
-from that parent (``service.core.generator.variety``; children of different parents always
-differ), so no two chains hold the same test-case at a level; chains with different
-parents grow at once. A level's verdicts are asked for as soon as it is grown, beside the
+process of its own, service.jobs.runner): every chain first grows its level alone, as if no
+other chain grew from its parent; then the chains that share a parent settle in chain
+order: a chain keeps its level when it differs from what the chains before it took there
+(``service.core.generator.variety``; children of different parents always differ), and
+else grows it again, avoiding those, so no two chains hold the same test-case at a level.
+Chains with different parents settle at once. A level's verdicts are asked for as soon as it is grown, beside the
 next wave. Route choice is steered towards rules no complexity certificate has broken yet:
 a route whose certificates so far (for this ego route, in the levels before the wave)
 broke only rules already covered is tried after the others of its group. Chain ``c`` of
@@ -37,8 +38,8 @@ from service.core.campaign.outcome import (
     summarize,
 )
 from service.core.campaign.paper_table import failure_cause
-from service.core.errors import BudgetExceeded, NoMoreComplexTestCase, NoneFound
-from service.core.generator.variety import signature
+from service.core.errors import BudgetExceeded, NoMoreComplexTestCase, NoneFound, ScengenError
+from service.core.generator.variety import is_new, signature
 from service.core.testcase import TestCase, name_stem, readable_name
 
 
@@ -73,6 +74,7 @@ class CampaignSteps(Protocol):
 # within the search's counts, or the level's budget ran out (the message says which).
 CHAIN_ENDS = (NoMoreComplexTestCase, NoneFound, BudgetExceeded)
 Progress = Callable[[str, int, int], None]  # message, steps done, steps at most
+Grown = tuple[str, TestCase, "str | None"]  # a level: its id, its test-case, the route added
 
 
 @dataclass
@@ -154,33 +156,52 @@ class _Campaign:
             for chain in growing:
                 groups.setdefault((chain.ego, chain.levels[-1][0]), []).append(chain)
             held_back = {ego: self._covered_routes(ego) for ego in plan.egos}
-            waves = [self.pool.submit(self._grow_group, level, group, held_back[ego])
-                     for (ego, _), group in groups.items()]  # fmt: skip
-            pending = set(waves)
-            while pending:
-                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for future in finished:
-                    future.result()  # a step's error ends the campaign
+            # every chain's first attempt at once, as if no other chain grew from its parent
+            firsts = [self.pool.submit(self._attempt, chain, held_back[chain.ego], [])
+                      for chain in growing]  # fmt: skip
+            attempts = dict(zip(map(id, growing), _results(firsts), strict=True))
+            _results([
+                self.pool.submit(self._settle, level, group, [attempts[id(c)] for c in group],
+                                 held_back[ego])
+                for (ego, _), group in groups.items()
+            ])  # fmt: skip
             self._publish()
 
-    def _grow_group(self, level: int, group: list[_Chain], held_back: tuple[str, ...]) -> None:
-        """Level ``level`` of the chains of ``group`` (one parent), in chain order, each
-        differing from what the chains before it grew here; each level judged as soon as
-        it is grown."""
-        parent_id, parent, _ = group[0].levels[-1]
-        children: list[tuple[str, TestCase]] = []
-        for chain in group:
-            try:
-                child_id, child, route = self.steps.grow(
-                    parent_id, parent, chain.seed, held_back, chain.name, list(children)
-                )
-            except CHAIN_ENDS as end:
-                chain.end = f"level {level}: {end.message}"
+    def _attempt(self, chain: _Chain, held_back: tuple[str, ...],
+                 avoid: list[tuple[str, TestCase]]) -> Grown | ScengenError:  # fmt: skip
+        """The chain's next level grown from its parent (differing from ``avoid``), or what
+        ended it."""
+        parent_id, parent, _ = chain.levels[-1]
+        try:
+            return self.steps.grow(parent_id, parent, chain.seed, held_back, chain.name, avoid)
+        except CHAIN_ENDS as end:
+            return end
+
+    def _settle(
+        self,
+        level: int,
+        group: list[_Chain],
+        firsts: list[Grown | ScengenError],
+        held_back: tuple[str, ...],
+    ) -> None:
+        """Level ``level`` of the chains of ``group`` (one parent), in chain order: a
+        chain's first attempt stands when it differs from what the chains before it took
+        here (``variety.signature``), or when it ended the chain (avoiding more finds no
+        more); else the chain grows again, avoiding those. Each level is judged as soon as
+        it stands."""
+        taken: list[tuple[str, TestCase]] = []
+        for chain, first in zip(group, firsts, strict=True):
+            found = first
+            if not isinstance(found, ScengenError) and not _differs(found, taken):
+                found = self._attempt(chain, held_back, list(taken))
+            if isinstance(found, ScengenError):
+                chain.end = f"level {level}: {found.message}"
                 self._tell(None, (self.plan.depth - level + 1) * (1 + len(self.plan.controllers)))
                 continue
-            chain.levels.append((child_id, child, route))
-            if child_id not in {ident for ident, _ in children}:
-                children.append((child_id, child))
+            child_id, child, route = found
+            chain.levels.append(found)
+            if all(child_id != ident for ident, _ in taken):
+                taken.append((child_id, child))
             where = f"{chain.ego} chain {chain.number + 1}: level {level}"
             self._tell(f"{where} grown ({route})")
             self._judge(child_id, child, where)
@@ -246,6 +267,26 @@ class _Campaign:
                 assert route is not None
                 seen.setdefault(route, set()).update(_broken(testcase))
         return tuple(sorted(r for r, broken in seen.items() if broken <= covered))
+
+
+def _results(futures: Sequence[Future[Any]]) -> list[Any]:
+    """The futures' results in their order; the first error (of any that failed first)
+    ends the campaign."""
+    pending = set(futures)
+    while pending:
+        finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+        for future in finished:
+            future.result()
+    return [future.result() for future in futures]
+
+
+def _differs(grown: Grown, taken: Sequence[tuple[str, TestCase]]) -> bool:
+    """Whether a level grown differs from every test-case of ``taken`` (by id, and as
+    service.core.generator.variety tells test-cases apart)."""
+    ident, testcase, _ = grown
+    if any(ident == other for other, _ in taken):
+        return False
+    return is_new(signature(testcase), [signature(other) for _, other in taken])
 
 
 def chain_name(root: TestCase, chain: int) -> str:

@@ -138,8 +138,9 @@ def test_every_level_is_judged_by_every_controller_and_summarised() -> None:
     outcome = run_campaign(plan(), steps, RULES, lambda *a: told.append(a), saved.append)
     # the root is judged once per ego; each chain's levels by each controller
     assert len(steps.evaluated) == 2 + 2 * 3 * 2
-    # level by level (a wave of every chain), chain c with seed 7 + c
-    assert [seed for _, seed, _ in steps.grown] == [7, 8, 7, 8, 7, 8]
+    # level by level (a wave of every chain), chain c with seed 7 + c; at level 1 chain 2
+    # first grew chain 1's level (r1) and grew again avoiding it
+    assert [seed for _, seed, _ in steps.grown] == [7, 8, 8, 7, 8, 7, 8]
     assert told[-1][1] == told[-1][2] == plan().steps  # the progress reaches its total
     assert saved[-1] == outcome and len(saved) > 2  # saved after every wave
     weak = [level["controllers"]["weak"] for level in outcome["levels"]]
@@ -219,7 +220,9 @@ def test_route_choice_holds_back_routes_whose_rules_are_covered() -> None:
     # yieldToInside only, so in the next wave both wait and r3 covers yieldToRight. Once
     # every rule a new car can make harder is covered, nothing is held back.
     assert routes == [["r1", "r3", "r1"], ["r2", "r3", "r1"]]
-    assert [last for _, _, last in steps.grown] == [(), (), ("r1", "r2"), ("r1", "r2"), (), ()]
+    assert [last for _, _, last in steps.grown] == [
+        (), (), (), ("r1", "r2"), ("r1", "r2"), (), ()
+    ]  # fmt: skip
     coverage = {c["rule"]: c for c in outcome["coverage"]}
     assert coverage["yieldToInside"]["covered"] and coverage["yieldToRight"]["covered"]
     assert not coverage["stopAtSign"]["coverable"]  # the ego's own rule
@@ -273,7 +276,8 @@ def test_levels_are_named_by_chain_and_level() -> None:
     after the root, its chain and its level."""
     steps = FakeSteps()
     outcome = run_campaign(plan(), steps, RULES)
-    assert steps.stems == ["4way-stop C S2C_0:C2N_0 chain 1", "4way-stop C S2C_0:C2N_0 chain 2"] * 3
+    one, two = "4way-stop C S2C_0:C2N_0 chain 1", "4way-stop C S2C_0:C2N_0 chain 2"
+    assert steps.stems == [one, two, two, one, two, one, two]  # chain 2 grew level 1 twice
     second = outcome["chains"][1]
     assert second["name"] == "4way-stop C S2C_0:C2N_0 chain 2"
     assert [level["name"] for level in second["levels"]] == [
@@ -296,17 +300,20 @@ def test_held_back_routes_are_tried_after_the_others(four_way: Intersection) -> 
 def test_a_level_avoids_what_earlier_chains_grew_from_the_same_parent() -> None:
     steps = FakeSteps(avoiding=False)  # repeats what it should avoid: counted once
     outcome = run_campaign(plan(), steps, RULES)
-    # in every wave chain 2 shares chain 1's parent (the fake repeated chain 1's level) and
-    # is told to avoid what chain 1 grew from it
-    assert steps.avoided == [[], ["root-S2C_0:C2N_0/r1"], [], ["root-S2C_0:C2N_0/r1/r2"],
-                             [], ["root-S2C_0:C2N_0/r1/r2/r3"]]  # fmt: skip
+    # in every wave both chains first grow alone and take the same level; chain 2 then
+    # grows again, told to avoid chain 1's (the fake repeats it, and they share the parent
+    # of the next wave)
+    assert steps.avoided == [[], [], ["root-S2C_0:C2N_0/r1"], [], [],
+                             ["root-S2C_0:C2N_0/r1/r2"], [], [],
+                             ["root-S2C_0:C2N_0/r1/r2/r3"]]  # fmt: skip
     assert [lv["grown"] for lv in outcome["levels"]] == [1, 1, 1, 1]
     assert len(steps.evaluated) == 2 * 4  # one verdict per test-case and controller
     avoiding = FakeSteps()
     apart = run_campaign(plan(chains=3, depth=2), avoiding, RULES)
     assert avoiding.avoided == [
-        [], ["root-S2C_0:C2N_0/r1"], ["root-S2C_0:C2N_0/r1", "root-S2C_0:C2N_0/r2"],
-        [], [], [],  # three parents of their own at level 2: nothing to avoid
+        [], [], [],  # each alone: all three take r1
+        ["root-S2C_0:C2N_0/r1"], ["root-S2C_0:C2N_0/r1", "root-S2C_0:C2N_0/r2"],
+        [], [], [],  # three parents of their own at level 2: each stands as grown
     ]  # fmt: skip
     firsts = [chain["levels"][1]["testcase"] for chain in apart["chains"]]
     assert len(set(firsts)) == 3 and [lv["testcases"] for lv in apart["levels"]] == [1, 3, 3]
