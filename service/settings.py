@@ -33,7 +33,7 @@ class Settings(BaseSettings):
         ge=1,
         le=64,
         description="worker processes of interactive calls (/extend, evaluations, pictures) "
-        "running at once (default: one per core)",
+        "running at once, and the steps of a campaign at once (default: one per core)",
     )
     job_workers: int = Field(
         0,

@@ -1,26 +1,26 @@
-"""Growing a campaign: its chains level by level, every level judged, the work spread
-over workers.
+"""Growing a campaign: its chains level by level, every level judged, the work spread over
+workers.
 
 ``run_campaign`` grows ``chains`` chains per ego route, each to ``depth`` levels (one new
 car per level, chosen the way ``service.core.generator.chain.grow`` chooses), and judges
 every level, the ego-only root included, with every controller. The work it asks for (a
-root, a level, a verdict) is done by a ``CampaignSteps`` that remembers what it did, so
-that a campaign run again after a crash continues where it stopped: the campaign is
+root, a level, a verdict) is done by a ``CampaignSteps`` that remembers what it did, so that
+a campaign run again after a crash continues where it stopped: the campaign is
 deterministic, and every step it already took answers from memory.
 
 The chains grow in waves, one level of every chain at a time. Within a wave the steps are
 independent and run at once on up to ``workers`` threads (each step's own work runs in a
 process of its own, service.jobs.runner): every chain first grows its level alone, as if no
-other chain grew from its parent; then the chains that share a parent settle in chain
-order: a chain keeps its level when it differs from what the chains before it took there
-(``service.core.generator.variety``; children of different parents always differ), and
-else grows it again, avoiding those, so no two chains hold the same test-case at a level.
-Chains with different parents settle at once. A level's verdicts are asked for as soon as it is grown, beside the
-next wave. Route choice is steered towards rules no complexity certificate has broken yet:
-a route whose certificates so far (for this ego route, in the levels before the wave)
-broke only rules already covered is tried after the others of its group. Chain ``c`` of
-every ego route has seed ``seed + c``. Every choice depends on the waves before, never on
-which step finished first: the outcome is the same for any number of workers.
+other chain grew from its parent; then the chains that share a parent settle in chain order:
+a chain keeps its level when it differs from what the chains before it took there
+(``service.core.generator.variety``; children of different parents always differ), and else
+grows it again, avoiding those, so no two chains hold the same test-case at a level. Chains
+with different parents settle at once. A level's verdicts are asked for as soon as it is
+grown, beside the next wave. Route choice is steered towards rules no complexity certificate
+has broken yet: a route whose certificates so far (for this ego route, in the levels before
+the wave) broke only rules already covered is tried after the others of its group. Chain
+``c`` of every ego route has seed ``seed + c``. Every choice depends on the waves before,
+never on which step finished first: the outcome is the same for any number of workers.
 """
 
 from __future__ import annotations
