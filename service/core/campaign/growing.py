@@ -28,7 +28,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ThreadPoolExecutor, wait
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from service.core.campaign.outcome import (
@@ -88,7 +88,6 @@ class _Chain:
     name: str
     levels: list[tuple[str, TestCase, str | None]]
     end: str | None = None
-    verdicts: dict[tuple[str, str], dict[str, Any]] = field(default_factory=dict)
 
 
 def run_campaign(
