@@ -166,4 +166,7 @@ def _without_evaluations(outcome: dict[str, Any]) -> dict[str, Any]:
 
 
 if __name__ == "__main__":
-    campaigns() if sys.argv[1:] == ["--campaign"] else main()
+    if sys.argv[1:] == ["--campaign"]:
+        campaigns()
+    else:
+        main()

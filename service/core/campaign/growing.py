@@ -86,7 +86,7 @@ class _Chain:
     number: int  # from 0
     seed: int
     name: str
-    levels: list[tuple[str, TestCase, str | None]]
+    levels: list[Grown]
     end: str | None = None
 
 
@@ -253,18 +253,18 @@ class _Campaign:
     def _covered_routes(self, ego: str) -> tuple[str, ...]:
         """Routes of this ego whose certificates so far broke only covered rules (tried
         last), from the levels grown before this wave."""
-        levels = [(route, _broken(testcase)) for chain in self.chains
-                  for _, testcase, route in chain.levels[1:]]  # fmt: skip
-        covered = {rule for _, broken in levels for rule in broken}
+        broken = {ident: set(_broken(testcase)) for chain in self.chains
+                  for ident, testcase, _ in chain.levels[1:]}  # fmt: skip
+        covered = set().union(*broken.values())
         if all(rule in covered or rule in EGO_ONLY_RULES for rule, _ in self.rules):
             return ()  # everything is covered: no route is held back
         seen: dict[str, set[str]] = {}
         for chain in self.chains:
             if chain.ego != ego:
                 continue
-            for _, testcase, route in chain.levels[1:]:
+            for ident, _, route in chain.levels[1:]:
                 assert route is not None
-                seen.setdefault(route, set()).update(_broken(testcase))
+                seen.setdefault(route, set()).update(broken[ident])
         return tuple(sorted(r for r, broken in seen.items() if broken <= covered))
 
 
