@@ -1,11 +1,15 @@
 """A campaign item's steps (service.core.campaign.CampaignSteps) over the service's state.
 
-Every step runs in a killable child process (``ItemWork.call``) and is remembered as soon as
-it is done: test-cases and evaluations in the store (and in the item's lists), the end of a
-chain and the outcome so far in the item's memos. A retried item runs the campaign again
-and every step done before answers from memory, so it goes on where it stopped. Up to
-``Settings.workers`` steps run at once (service.core.campaign.growing), each from a thread
-of its own: what the steps share is kept under a lock.
+``JobCampaign.run`` coordinates the campaign: it asks for each step by a request (plain
+JSON: which step, on which stored test-cases) that a ``StepRunner`` carries out wherever
+it runs (``JobCampaign.perform``): in the coordinator's own threads (``LocalSteps``: the
+local executor and ``scengen campaign``, up to ``Settings.workers`` at once), or on Celery
+workers (service.jobs.celery_steps). Every step's work runs in a killable child process
+(``ItemWork.call``) and is remembered as soon as it is done: test-cases and evaluations in
+the store (and in the item's lists), the end of a chain and the outcome so far in the item's
+memos. A retried item runs the campaign again and every step done before answers from
+memory, so it goes on where it stopped. What the coordinator's threads share is kept under
+a lock.
 """
 
 from __future__ import annotations
@@ -33,6 +37,9 @@ from service.settings import Settings
 from service.store import Store
 
 OUTCOME = "outcome"  # the memo key of the campaign's outcome (so far)
+# Steps a campaign on Celery keeps sent at once: its waves' steps wait in the broker's queue
+# for whichever worker is free, so every worker of the deployment has one to take
+STEPS_SENT = 64
 _ENDS = {error.__name__: error for error in CHAIN_ENDS}
 
 
@@ -76,8 +83,27 @@ def routes_that_can_go(
     return egos
 
 
+class StepRunner(Protocol):
+    """Where a campaign's steps run: ``run`` does the step of ``key`` that ``request`` names
+    (``JobCampaign.perform``) and answers its result."""
+
+    def run(self, key: str, request: dict[str, Any]) -> Any: ...
+
+
+class LocalSteps:
+    """Every step in the coordinator's own thread, its work in a killable child process."""
+
+    def __init__(self, campaign: JobCampaign) -> None:
+        self.campaign = campaign
+
+    def run(self, key: str, request: dict[str, Any]) -> Any:
+        return self.campaign.perform(request)
+
+
 class JobCampaign:
-    """The steps of one campaign item; ``run`` runs it."""
+    """One campaign item: ``run`` coordinates it (the waves, the memos, the progress),
+    ``perform`` does one of its steps wherever it runs (the coordinator's thread, or a
+    Celery worker: service.jobs.step_runner)."""
 
     def __init__(self, work: ItemWork, spec: CampaignItem) -> None:
         self.work, self.spec = work, spec
@@ -94,22 +120,21 @@ class JobCampaign:
         self.network_file = work.store.network_file(network.id)
         self.ref = NetworkRef(ref=network.id, sha256=network.sha256)
         self.budget_per_level = spec.budget_per_level or work.settings.extend_budget
+        self.steps: StepRunner = LocalSteps(self)
         self.progress = "starting"
         self.lock = threading.Lock()  # over the lists, the progress and their record
         self.step = threading.local()  # .recalled: the thread's step was answered from
         # memory (a resumed item)
 
-    def run(self) -> dict[str, Any]:
+    def run(self, steps: StepRunner | None = None) -> dict[str, Any]:
+        """The campaign, its steps run by ``steps`` (default: here, ``LocalSteps``)."""
+        self.steps = steps or LocalSteps(self)
         junction, control = self.network.junction_and_control(self.spec.junction,
                                                               self.spec.control)  # fmt: skip
+        key = f"junction/{junction}/{control}"
         description = self._remembered(
-            f"junction/{junction}/{control}",
-            lambda: self.work.call(
-                tasks.describe_junction,
-                (self.network_file, junction, control, self.work.settings.cache_dir),
-                self.work.settings.work_budget, f"reading junction {junction}",
-            ),
-        )  # fmt: skip
+            key, {"step": "describe", "junction": junction, "control": control}
+        )
         routes = [r["id"] for r in description["routes"]]
         egos = (
             routes_that_can_go(description, self.spec.signals, self.spec.duration)
@@ -126,9 +151,8 @@ class JobCampaign:
         crosswalks = bool(description.get("walks"))
         laws = self._remembered(
             f"laws/{self.control}/{'crosswalks' if crosswalks else 'no-crosswalks'}",
-            lambda: self.work.call(tasks.rule_set_laws, (self.control, crosswalks),
-                                    self.work.settings.work_budget, "reading the rule set"),
-        )  # fmt: skip
+            {"step": "laws", "control": self.control, "crosswalks": crosswalks},
+        )
         plan = CampaignPlan(
             network=self.network.id,
             junction=self.junction,
@@ -142,27 +166,15 @@ class JobCampaign:
         )
         return run_campaign(
             plan, self, [(rule, law) for rule, law in laws], self._progress, self._save,
-            self.work.settings.workers,
+            self.work.settings.workers if isinstance(self.steps, LocalSteps) else STEPS_SENT,
         )  # fmt: skip
 
     # CampaignSteps
 
     def root(self, ego: str) -> tuple[str, TestCase]:
         self.step.recalled = False
-
-        def create() -> str:
-            request = {"ego_route": ego, "junction": self.junction, "control": self.control,
-                       "duration": self.spec.duration}  # fmt: skip
-            if self.spec.signals is not None:
-                request["signals"] = self.spec.signals.model_dump()
-            document = self.work.call(
-                tasks.create_testcase,
-                (self.network_file, self.ref, self.work.settings.cache_dir, request),
-                self.work.settings.work_budget, f"creating the test-case of ego {ego}",
-            )  # fmt: skip
-            return self.work.store.add_testcase(parse_testcase(document)).id
-
-        ident = self._remembered(f"root/{ego}", create)
+        request = {"step": "root", "ego": ego, "junction": self.junction, "control": self.control}
+        ident = self._remembered(f"root/{ego}", request)
         self._made(ident)
         return ident, self._testcase(ident)
 
@@ -176,22 +188,10 @@ class JobCampaign:
         avoid: Sequence[tuple[str, TestCase]],
     ) -> tuple[str, TestCase, str]:
         self.step.recalled = False
-
-        def compute() -> dict[str, str]:
-            avoided = tuple(dump_testcase(other) for _, other in avoid)
-            args = (dump_testcase(testcase), self.network_file, self.work.settings.cache_dir,
-                    seed, self.budget_per_level, last, stem, avoided)  # fmt: skip
-            try:
-                result = self.work.call(tasks.extend_any, args, self.budget_per_level + 5.0,
-                                        f"growing a level on {parent}")  # fmt: skip
-            except CHAIN_ENDS as error:  # remembered by its kind (MemoryExceeded too)
-                end = next(kind for kind in CHAIN_ENDS if isinstance(error, kind))
-                return {"end": end.__name__, "message": error.message}
-            record = self.work.store.add_testcase(parse_testcase(result["document"]), parent)
-            return {"testcase": record.id, "route": result["route"]}
-
-        found = self._remembered(grow_key(parent, seed, last, [ident for ident, _ in avoid]),
-                                 compute)  # fmt: skip
+        avoided = [ident for ident, _ in avoid]
+        request = {"step": "grow", "parent": parent, "seed": seed, "last": list(last),
+                   "stem": stem, "avoid": avoided}  # fmt: skip
+        found = self._remembered(grow_key(parent, seed, last, avoided), request)
         if "end" in found:
             raise _ENDS[found["end"]](found["message"])
         self._made(found["testcase"])
@@ -202,21 +202,82 @@ class JobCampaign:
         stored = self.work.store.evaluation(key)
         self.step.recalled = stored is not None
         if stored is None:
+            request = {"step": "evaluate", "testcase": ident, "controller": controller,
+                       "evaluation": key}  # fmt: skip
+            verdict = self.steps.run(f"evaluate/{key}", request)
+        else:
+            verdict = stored.verdict
+        with self.lock:
+            if key not in self.evaluated:
+                self.evaluated.append(key)
+                self._record()
+        return {**verdict, "evaluation": key}
+
+    # one step, wherever it runs
+
+    def perform(self, request: dict[str, Any]) -> Any:
+        """Do the step ``request`` names (its work in a killable child process, what it
+        makes stored) and answer what the coordinator remembers of it (JSON)."""
+        settings, kind = self.work.settings, request["step"]
+        if kind == "describe":
+            junction, control = request["junction"], request["control"]
+            return self.work.call(
+                tasks.describe_junction,
+                (self.network_file, junction, control, settings.cache_dir),
+                settings.work_budget, f"reading junction {junction}",
+            )  # fmt: skip
+        if kind == "laws":
+            return self.work.call(tasks.rule_set_laws, (request["control"], request["crosswalks"]),
+                                  settings.work_budget, "reading the rule set")  # fmt: skip
+        if kind == "root":
+            return self._make_root(request["ego"], request["junction"], request["control"])
+        if kind == "grow":
+            return self._grow_level(request)
+        if kind == "evaluate":
+            return self._judge(request["testcase"], request["controller"], request["evaluation"])
+        raise ValueError(f"unknown campaign step {kind!r}")
+
+    def _make_root(self, ego: str, junction: str, control: str) -> str:
+        request = {"ego_route": ego, "junction": junction, "control": control,
+                   "duration": self.spec.duration}  # fmt: skip
+        if self.spec.signals is not None:
+            request["signals"] = self.spec.signals.model_dump()
+        document = self.work.call(
+            tasks.create_testcase,
+            (self.network_file, self.ref, self.work.settings.cache_dir, request),
+            self.work.settings.work_budget, f"creating the test-case of ego {ego}",
+        )  # fmt: skip
+        return self.work.store.add_testcase(parse_testcase(document)).id
+
+    def _grow_level(self, request: dict[str, Any]) -> dict[str, str]:
+        parent = request["parent"]
+        avoided = tuple(dump_testcase(self._testcase(ident)) for ident in request["avoid"])
+        args = (dump_testcase(self._testcase(parent)), self.network_file,
+                self.work.settings.cache_dir, request["seed"], self.budget_per_level,
+                tuple(request["last"]), request["stem"], avoided)  # fmt: skip
+        try:
+            result = self.work.call(tasks.extend_any, args, self.budget_per_level + 5.0,
+                                    f"growing a level on {parent}")  # fmt: skip
+        except CHAIN_ENDS as error:  # remembered by its kind (MemoryExceeded too)
+            end = next(kind for kind in CHAIN_ENDS if isinstance(error, kind))
+            return {"end": end.__name__, "message": error.message}
+        record = self.work.store.add_testcase(parse_testcase(result["document"]), parent)
+        return {"testcase": record.id, "route": result["route"]}
+
+    def _judge(self, ident: str, controller: str, key: str) -> dict[str, Any]:
+        stored = self.work.store.evaluation(key)
+        if stored is None:
             budget = self.spec.budget or self.work.settings.evaluate_budget
             result = self.work.call(
                 tasks.evaluate_controller,
-                (dump_testcase(testcase), self.network_file, self.work.settings.cache_dir,
-                 controller, budget),
+                (dump_testcase(self._testcase(ident)), self.network_file,
+                 self.work.settings.cache_dir, controller, budget),
                 budget + self.work.settings.work_budget, f"evaluating {controller} on {ident}",
             )  # fmt: skip
             stored = self.work.store.add_evaluation(
                 ident, controller, result["verdict"], result["seconds"], key, result["drive"]
             )
-        with self.lock:
-            if key not in self.evaluated:
-                self.evaluated.append(key)
-                self._record()
-        return {**stored.verdict, "evaluation": key}
+        return dict(stored.verdict)
 
     # memory
 
@@ -232,10 +293,10 @@ class JobCampaign:
                 self.made.append(ident)
                 self._record()
 
-    def _remembered(self, key: str, compute: Callable[[], Any]) -> Any:
+    def _remembered(self, key: str, request: dict[str, Any]) -> Any:
         found = self.work.jobs.memo(self.item.job, self.item.position, key)
         if found is None:
-            found = compute()
+            found = self.steps.run(key, request)
             self._remember(key, found)
         else:
             self.step.recalled = True

@@ -1,4 +1,5 @@
-"""The Celery side of batch jobs: one task, ``scengen.run_item``, run by ``scengen worker``.
+"""The Celery side of batch jobs: ``scengen.run_item`` (a job item) and ``scengen.run_step``
+(a campaign's step, service.jobs.step_runner), run by ``scengen worker``.
 
 Each worker process takes one task at a time and is replaced after it (libsumo and the
 solvers are per-process singletons; a fresh process per task keeps items apart). Celery
@@ -9,8 +10,9 @@ database claim makes a redelivered message that finds its item running or finish
 no-op, so nothing runs twice.
 
 A message can still be lost (Redis restarted empty, a worker killed while it held a message
-it had not started): ``held_items`` tells which items' messages the broker still holds, so
-that the dispatcher sends the others again, and only those, within the lease.
+it had not started): ``held_items`` (``held_steps``) tells which items' (steps') messages
+the broker still holds, so that the dispatcher (the campaign's coordinator) sends the others
+again, and only those, within the lease.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ QUEUE = "celery"  # Celery's default queue: a Redis list (one per priority step)
 SEPARATOR, PRIORITIES = "\x06\x16", (0, 3, 6, 9)
 UNACKED, UNACKED_INDEX = "unacked", "unacked_index"
 TASK_ID = re.compile(rb"scengen-item\.([0-9a-f]+)\.(\d+)\.")
+STEP_TASK_ID = re.compile(rb"scengen-step\.([0-9a-f]+)\.(\d+)\.([0-9a-f]+)\.")
 
 
 def make_celery(settings: Settings) -> Celery:
@@ -51,6 +54,7 @@ def make_celery(settings: Settings) -> Celery:
         broker_transport_options={"visibility_timeout": ITEM_TIME_LIMIT + 600},
     )
     app.task(name="scengen.run_item")(run_item_task)
+    app.task(name="scengen.run_step")(run_step_task)
     return app
 
 
@@ -63,6 +67,20 @@ def run_item_task(job: str, position: int) -> None:
     store = Store(settings.database, settings.cache_dir, settings.max_samples)
     try:
         run_item(store, settings, job, position, owner_name("celery"))
+    finally:
+        store.close()
+
+
+def run_step_task(job: str, position: int, step: str) -> None:
+    """Do one campaign step in this worker (settings from the environment)."""
+    from service.jobs.runner import owner_name
+    from service.jobs.step_runner import run_step
+    from service.store import Store
+
+    settings = get_settings()
+    store = Store(settings.database, settings.cache_dir, settings.max_samples)
+    try:
+        run_step(store, settings, job, position, step, owner_name("celery"))
     finally:
         store.close()
 
@@ -89,11 +107,33 @@ def task_id(job: str, position: int) -> str:
     return f"scengen-item.{job}.{position}.{secrets.token_hex(4)}"
 
 
+def step_task_id(job: str, position: int, step: str) -> str:
+    """The id of a campaign step's message: names the step, for ``held_steps``."""
+    return f"scengen-step.{job}.{position}.{step}.{secrets.token_hex(4)}"
+
+
 def held_items(broker_url: str, fresh: float) -> set[tuple[str, int]] | None:
     """The items whose message the broker holds: waiting in the queue, or delivered to a
     worker less than ``fresh`` seconds ago (the worker has that long to claim the item).
     None when the broker is not Redis (the dispatcher then resends after ``fresh``; a
     duplicate message finds its item claimed and does nothing)."""
+    messages = _held_messages(broker_url, fresh)
+    if messages is None:
+        return None
+    return {(found[1].decode(), int(found[2])) for m in messages for found in TASK_ID.finditer(m)}
+
+
+def held_steps(broker_url: str, fresh: float) -> set[str] | None:
+    """The campaign steps (ids) whose message the broker holds, as ``held_items`` says."""
+    messages = _held_messages(broker_url, fresh)
+    if messages is None:
+        return None
+    return {found[3].decode() for m in messages for found in STEP_TASK_ID.finditer(m)}
+
+
+def _held_messages(broker_url: str, fresh: float) -> list[bytes] | None:
+    """The messages in the broker's queues and those delivered less than ``fresh``
+    seconds ago; None when the broker is not Redis."""
     if not broker_url.startswith(("redis://", "rediss://", "unix://")):
         return None
     client = redis.Redis.from_url(broker_url)
@@ -106,5 +146,4 @@ def held_items(broker_url: str, fresh: float) -> set[tuple[str, int]] | None:
         delivered = client.hmget(UNACKED, recent) if recent else []
     finally:
         client.close()
-    messages = [m for queue in queued for m in queue] + [m for m in delivered if m]
-    return {(found[1].decode(), int(found[2])) for m in messages for found in TASK_ID.finditer(m)}
+    return [m for queue in queued for m in queue] + [m for m in delivered if m]

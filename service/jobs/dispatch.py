@@ -18,7 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from service.jobs.runner import owner_name, run_item
-from service.jobs.store import JobStore
+from service.jobs.store import ItemRecord, JobStore
 from service.settings import Settings
 from service.store import Store
 
@@ -55,31 +55,34 @@ class Dispatcher:
         """Stop (the server is going away)."""
 
 
-class LocalDispatcher(Dispatcher):
-    """Items run in threads of the server, at most ``job_slots`` at once (each item's
-    solver and SUMO calls in child processes)."""
+class ItemThreads:
+    """Job items run in threads of this process, at most ``slots`` at once (each item's
+    solver and SUMO calls in child processes); campaign items ``steps_on_celery`` send
+    their steps to Celery workers and wait for them (service.jobs.celery_steps)."""
 
-    def __init__(self, store: Store, settings: Settings) -> None:
-        super().__init__(store, settings)
-        self.pool = ThreadPoolExecutor(settings.job_slots, thread_name_prefix="scengen-item")
+    def __init__(self, store: Store, settings: Settings, kind: str, steps_on_celery: bool,
+                 nudge: Any) -> None:  # fmt: skip
+        self.store, self.settings, self.nudge = store, settings, nudge
+        self.slots = settings.job_slots
+        self.pool = ThreadPoolExecutor(self.slots, thread_name_prefix="scengen-item")
         self.running: set[tuple[str, int]] = set()
-        self.owner = owner_name("local")
+        self.owner = owner_name(kind)
+        self.steps_on_celery = steps_on_celery
         self.shutdown = threading.Event()
 
-    async def dispatch(self) -> None:
-        free = self.settings.job_slots - len(self.running)
-        if free <= 0:
-            return
-        ready = await asyncio.to_thread(self.jobs.runnable, free + len(self.running))
+    def free(self) -> int:
+        return self.slots - len(self.running)
+
+    def start(self, items: list[ItemRecord]) -> None:
         loop = asyncio.get_running_loop()
-        for item in ready:
+        for item in items:
             key = (item.job, item.position)
-            if key in self.running or len(self.running) >= self.settings.job_slots:
+            if key in self.running or len(self.running) >= self.slots:
                 continue
             self.running.add(key)
             future = loop.run_in_executor(
                 self.pool, run_item, self.store, self.settings, item.job, item.position,
-                self.owner, self.shutdown,
+                self.owner, self.shutdown, self.steps_on_celery,
             )  # fmt: skip
             future.add_done_callback(functools.partial(self._finished, key))
 
@@ -87,11 +90,30 @@ class LocalDispatcher(Dispatcher):
         self.running.discard(key)
         self.nudge()
 
-    async def close(self) -> None:
+    async def close(self, jobs: JobStore) -> None:
         """Stop the running items and give their claims back: a restart costs no attempt."""
         self.shutdown.set()
         await asyncio.to_thread(self.pool.shutdown, True, cancel_futures=True)
-        await asyncio.to_thread(self.jobs.release, self.owner)
+        await asyncio.to_thread(jobs.release, self.owner)
+
+
+class LocalDispatcher(Dispatcher):
+    """Items run in threads of the server, at most ``job_slots`` at once (each item's
+    solver and SUMO calls in child processes)."""
+
+    def __init__(self, store: Store, settings: Settings) -> None:
+        super().__init__(store, settings)
+        self.threads = ItemThreads(store, settings, "local", False, self.nudge)
+
+    async def dispatch(self) -> None:
+        free = self.threads.free()
+        if free <= 0:
+            return
+        ready = await asyncio.to_thread(self.jobs.runnable, free + len(self.threads.running))
+        self.threads.start(ready)
+
+    async def close(self) -> None:
+        await self.threads.close(self.jobs)
 
 
 class CeleryDispatcher(Dispatcher):
@@ -102,17 +124,26 @@ class CeleryDispatcher(Dispatcher):
     had not started) is sent again within the lease: an item sent (or last seen in the
     broker) more than ``SCENGEN_LEASE_SECONDS`` ago is looked for in the broker, and sent
     again only when it is not there; one that waits its turn behind busy workers is
-    found there and left alone."""
+    found there and left alone.
+
+    A campaign item is coordinated here, in a thread of the server (at most ``job_slots``
+    at once), and its steps go to the workers (service.jobs.celery_steps): a campaign
+    uses every worker, and a worker never waits for another."""
 
     def __init__(self, store: Store, settings: Settings) -> None:
         super().__init__(store, settings)
         from service.jobs.celery_app import make_celery
 
         self.celery: Any = make_celery(settings)
+        self.coordinators = ItemThreads(store, settings, "coordinator", True, self.nudge)
 
     async def dispatch(self) -> None:
         lease = self.settings.lease_seconds
         ready = await asyncio.to_thread(self.jobs.runnable, 100, True, lease)
+        campaigns = [item for item in ready if item.kind == "campaign"]
+        if campaigns and self.coordinators.free() > 0:
+            self.coordinators.start(campaigns)
+        ready = [item for item in ready if item.kind != "campaign"]
         if any(item.sent_at is not None for item in ready):
             from service.jobs.celery_app import held_items
 
@@ -137,6 +168,9 @@ class CeleryDispatcher(Dispatcher):
         self.celery.send_task("scengen.run_item", args=[job, position],
                               task_id=task_id(job, position))  # fmt: skip
         self.jobs.mark_sent([(job, position)])
+
+    async def close(self) -> None:
+        await self.coordinators.close(self.jobs)
 
 
 def make_dispatcher(store: Store, settings: Settings) -> Dispatcher:

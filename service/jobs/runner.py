@@ -8,32 +8,24 @@ the job, or losing the lease, kills the running child.
 
 from __future__ import annotations
 
-import contextlib
 import os
-import signal
 import socket
-import subprocess
 import sys
 import threading
-import time
 import traceback
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from service.core.budget import decode_outcome, encode_call
-from service.core.errors import BudgetExceeded, InvalidInput, ScengenError
+from service.core.errors import InvalidInput, ScengenError
 from service.core.testcase import parse_testcase
 from service.jobs import tasks
 from service.jobs.batch import CampaignItem, ChainItem, EvaluateItem, ExtendItem
+from service.jobs.calls import Stopped, heartbeat, run_stoppable
 from service.jobs.campaign_steps import JobCampaign
-from service.jobs.executor import WORKER_COMMAND
+from service.jobs.celery_steps import CelerySteps
 from service.jobs.store import ItemRecord, JobStore
 from service.settings import Settings
 from service.store import Store, TestCaseRecord
-
-
-class Stopped(Exception):
-    """The item was cancelled, or its lease was lost to another worker."""
 
 
 def owner_name(kind: str) -> str:
@@ -47,9 +39,12 @@ def run_item(
     position: int,
     owner: str,
     shutdown: threading.Event | None = None,
+    steps_on_celery: bool = False,
 ) -> None:
     """Claim and run one item; return quietly if someone else has it or it is finished.
-    ``shutdown`` stops it without finishing it (the caller gives the claim back)."""
+    ``shutdown`` stops it without finishing it (the caller gives the claim back). A
+    campaign item with ``steps_on_celery`` sends its steps to Celery workers
+    (service.jobs.celery_steps) and waits for them; else it runs them itself."""
     jobs = JobStore(store)
     if not jobs.claim(job, position, owner, settings.lease_seconds):
         return
@@ -57,10 +52,11 @@ def run_item(
     assert item is not None
     stop = threading.Event()
     beating = threading.Thread(
-        target=_heartbeat,
-        args=(jobs, item, owner, settings.lease_seconds, stop, shutdown or threading.Event()),
+        target=heartbeat,
+        args=(lambda: jobs.renew(job, position, owner, settings.lease_seconds),
+              settings.lease_seconds, stop, shutdown or threading.Event()),
         daemon=True,
-    )
+    )  # fmt: skip
     beating.start()
     if item.testcases or item.evaluations:
         print(
@@ -69,7 +65,7 @@ def run_item(
             file=sys.stderr,
         )
     try:
-        Work(store, jobs, settings, item, owner, stop).run()
+        Work(store, jobs, settings, item, owner, stop, steps_on_celery).run()
     except Stopped:
         return  # cancelled (already marked) or taken over by another worker
     except ScengenError as error:
@@ -86,38 +82,16 @@ def run_item(
         beating.join()
 
 
-def _heartbeat(
-    jobs: JobStore,
-    item: ItemRecord,
-    owner: str,
-    lease: float,
-    stop: threading.Event,
-    shutdown: threading.Event,
-) -> None:
-    """Renew the lease often enough to see a cancellation within seconds; after a failed
-    renewal (the database is away) retry every second: the lease decides."""
-    interval = min(lease / 3, 2.0)
-    while not stop.wait(interval):
-        if shutdown.is_set():
-            stop.set()
-            return
-        try:
-            if not jobs.renew(item.job, item.position, owner, lease):
-                stop.set()  # cancelled, or given to another worker
-            interval = min(lease / 3, 2.0)
-        except Exception:
-            interval = 1.0
-
-
 class Work:
     """One item's work; ``stop`` is set when it must end."""
 
     def __init__(
         self, store: Store, jobs: JobStore, settings: Settings, item: ItemRecord, owner: str,
-        stop: threading.Event,
+        stop: threading.Event, steps_on_celery: bool = False,
     ) -> None:  # fmt: skip
         self.store, self.jobs, self.settings = store, jobs, settings
         self.item, self.owner, self.stop = item, owner, stop
+        self.steps_on_celery = steps_on_celery
 
     def run(self) -> None:
         kind = self.item.kind
@@ -126,7 +100,8 @@ class Work:
         elif kind == "chain":
             self._chain(ChainItem.model_validate(self.item.spec))
         elif kind == "campaign":
-            JobCampaign(self, CampaignItem.model_validate(self.item.spec)).run()
+            campaign = JobCampaign(self, CampaignItem.model_validate(self.item.spec))
+            campaign.run(CelerySteps(self, campaign) if self.steps_on_celery else None)
         else:
             self._evaluate(EvaluateItem.model_validate(self.item.spec))
 
@@ -272,40 +247,3 @@ def _gone(ident: str) -> InvalidInput:
     return InvalidInput(
         f"testcase_id: no stored test-case {ident!r} (deleted since the job was submitted?)"
     )
-
-
-def run_stoppable(
-    function: Callable[..., Any], args: tuple[Any, ...], budget: float, what: str,
-    stop: threading.Event,
-) -> Any:  # fmt: skip
-    """``function(*args)`` in a child process (lowest priority, own process group), killed
-    when ``budget`` runs out (BudgetExceeded) or ``stop`` is set (Stopped)."""
-    child = subprocess.Popen(
-        WORKER_COMMAND,
-        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-        start_new_session=True,
-    )  # fmt: skip
-    answer: dict[str, bytes] = {}
-    request = encode_call(function, args)
-
-    def talk() -> None:
-        answer["out"], answer["err"] = child.communicate(request)
-
-    talker = threading.Thread(target=talk, daemon=True)
-    talker.start()
-    deadline = time.monotonic() + budget
-    try:
-        while talker.is_alive():
-            talker.join(0.2)
-            if stop.is_set():
-                raise Stopped(what)
-            if time.monotonic() > deadline:
-                raise BudgetExceeded(
-                    f"{what} did not finish within its budget of {budget:g} s and was stopped"
-                )
-    finally:
-        if child.poll() is None:  # stopped early: its group is still ours to kill
-            with contextlib.suppress(ProcessLookupError, PermissionError):
-                os.killpg(child.pid, signal.SIGKILL)
-        talker.join(5)
-    return decode_outcome(answer.get("out", b""), answer.get("err", b""), what)

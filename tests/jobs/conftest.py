@@ -67,6 +67,7 @@ def celery_settings(postgres_url: str, tmp_path: Path, worker_id: str) -> Iterat
         for table in (
             "job_items",
             "job_item_memos",
+            "job_steps",
             "jobs",
             "evaluation_drives",
             "evaluations",

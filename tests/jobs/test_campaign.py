@@ -1,6 +1,7 @@
-"""A campaign as a batch job: the same outcome on the embedded executor and on Celery, and
-a Celery worker killed with kill -9 in the middle of it loses nothing: the retried item
-answers every step it took from memory and goes on."""
+"""A campaign as a batch job: the same outcome on the embedded executor and on Celery, whose
+workers run its steps while the server coordinates it; a worker killed with kill -9 and a
+Redis restarted empty in the middle of it lose nothing and repeat nothing: the lost steps
+are sent again, every step is done once."""
 
 from __future__ import annotations
 
@@ -11,6 +12,9 @@ from typing import Any
 
 import pytest
 
+from service.jobs.steps import StepStore
+from service.store import Store
+from tests.jobs.conftest import PrivateRedis
 from tests.jobs.test_durability import wait_until
 from tests.servers import Server, Worker
 
@@ -44,8 +48,8 @@ def halfway(server: Server, job: str) -> dict[str, Any] | None:
     return found if item["state"] == "running" and len(item["testcases"]) >= 3 else None
 
 
-def test_campaign_resumes_after_kill_and_matches_the_local_executor(
-    tmp_path: Path, celery_settings: dict[str, str]
+def test_campaign_steps_on_celery_survive_a_killed_worker_and_redis_and_match_local(
+    tmp_path: Path, celery_settings: dict[str, str], private_redis: PrivateRedis
 ) -> None:
     local = Server(tmp_path / "local", workers="2")
     try:
@@ -67,24 +71,44 @@ def test_campaign_resumes_after_kill_and_matches_the_local_executor(
     covered = [c for c in on_local["coverage"] if c["covered"]]
     assert covered and all(c["testcases"] for c in covered)
 
-    server = Server(tmp_path / "celery", **celery_settings)
-    worker = Worker(tmp_path / "w1", "w1", **celery_settings)
+    # on Celery: one worker, killed with -9 halfway while Redis restarts empty; two more
+    # finish the campaign, its steps spread over them
+    settings = {**celery_settings, "broker_url": private_redis.url}
+    server = Server(tmp_path / "celery", **settings)
+    workers = [Worker(tmp_path / "w1", "w1", **settings)]
     try:
         job = server.client.post("/jobs", json={"items": [CAMPAIGN]}).json()["id"]
-        before = wait_until(lambda: halfway(server, job), timeout=300)
-        worker.kill()
-        worker = Worker(tmp_path / "w2", "w2", **celery_settings)
+        steps = StepStore(Store(settings["database_url"], tmp_path / "cache"))
+        running = lambda: any(s.state == "running" for s in steps.of(job, 0))  # noqa: E731
+        before = wait_until(lambda: halfway(server, job) if running() else None, timeout=300)
+        workers[0].kill()  # in the middle of a step
+        private_redis.kill()
+        private_redis.start()  # empty: every message it held is gone
+        workers = [Worker(tmp_path / f"w{n}", f"w{n}", **settings) for n in (2, 3)]
         after = server.wait_for_job(job)
         assert after["state"] == "succeeded", after["items"][0]["error"]
         item = after["items"][0]
-        assert item["attempts"] >= 2  # interrupted and resumed
+        assert item["attempts"] == 1  # the coordinator (in the server) went on
         assert item["testcases"][:3] == before["items"][0]["testcases"][:3]  # kept, not remade
         assert len(item["testcases"]) == len(set(item["testcases"])) == 5  # root + 2 x 2
         assert len(item["evaluations"]) == len(set(item["evaluations"])) == 5 * 2
-        assert "resuming after" in worker.log.read_text()
         assert outcome(server, job) == on_local
+        done = steps.of(job, 0)
+        # a junction, a rule set, a root, 4 levels, 10 verdicts: each done once, on a worker;
+        # only the step w1 was doing when it was killed was started twice
+        assert [s.state for s in done] == ["done"] * 17
+        assert len({s.key for s in done}) == 17
+        assert sum(s.attempts for s in done) <= 17 + 1
+        logs = "".join(w.log.read_text() for w in workers)
+        assert "scengen.run_step" in logs
+        resent = server.log.read_text().count("(lost?): sent again")
+        print(
+            f"steps: {len(done)}, started {sum(s.attempts for s in done)} times; "
+            f"{resent} message(s) lost with Redis sent again"
+        )
     finally:
-        worker.stop()
+        for worker in workers:
+            worker.stop()
         server.stop()
 
 

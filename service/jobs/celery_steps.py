@@ -1,0 +1,134 @@
+"""A campaign's steps on Celery workers: the coordinator's side.
+
+With the Celery executor, a campaign item is coordinated by the server (the dispatcher runs
+it in a thread of its own, service.jobs.dispatch) and its steps run on the workers: each
+step is posted in the database (service.jobs.steps) and sent as a ``scengen.run_step``
+message; whichever worker is free claims it, does it (service.jobs.step_runner) and keeps
+its result in the database as soon as it exists. One poller per campaign looks at all the
+steps it waits for in one query every ``POLL`` seconds and wakes their threads. It also
+sends a step again whose message the broker lost (Redis restarted empty: not in the broker
+a lease after it was sent) and one whose worker died (its lease ran out), so that every step
+is done, once. A coordinator that restarts (the server did) posts the same steps again and
+finds them as they are: done, running or waiting in the broker.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+import time
+from typing import TYPE_CHECKING, Any
+
+from service.core import errors
+from service.jobs.calls import Stopped
+from service.jobs.steps import StepRecord, StepStore
+
+if TYPE_CHECKING:
+    from service.jobs.campaign_steps import ItemWork, JobCampaign
+
+POLL = 0.1  # seconds between the poller's looks at the steps it waits for
+
+
+class StepFailed(Exception):
+    """A step failed on its worker with an error that is not one of service.core.errors
+    (a bug there: its log has the details)."""
+
+
+class CelerySteps:
+    """Runs a campaign's steps (``StepRunner``) on Celery workers; ``run`` blocks until the
+    step is done and answers its result, or raises its error."""
+
+    def __init__(self, work: ItemWork, campaign: JobCampaign) -> None:
+        from service.jobs.celery_app import make_celery
+
+        self.work, self.campaign = work, campaign
+        self.steps = StepStore(work.store)
+        self.job, self.position = work.item.job, work.item.position
+        self.settings = work.settings
+        self.celery = make_celery(work.settings)
+        self.stop: threading.Event = getattr(work, "stop", threading.Event())
+        self.lock = threading.Lock()
+        self.waiting: dict[str, threading.Event] = {}  # step id -> set when it finished
+        self.answers: dict[str, StepRecord] = {}
+        self.poller: threading.Thread | None = None
+
+    def run(self, key: str, request: dict[str, Any]) -> Any:
+        record = self.steps.post(self.job, self.position, key, request)
+        if record.state not in ("done", "failed"):
+            finished = threading.Event()
+            with self.lock:
+                self.waiting[record.step] = finished
+                if self.poller is None:
+                    self.poller = threading.Thread(target=self._poll, daemon=True,
+                                                   name=f"scengen-steps-{self.job}")  # fmt: skip
+                    self.poller.start()
+            while not finished.wait(0.5):
+                if self.stop.is_set():
+                    raise Stopped(f"campaign step {key}")
+            with self.lock:
+                record = self.answers.pop(record.step)
+        return _answer(record)
+
+    def _poll(self) -> None:
+        while not self.stop.is_set():
+            with self.lock:
+                wanted = list(self.waiting)
+            if wanted:
+                try:
+                    self._look(wanted)
+                except Exception as error:  # the database or the broker is away: look again
+                    print(f"scengen: job {self.job} item {self.position}: waiting for its "
+                          f"steps: {type(error).__name__}: {error}", file=sys.stderr)  # fmt: skip
+            self.stop.wait(POLL)
+
+    def _look(self, wanted: list[str]) -> None:
+        """Wake the threads of finished steps; send the others that need it."""
+        records = self.steps.of(self.job, self.position, wanted)
+        with self.lock:
+            for record in records:
+                if record.state in ("done", "failed"):
+                    self.answers[record.step] = record
+                    self.waiting.pop(record.step).set()
+        now, lease = time.time(), self.settings.lease_seconds
+        for record in records:
+            if record.state == "running" and (record.lease_until or now) < now:
+                # its worker died: back to queued, sent again at the next look
+                self.steps.reclaim(self.job, self.position, record.step,
+                                   self.settings.item_attempts)  # fmt: skip
+        queued = [r for r in records if r.state == "queued"]
+        unsent = [r.step for r in queued if r.sent_at is None]
+        stale = [r for r in queued if r.sent_at is not None and r.sent_at < now - lease]
+        if stale:
+            from service.jobs.celery_app import held_steps
+
+            held = held_steps(self.settings.broker_url, lease)
+            seen = [r.step for r in stale if held is not None and r.step in held]
+            self.steps.mark_sent(self.job, self.position, seen)
+            for record in stale:
+                if record.step not in seen:
+                    print(f"scengen: job {self.job} item {self.position}: step {record.key}: "
+                          f"its message is not in the broker {now - (record.sent_at or now):.0f}"
+                          " s after it was sent (lost?): sent again", file=sys.stderr)  # fmt: skip
+                    unsent.append(record.step)
+        for step in unsent:
+            self._send(step)
+
+    def _send(self, step: str) -> None:
+        from service.jobs.celery_app import step_task_id
+
+        self.celery.send_task("scengen.run_step", args=[self.job, self.position, step],
+                              task_id=step_task_id(self.job, self.position, step))  # fmt: skip
+        self.steps.mark_sent(self.job, self.position, [step])
+
+
+def _answer(record: StepRecord) -> Any:
+    """A finished step's result, or its error raised as the class it had on the worker."""
+    if record.state == "done":
+        return record.result
+    kind = getattr(errors, record.error_kind or "", None)
+    message = f"{record.error}"
+    if isinstance(kind, type) and issubclass(kind, errors.ScengenError):
+        raise kind(message)
+    if record.error_kind is None and record.error and record.error.startswith("its worker"):
+        raise errors.ScengenError(f"campaign step {record.key}: {record.error}")
+    raise StepFailed(f"campaign step {record.key}: {record.error}")
