@@ -67,7 +67,7 @@ class CelerySteps:
                     raise Stopped(f"campaign step {key}")
             with self.lock:
                 record = self.answers.pop(record.step)
-        return _answer(record)
+        return step_answer(record)
 
     def _poll(self) -> None:
         while not self.stop.is_set():
@@ -121,7 +121,7 @@ class CelerySteps:
         self.steps.mark_sent(self.job, self.position, [step])
 
 
-def _answer(record: StepRecord) -> Any:
+def step_answer(record: StepRecord) -> Any:
     """A finished step's result, or its error raised as the class it had on the worker."""
     if record.state == "done":
         return record.result
