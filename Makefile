@@ -93,6 +93,7 @@ bench: $(STAMP)
 	$(BIN)/python -m bench.bench_pedestrians
 	$(BIN)/python -m bench.bench_api
 	$(BIN)/python -m bench.bench_jobs
+	$(BIN)/python -m bench.bench_steps
 	$(BIN)/python -m bench.bench_hostile
 	$(BIN)/python -m bench.bench_large
 
@@ -122,6 +123,7 @@ bench-api: $(STAMP)
 
 bench-jobs: $(STAMP)
 	$(BIN)/python -m bench.bench_jobs
+	$(BIN)/python -m bench.bench_steps
 
 bench-reliability: $(STAMP)
 	$(BIN)/python -m bench.bench_hostile

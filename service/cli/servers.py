@@ -84,9 +84,10 @@ def listen(host: str, port: int) -> socket.socket:
     "run a Celery worker for batch jobs (SCENGEN_EXECUTOR=celery on the server)",
     arg("--concurrency", type=int, default=1, metavar="N", help="tasks at once (default 1)"),
     arg("--name", metavar="NAME", help="worker name (default: host and pid)"),
-    description="Runs job items sent by a server whose SCENGEN_EXECUTOR is celery. It "
-    "reads SCENGEN_BROKER_URL and SCENGEN_DATABASE_URL (the server's database). Each "
-    "task runs in a fresh process; a killed worker's items are retried elsewhere.",
+    description="Runs job items and campaign steps sent by a server whose SCENGEN_EXECUTOR "
+    "is celery. It reads SCENGEN_BROKER_URL and SCENGEN_DATABASE_URL (the server's "
+    "database). Every solver or SUMO call runs in a fresh child process; a killed "
+    "worker's items and steps are retried elsewhere.",
 )
 def worker(args: argparse.Namespace) -> int:
     import socket

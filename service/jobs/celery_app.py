@@ -1,13 +1,15 @@
 """The Celery side of batch jobs: ``scengen.run_item`` (a job item) and ``scengen.run_step``
 (a campaign's step, service.jobs.step_runner), run by ``scengen worker``.
 
-Each worker process takes one task at a time and is replaced after it (libsumo and the
-solvers are per-process singletons; a fresh process per task keeps items apart). Celery
-gives each pool process PR_SET_PDEATHSIG (SIGKILL) and every solver child sets its own
-(service.core.budget): a worker killed with -9 leaves no process behind. The
-message is acknowledged only after the task ends and given back when a worker dies; the
-database claim makes a redelivered message that finds its item running or finished a
-no-op, so nothing runs twice.
+Each worker process takes one task at a time and does its work in child processes of its
+own (every solver or SUMO call is a fresh ``python -m service.core.budget``: libsumo and
+the solvers are per-process singletons), so a pool process only claims, waits and writes;
+it is kept for ``TASKS_PER_PROCESS`` tasks (replacing it after every one cost 4 to 5 s a
+task, measured: more than most campaign steps take). Celery gives each pool process
+PR_SET_PDEATHSIG (SIGKILL) and every solver child sets its own (service.core.budget): a
+worker killed with -9 leaves no process behind. The message is acknowledged only after the
+task ends and given back when a worker dies; the database claim makes a redelivered message
+that finds its item (step) running or finished a no-op, so nothing runs twice.
 
 A message can still be lost (Redis restarted empty, a worker killed while it held a message
 it had not started): ``held_items`` (``held_steps``) tells which items' (steps') messages
@@ -17,16 +19,22 @@ again, and only those, within the lease.
 
 from __future__ import annotations
 
+import functools
 import re
 import secrets
 import time
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import redis
 from celery import Celery
 
 from service.settings import Settings, get_settings
 
+if TYPE_CHECKING:
+    from service.store import Store
+
+TASKS_PER_PROCESS = 100  # a pool process is replaced after this many tasks
 ITEM_TIME_LIMIT = 6 * 3600  # seconds; every solver call inside has its own, smaller budget
 QUEUE = "celery"  # Celery's default queue: a Redis list (one per priority step)
 # kombu's Redis transport: the queue of priority p is QUEUE + SEPARATOR + p (0: QUEUE); a
@@ -48,7 +56,7 @@ def make_celery(settings: Settings) -> Celery:
         accept_content=["json"],
         task_time_limit=ITEM_TIME_LIMIT,
         worker_prefetch_multiplier=1,
-        worker_max_tasks_per_child=1,
+        worker_max_tasks_per_child=TASKS_PER_PROCESS,
         worker_hijack_root_logger=False,
         broker_connection_retry_on_startup=True,
         broker_transport_options={"visibility_timeout": ITEM_TIME_LIMIT + 600},
@@ -61,28 +69,31 @@ def make_celery(settings: Settings) -> Celery:
 def run_item_task(job: str, position: int) -> None:
     """Run one job item in this worker (settings from the environment)."""
     from service.jobs.runner import owner_name, run_item
-    from service.store import Store
 
     settings = get_settings()
-    store = Store(settings.database, settings.cache_dir, settings.max_samples)
-    try:
-        run_item(store, settings, job, position, owner_name("celery"))
-    finally:
-        store.close()
+    run_item(_store(settings), settings, job, position, owner_name("celery"))
 
 
 def run_step_task(job: str, position: int, step: str) -> None:
     """Do one campaign step in this worker (settings from the environment)."""
     from service.jobs.runner import owner_name
     from service.jobs.step_runner import run_step
-    from service.store import Store
 
     settings = get_settings()
-    store = Store(settings.database, settings.cache_dir, settings.max_samples)
-    try:
-        run_step(store, settings, job, position, step, owner_name("celery"))
-    finally:
-        store.close()
+    run_step(_store(settings), settings, job, position, step, owner_name("celery"))
+
+
+@functools.cache
+def _store_of(database: str, cache_dir: Path, max_samples: int) -> Store:
+    from service.store import Store
+
+    return Store(database, cache_dir, max_samples)
+
+
+def _store(settings: Settings) -> Store:
+    """The pool process's store, opened by its first task and kept for the next ones
+    (opening one checks every table: 0.17 s, measured)."""
+    return _store_of(settings.database, settings.cache_dir, settings.max_samples)
 
 
 def worker_arguments(concurrency: int, name: str, loglevel: str = "INFO") -> list[str]:
@@ -105,6 +116,21 @@ def start_worker(settings: Settings, concurrency: int, name: str) -> Any:
 def task_id(job: str, position: int) -> str:
     """The id of an item's message: names the item, so that ``held_items`` can find it."""
     return f"scengen-item.{job}.{position}.{secrets.token_hex(4)}"
+
+
+class CeleryStepBroker:
+    """Campaign steps to Celery workers (service.jobs.celery_steps.StepBroker)."""
+
+    def __init__(self, settings: Settings) -> None:
+        self.celery = make_celery(settings)
+        self.broker_url = settings.broker_url
+
+    def send(self, job: str, position: int, step: str) -> None:
+        self.celery.send_task("scengen.run_step", args=[job, position, step],
+                              task_id=step_task_id(job, position, step))  # fmt: skip
+
+    def held(self, fresh: float) -> set[str] | None:
+        return held_steps(self.broker_url, fresh)
 
 
 def step_task_id(job: str, position: int, step: str) -> str:

@@ -3,13 +3,14 @@
 With the Celery executor, a campaign item is coordinated by the server (the dispatcher runs
 it in a thread of its own, service.jobs.dispatch) and its steps run on the workers: each
 step is posted in the database (service.jobs.steps) and sent as a ``scengen.run_step``
-message; whichever worker is free claims it, does it (service.jobs.step_runner) and keeps
-its result in the database as soon as it exists. One poller per campaign looks at all the
-steps it waits for in one query every ``POLL`` seconds and wakes their threads. It also
-sends a step again whose message the broker lost (Redis restarted empty: not in the broker
-a lease after it was sent) and one whose worker died (its lease ran out), so that every step
-is done, once. A coordinator that restarts (the server did) posts the same steps again and
-finds them as they are: done, running or waiting in the broker.
+message; whichever worker is free claims it, does it (service.jobs.step_runner), keeps its
+result in the database as soon as it exists and tells the coordinator so
+(service.jobs.step_news). One poller per campaign looks at all the steps it waits for in
+one query when such news comes (and every ``LOOK_EVERY`` seconds without news) and wakes
+their threads. It also sends a step again whose message the broker lost (Redis restarted
+empty: not in the broker a lease after it was sent) and one whose worker died (its lease
+ran out), so that every step is done, once. A coordinator that restarts (the server did)
+posts the same steps again and finds them as they are: done, running or in the broker.
 """
 
 from __future__ import annotations
@@ -17,16 +18,33 @@ from __future__ import annotations
 import sys
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
+
+import redis
 
 from service.core import errors
 from service.jobs.calls import Stopped
+from service.jobs.step_news import has_news, wait_for_news
 from service.jobs.steps import StepRecord, StepStore
 
 if TYPE_CHECKING:
-    from service.jobs.campaign_steps import ItemWork, JobCampaign
+    from service.jobs.campaign_steps import ItemWork
 
-POLL = 0.1  # seconds between the poller's looks at the steps it waits for
+POLL = 0.1  # seconds between the poller's looks when the broker brings no news (not Redis)
+LOOK_EVERY = 1.0  # seconds between its looks at the database without news
+
+
+class StepBroker(Protocol):
+    """How steps reach the workers (service.jobs.celery_app.CeleryStepBroker)."""
+
+    def send(self, job: str, position: int, step: str) -> None:
+        """Send the step's message."""
+        ...
+
+    def held(self, fresh: float) -> set[str] | None:
+        """The steps whose message the broker holds (in its queue, or delivered less than
+        ``fresh`` seconds ago); None when it cannot tell."""
+        ...
 
 
 class StepFailed(Exception):
@@ -38,14 +56,11 @@ class CelerySteps:
     """Runs a campaign's steps (``StepRunner``) on Celery workers; ``run`` blocks until the
     step is done and answers its result, or raises its error."""
 
-    def __init__(self, work: ItemWork, campaign: JobCampaign) -> None:
-        from service.jobs.celery_app import make_celery
-
-        self.work, self.campaign = work, campaign
+    def __init__(self, work: ItemWork, broker: StepBroker) -> None:
+        self.work, self.broker = work, broker
         self.steps = StepStore(work.store)
         self.job, self.position = work.item.job, work.item.position
         self.settings = work.settings
-        self.celery = make_celery(work.settings)
         self.stop: threading.Event = getattr(work, "stop", threading.Event())
         self.lock = threading.Lock()
         self.waiting: dict[str, threading.Event] = {}  # step id -> set when it finished
@@ -54,6 +69,8 @@ class CelerySteps:
 
     def run(self, key: str, request: dict[str, Any]) -> Any:
         record = self.steps.post(self.job, self.position, key, request)
+        if record.state == "queued" and record.sent_at is None:
+            self._send(record.step)
         if record.state not in ("done", "failed"):
             finished = threading.Event()
             with self.lock:
@@ -70,16 +87,29 @@ class CelerySteps:
         return step_answer(record)
 
     def _poll(self) -> None:
-        while not self.stop.is_set():
-            with self.lock:
-                wanted = list(self.waiting)
-            if wanted:
+        news = (
+            redis.Redis.from_url(self.settings.broker_url)
+            if has_news(self.settings.broker_url)
+            else None
+        )
+        try:
+            while not self.stop.is_set():
+                with self.lock:
+                    wanted = list(self.waiting)
                 try:
-                    self._look(wanted)
+                    if wanted:
+                        self._look(wanted)
+                    if news is None:
+                        self.stop.wait(POLL)
+                    else:
+                        wait_for_news(news, self.job, self.position, LOOK_EVERY)
                 except Exception as error:  # the database or the broker is away: look again
                     print(f"scengen: job {self.job} item {self.position}: waiting for its "
                           f"steps: {type(error).__name__}: {error}", file=sys.stderr)  # fmt: skip
-            self.stop.wait(POLL)
+                    self.stop.wait(LOOK_EVERY)
+        finally:
+            if news is not None:
+                news.close()
 
     def _look(self, wanted: list[str]) -> None:
         """Wake the threads of finished steps; send the others that need it."""
@@ -99,9 +129,7 @@ class CelerySteps:
         unsent = [r.step for r in queued if r.sent_at is None]
         stale = [r for r in queued if r.sent_at is not None and r.sent_at < now - lease]
         if stale:
-            from service.jobs.celery_app import held_steps
-
-            held = held_steps(self.settings.broker_url, lease)
+            held = self.broker.held(lease)
             seen = [r.step for r in stale if held is not None and r.step in held]
             self.steps.mark_sent(self.job, self.position, seen)
             for record in stale:
@@ -114,10 +142,7 @@ class CelerySteps:
             self._send(step)
 
     def _send(self, step: str) -> None:
-        from service.jobs.celery_app import step_task_id
-
-        self.celery.send_task("scengen.run_step", args=[self.job, self.position, step],
-                              task_id=step_task_id(self.job, self.position, step))  # fmt: skip
+        self.broker.send(self.job, self.position, step)
         self.steps.mark_sent(self.job, self.position, [step])
 
 

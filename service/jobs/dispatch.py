@@ -17,6 +17,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+from service.jobs.celery_steps import StepBroker
 from service.jobs.runner import owner_name, run_item
 from service.jobs.store import ItemRecord, JobStore
 from service.settings import Settings
@@ -57,17 +58,17 @@ class Dispatcher:
 
 class ItemThreads:
     """Job items run in threads of this process, at most ``slots`` at once (each item's
-    solver and SUMO calls in child processes); campaign items ``steps_on_celery`` send
+    solver and SUMO calls in child processes); with a ``step_broker``, campaign items send
     their steps to Celery workers and wait for them (service.jobs.celery_steps)."""
 
-    def __init__(self, store: Store, settings: Settings, kind: str, steps_on_celery: bool,
-                 nudge: Any) -> None:  # fmt: skip
+    def __init__(self, store: Store, settings: Settings, kind: str,
+                 step_broker: StepBroker | None, nudge: Any) -> None:  # fmt: skip
         self.store, self.settings, self.nudge = store, settings, nudge
         self.slots = settings.job_slots
         self.pool = ThreadPoolExecutor(self.slots, thread_name_prefix="scengen-item")
         self.running: set[tuple[str, int]] = set()
         self.owner = owner_name(kind)
-        self.steps_on_celery = steps_on_celery
+        self.step_broker = step_broker
         self.shutdown = threading.Event()
 
     def free(self) -> int:
@@ -82,7 +83,7 @@ class ItemThreads:
             self.running.add(key)
             future = loop.run_in_executor(
                 self.pool, run_item, self.store, self.settings, item.job, item.position,
-                self.owner, self.shutdown, self.steps_on_celery,
+                self.owner, self.shutdown, self.step_broker,
             )  # fmt: skip
             future.add_done_callback(functools.partial(self._finished, key))
 
@@ -103,7 +104,7 @@ class LocalDispatcher(Dispatcher):
 
     def __init__(self, store: Store, settings: Settings) -> None:
         super().__init__(store, settings)
-        self.threads = ItemThreads(store, settings, "local", False, self.nudge)
+        self.threads = ItemThreads(store, settings, "local", None, self.nudge)
 
     async def dispatch(self) -> None:
         free = self.threads.free()
@@ -132,10 +133,11 @@ class CeleryDispatcher(Dispatcher):
 
     def __init__(self, store: Store, settings: Settings) -> None:
         super().__init__(store, settings)
-        from service.jobs.celery_app import make_celery
+        from service.jobs.celery_app import CeleryStepBroker, make_celery
 
         self.celery: Any = make_celery(settings)
-        self.coordinators = ItemThreads(store, settings, "coordinator", True, self.nudge)
+        broker = CeleryStepBroker(settings)
+        self.coordinators = ItemThreads(store, settings, "coordinator", broker, self.nudge)
 
     async def dispatch(self) -> None:
         lease = self.settings.lease_seconds

@@ -22,7 +22,7 @@ from service.jobs import tasks
 from service.jobs.batch import CampaignItem, ChainItem, EvaluateItem, ExtendItem
 from service.jobs.calls import Stopped, heartbeat, run_stoppable
 from service.jobs.campaign_steps import JobCampaign
-from service.jobs.celery_steps import CelerySteps
+from service.jobs.celery_steps import CelerySteps, StepBroker
 from service.jobs.store import ItemRecord, JobStore
 from service.settings import Settings
 from service.store import Store, TestCaseRecord
@@ -39,11 +39,11 @@ def run_item(
     position: int,
     owner: str,
     shutdown: threading.Event | None = None,
-    steps_on_celery: bool = False,
+    step_broker: StepBroker | None = None,
 ) -> None:
     """Claim and run one item; return quietly if someone else has it or it is finished.
     ``shutdown`` stops it without finishing it (the caller gives the claim back). A
-    campaign item with ``steps_on_celery`` sends its steps to Celery workers
+    campaign item with a ``step_broker`` sends its steps to Celery workers through it
     (service.jobs.celery_steps) and waits for them; else it runs them itself."""
     jobs = JobStore(store)
     if not jobs.claim(job, position, owner, settings.lease_seconds):
@@ -65,7 +65,7 @@ def run_item(
             file=sys.stderr,
         )
     try:
-        Work(store, jobs, settings, item, owner, stop, steps_on_celery).run()
+        Work(store, jobs, settings, item, owner, stop, step_broker).run()
     except Stopped:
         return  # cancelled (already marked) or taken over by another worker
     except ScengenError as error:
@@ -87,11 +87,11 @@ class Work:
 
     def __init__(
         self, store: Store, jobs: JobStore, settings: Settings, item: ItemRecord, owner: str,
-        stop: threading.Event, steps_on_celery: bool = False,
+        stop: threading.Event, step_broker: StepBroker | None = None,
     ) -> None:  # fmt: skip
         self.store, self.jobs, self.settings = store, jobs, settings
         self.item, self.owner, self.stop = item, owner, stop
-        self.steps_on_celery = steps_on_celery
+        self.step_broker = step_broker
 
     def run(self) -> None:
         kind = self.item.kind
@@ -101,7 +101,8 @@ class Work:
             self._chain(ChainItem.model_validate(self.item.spec))
         elif kind == "campaign":
             campaign = JobCampaign(self, CampaignItem.model_validate(self.item.spec))
-            campaign.run(CelerySteps(self, campaign) if self.steps_on_celery else None)
+            broker = self.step_broker
+            campaign.run(None if broker is None else CelerySteps(self, broker))
         else:
             self._evaluate(EvaluateItem.model_validate(self.item.spec))
 

@@ -4,8 +4,9 @@ The step's row (service.jobs.steps) says what to do; the worker claims it (a mes
 delivered twice, or sent again while the first is still running, does nothing), renews its
 lease while it works, does it as the coordinator would (``JobCampaign.perform``: the
 network read by its id from the database, the work in a killable child process, what it
-makes stored) and keeps the result or the error in the row. The step stops when its lease
-is lost or its job is cancelled.
+makes stored), keeps the result or the error in the row and tells the coordinator
+(service.jobs.step_news). The step stops when its lease is lost or its job
+is cancelled.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from service.jobs.batch import CampaignItem
 from service.jobs.calls import Stopped, heartbeat
 from service.jobs.campaign_steps import JobCampaign
 from service.jobs.runner import Work
+from service.jobs.step_news import tell_step_done
 from service.jobs.steps import StepStore
 from service.jobs.store import JobStore
 from service.settings import Settings
@@ -48,7 +50,8 @@ def run_step(
     clock = time.monotonic()
 
     def finish(**outcome: Any) -> None:
-        steps.finish(job, position, step, owner, time.monotonic() - clock, **outcome)
+        if steps.finish(job, position, step, owner, time.monotonic() - clock, **outcome):
+            tell_step_done(settings.broker_url, job, position, step)
 
     try:
         work = Work(store, jobs, settings, item, owner, stop)
