@@ -1,7 +1,7 @@
 """A campaign as a batch job: the same outcome on the embedded executor and on Celery, whose
-workers run its steps while the server coordinates it; a worker killed with kill -9 and a
-Redis restarted empty in the middle of it lose nothing and repeat nothing: the lost steps
-are sent again, every step is done once."""
+workers run its steps while the server coordinates it; a worker and the server killed with
+kill -9 and a Redis restarted empty in the middle of it lose nothing and repeat nothing: the
+lost steps are sent again, every step is done once."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def halfway(server: Server, job: str) -> dict[str, Any] | None:
     return found if item["state"] == "running" and len(item["testcases"]) >= 3 else None
 
 
-def test_campaign_steps_on_celery_survive_a_killed_worker_and_redis_and_match_local(
+def test_campaign_steps_on_celery_survive_kill_9_and_redis_and_match_local(
     tmp_path: Path, celery_settings: dict[str, str], private_redis: PrivateRedis
 ) -> None:
     local = Server(tmp_path / "local", workers="2")
@@ -71,8 +71,9 @@ def test_campaign_steps_on_celery_survive_a_killed_worker_and_redis_and_match_lo
     covered = [c for c in on_local["coverage"] if c["covered"]]
     assert covered and all(c["testcases"] for c in covered)
 
-    # on Celery: one worker, killed with -9 halfway while Redis restarts empty; two more
-    # finish the campaign, its steps spread over them
+    # on Celery: one worker, killed with -9 in the middle of a step, with the server and
+    # Redis (restarted empty); the restarted server and two new workers finish the
+    # campaign, its steps spread over them
     settings = {**celery_settings, "broker_url": private_redis.url}
     server = Server(tmp_path / "celery", **settings)
     workers = [Worker(tmp_path / "w1", "w1", **settings)]
@@ -82,13 +83,16 @@ def test_campaign_steps_on_celery_survive_a_killed_worker_and_redis_and_match_lo
         running = lambda: any(s.state == "running" for s in steps.of(job, 0))  # noqa: E731
         before = wait_until(lambda: halfway(server, job) if running() else None, timeout=300)
         workers[0].kill()  # in the middle of a step
+        server.kill()  # and the campaign's coordinator with it
         private_redis.kill()
         private_redis.start()  # empty: every message it held is gone
+        server.start()
         workers = [Worker(tmp_path / f"w{n}", f"w{n}", **settings) for n in (2, 3)]
         after = server.wait_for_job(job)
         assert after["state"] == "succeeded", after["items"][0]["error"]
         item = after["items"][0]
-        assert item["attempts"] == 1  # the coordinator (in the server) went on
+        assert item["attempts"] == 2  # the restarted server coordinated it again
+        assert "resuming after" in server.log.read_text()
         assert item["testcases"][:3] == before["items"][0]["testcases"][:3]  # kept, not remade
         assert len(item["testcases"]) == len(set(item["testcases"])) == 5  # root + 2 x 2
         assert len(item["evaluations"]) == len(set(item["evaluations"])) == 5 * 2
