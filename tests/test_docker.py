@@ -69,6 +69,6 @@ def test_job_items_and_interactive_calls_have_their_own_worker_counts(
 
     store = Store(f"sqlite:///{tmp_path}/scengen.sqlite3", tmp_path / "cache")
     try:
-        assert LocalDispatcher(store, settings).pool._max_workers == 1
+        assert LocalDispatcher(store, settings).threads.pool._max_workers == 1
     finally:
         store.close()
