@@ -25,3 +25,12 @@ def test_the_default_start_is_fitted_to_a_short_road(api: httpx.Client) -> None:
     given = api.post("/testcases", json={**body, "start_distance": 30})
     assert given.status_code == 422
     assert "start distance 30 m is longer than the road before fork" in given.json()["detail"]
+
+
+def test_a_duration_too_short_for_any_ego_is_refused_when_made(api: httpx.Client) -> None:
+    body = {"network": "4way-stop", "ego_route": "E2C_1:C2S_1", "duration": 2}
+    refused = api.post("/testcases", json=body)
+    assert refused.status_code == 422, refused.text
+    detail = refused.json()["detail"]
+    assert "duration 2 s is too short for the ego to reach its exit" in detail
+    assert "give a duration of 4.3 s or more" in detail

@@ -4,7 +4,8 @@ Each ``console`` and ``sh`` block runs, in README order, in one working folder (
 use files an earlier block wrote), with the installed commands on the PATH, as a new user
 would type them. A ``console`` block's shown output must appear in what the command prints
 (whitespace aside, ``...`` for lines left out, solver timings aside), and the command must
-exit 1 where the README shows a FAIL, else 0. A block that cannot run offline is marked on
+exit 2 where the README shows a refusal (``scengen: error:``), 1 where it shows a FAIL,
+else 0. A block that cannot run offline is marked on
 the line before it, with the reason (``<!-- readme: not run (...) -->``) or with the test
 that runs it against a server (``<!-- readme: server ... -->``, ``<!-- curl-example ... -->``).
 """
@@ -167,6 +168,8 @@ def test_the_readme_commands_run_as_shown(workdir: Path) -> None:
         for command, (_, output, code) in zip(block.commands, outputs, strict=True):
             ran += 1
             expected_code = 1 if "FAIL" in command.shown else 0
+            if "scengen: error:" in command.shown:
+                expected_code = 2  # bad input, refused with its reason
             where = f"README.md:{command.line}: $ {command.text}"
             if int(code) != expected_code:
                 problems.append(f"{where}\n  exit {code}, expected {expected_code}\n{output}")

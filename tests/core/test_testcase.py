@@ -115,6 +115,21 @@ def test_new_testcase_rejects_start_faster_than_its_lane_allows() -> None:
         new_testcase("4way-stop", "S2C_1:C2W_1", start_speed=14.5)
 
 
+def test_new_testcase_refuses_a_duration_no_ego_can_reach_its_exit_in() -> None:
+    """From 30 m before the stop line at its start speed, the ego drives 55.4 m until its
+    back has left the junction: 4.2 s at the least, accelerating at 3 m/s² up to 15 m/s
+    (the bound of service.core.motion.kinematics.fastest); a stop sign only adds to it."""
+    message = (r"duration 2 s is too short for the ego to reach its exit: .* drives 55\.4 m to "
+               r"leave the junction, which takes at least 4\.2\d s .* give a duration of 4\.3 s "
+               "or more")  # fmt: skip
+    with pytest.raises(InvalidInput, match=message):
+        new_testcase("4way-stop", "E2C_1:C2S_1", duration=2)
+    with pytest.raises(InvalidInput, match=r"duration 4\.2 s is too short"):
+        new_testcase("4way-stop", "E2C_1:C2S_1", duration=4.2)
+    assert new_testcase("4way-stop", "E2C_1:C2S_1", duration=4.3).duration == 4.3
+    assert new_testcase("4way-stop", "E2C_1:C2S_1", duration=3, start_distance=5.0)  # 2.57 s
+
+
 def test_new_testcase_refuses_an_ego_whose_light_stays_red() -> None:
     """Town05 1126's program (42 s green, 3 s yellow each way): the ego from -46 waits for
     red until 45 s, so in a 45 s test-case no ego can pass; at 50 s it can."""

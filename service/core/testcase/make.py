@@ -3,11 +3,13 @@ loading the intersection a test-case was made on, under its signal program."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from service.core.errors import InvalidInput, InvalidTestCase
+from service.core.motion.kinematics import fastest
 from service.core.motion.poses import (
     check_start_speed,
     longest_start,
@@ -102,6 +104,7 @@ def new_testcase(
     testcase = parse_testcase(document)
     # Fails with a clear message when the start lies beyond the mapped road.
     plan = plan_drive(intersection, route, start_distance, max(speed, 1.0), duration, timestep)
+    _check_ego_can_arrive(plan.leave_distance, speed, chosen, duration, start_distance)
     if start_speed is not None:
         check_start_speed(intersection, plan, start_speed)
     elif speed > start_speed_limit(intersection, plan):
@@ -156,6 +159,28 @@ def _check_ego_can_go(intersection: Intersection, route: Route, duration: float)
         f"for the whole test-case ({duration:g} s) and {when}: no ego could pass it; give "
         "a longer duration, another ego route, or a program with another offset (--signals; "
         "the API's signals field)"
+    )
+
+
+def _check_ego_can_arrive(
+    distance: float, speed: float, params: Params, duration: float, start_distance: float
+) -> None:
+    """InvalidInput when the ego cannot reach its goal (its back out of the junction,
+    ``distance`` metres from its start) within ``duration`` even at full speed: from its
+    start speed, accelerating at a_max up to v_max and never stopping. No ego could pass
+    such a test-case, so no harder one exists; the message names the shortest duration in
+    which one could (a lower bound: a stop sign or a red light adds to it)."""
+    least = fastest(distance, speed, params.a_max, params.v_max)
+    if least <= duration:
+        return
+    shortest = math.ceil(least * 10) / 10
+    raise InvalidInput(
+        f"duration {duration:g} s is too short for the ego to reach its exit: from its start "
+        f"{start_distance:g} m before the stop line it drives {distance:.1f} m to leave the "
+        f"junction, which takes at least {least:.2f} s even at full speed (a_max "
+        f"{params.a_max:g} m/s², v_max {params.v_max:g} m/s, never stopping); give a duration "
+        f"of {shortest:g} s or more (more where it must stop or wait), or a shorter start "
+        "distance"
     )
 
 
