@@ -6,6 +6,21 @@ beside their handlers; the arguments they share are defined once (service.cli.ar
 ``submit``, ``campaign_folder`` and ``examples`` do the work behind some of them.
 """
 
-from service.cli.main import main
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
 
 __all__ = ["main"]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """The ``scengen`` command. Its table of commands is imported here, not when this
+    package is, so that Ctrl-C while it loads (a second of imports) stops it as quietly as
+    Ctrl-C later does (service.cli.main)."""
+    try:
+        from service.cli.main import main as run
+    except KeyboardInterrupt:
+        print("scengen: stopped (Ctrl-C) while starting", file=sys.stderr)
+        return 130  # service.cli.output.EXIT_INTERRUPTED, not imported yet
+    return run(argv)

@@ -16,6 +16,7 @@ from service.cli.output import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
     EXIT_FAILED_CHECK,
+    EXIT_INTERRUPTED,
     EXIT_OK,
     StepProgress,
     exit_code,
@@ -115,41 +116,74 @@ def evaluate(args: argparse.Namespace) -> int:
     verdicts: list[tuple[Verdict, Path]] = []
     skipped: list[tuple[str, str]] = []  # (test-case, controller): a certificate it lacks
     problems: list[tuple[str, str, ScengenError]] = []  # (test-case, controller, why)
+    not_run: list[tuple[str, str]] = []  # (test-case, controller): interrupted before it
     steps = StepProgress(len(files) * len(controllers), "evaluations")
-    for path in files:
-        try:
-            testcase = read_input(path)
-            junction = testcase_intersection(testcase, args, path)
-        except ScengenError as error:  # this file cannot be evaluated: its row says why
-            rows.append(["-", str(path), *(["ERROR (below)"] * len(controllers))])
-            problems.append((str(path), "", error))
-            for name in controllers:
-                steps.step(f"{path} / {name}: error")
-            continue
-        label = _label(testcase_label(testcase), path)
-        row = [testcase_label(testcase), str(path)]
-        for name, driver in zip(controllers, drivers, strict=True):
-            if isinstance(driver, CertificateDriver) and testcase.certificates is None:
-                row.append("(none)")
-                skipped.append((label, name))
-                steps.step(f"{label} / {name}: (none)")
-                continue
+    row: list[str] = []
+    try:
+        for path in files:
+            row = ["-", str(path)]
             try:
-                verdict = evaluate_controller(
-                    testcase, name, junction, args.budget, rss_params
-                ).verdict
-            except ScengenError as error:
-                row.append("ERROR (below)")
-                problems.append((label, name, error))
-                steps.step(f"{label} / {name}: error")
+                testcase = read_input(path)
+                junction = testcase_intersection(testcase, args, path)
+            except ScengenError as error:  # this file cannot be evaluated: its row says why
+                rows.append([*row, *(["ERROR (below)"] * len(controllers))])
+                row = []
+                problems.append((str(path), "", error))
+                for name in controllers:
+                    steps.step(f"{path} / {name}: error")
                 continue
-            verdicts.append((verdict, path))
-            cell = "pass" if verdict.passed else "FAIL: " + short(verdict)
-            row.append(cell + guard_note(verdict))
-            steps.step(f"{label} / {name}: {'pass' if verdict.passed else 'FAIL'}")
-        rows.append(row)
+            label = _label(testcase_label(testcase), path)
+            row = [testcase_label(testcase), str(path)]
+            for name, driver in zip(controllers, drivers, strict=True):
+                if isinstance(driver, CertificateDriver) and testcase.certificates is None:
+                    row.append("(none)")
+                    skipped.append((label, name))
+                    steps.step(f"{label} / {name}: (none)")
+                    continue
+                try:
+                    verdict = evaluate_controller(
+                        testcase, name, junction, args.budget, rss_params
+                    ).verdict
+                except ScengenError as error:
+                    row.append("ERROR (below)")
+                    problems.append((label, name, error))
+                    steps.step(f"{label} / {name}: error")
+                    continue
+                verdicts.append((verdict, path))
+                cell = "pass" if verdict.passed else "FAIL: " + short(verdict)
+                row.append(cell + guard_note(verdict))
+                steps.step(f"{label} / {name}: {'pass' if verdict.passed else 'FAIL'}")
+            rows.append(row)
+            row = []
+    except KeyboardInterrupt:  # Ctrl-C: what was judged is reported, the rest is not run
+        steps.close()
+        _mark_not_run(rows, row, files, controllers, not_run)
+        _report_evaluations(args, verdicts, skipped, problems, rows, not_run)
+        print(f"scengen: stopped (Ctrl-C) after {len(verdicts)} of "
+              f"{len(files) * len(controllers)} evaluations: the rest are not run; run the "
+              "same command again for all", file=sys.stderr)  # fmt: skip
+        return EXIT_INTERRUPTED
     steps.close()
     return _report_evaluations(args, verdicts, skipped, problems, rows)
+
+
+def _mark_not_run(
+    rows: list[list[str]], row: list[str], files: Sequence[Path], controllers: Sequence[str],
+    not_run: list[tuple[str, str]],
+) -> None:  # fmt: skip
+    """The table's cells (and ``not_run``'s names) of the evaluations an interruption left
+    out: the rest of the row it stopped in (``row``, empty when none was begun) and the
+    files after it."""
+    started = len(rows) - 1 + (1 if row else 0)
+    if row:
+        path = files[started - 1]
+        label = str(path) if row[0] == "-" else _label(row[0], path)
+        for name in controllers[len(row) - 2 :]:
+            not_run.append((label, name))
+        rows.append(row + ["not run"] * (len(controllers) - (len(row) - 2)))
+    for path in files[started:]:
+        rows.append(["-", str(path), *(["not run"] * len(controllers))])
+        not_run += [(str(path), name) for name in controllers]
 
 
 def _rss_params(path: Path | None) -> dict[str, Any] | None:
@@ -189,18 +223,22 @@ def _report_evaluations(
     skipped: Sequence[tuple[str, str]],
     problems: Sequence[tuple[str, str, ScengenError]],
     rows: Sequence[Sequence[str]],
+    not_run: Sequence[tuple[str, str]] = (),
 ) -> int:
     """Print the verdicts (one, a table, or JSON), write JUnit, and the overall exit code:
     0 all passed (cells without a certificate to replay do not count), 1 some failed, and,
     when some could not be evaluated at all, 2 if each of those was bad input, else 3.
-    Verdicts name their test-case by its name; JUnit and JSON give its file beside it."""
+    Verdicts name their test-case by its name; JUnit and JSON give its file beside it.
+    ``not_run``: the evaluations an interruption left out (JUnit: skipped, saying so)."""
     verdicts = [verdict for verdict, _ in judged]
     if args.junit:
         labelled = [dataclasses.replace(v, testcase=_label(v.testcase, path))
                     for v, path in judged]  # fmt: skip
         errors = [(f"{t} / {c}" if c else t, str(e)) for t, c, e in problems]
         skips = [f"{t} / {c}" for t, c in skipped]
-        write_output(args.junit, junit_report(labelled, errors=errors, skipped=skips))
+        never = [f"{t} / {c}" for t, c in not_run]
+        write_output(args.junit, junit_report(labelled, errors=errors, skipped=skips,
+                                              not_run=never))  # fmt: skip
     if args.json:
         json.dump([{**v.to_dict(), "file": str(path)} for v, path in judged], sys.stdout,
                   indent=2)  # fmt: skip
@@ -214,8 +252,9 @@ def _report_evaluations(
         print(f"ERROR {where}: {error}", file=sys.stderr if args.json else sys.stdout)
     if rows:
         failed = sum(1 for v in verdicts if not v.passed)
+        left = f", {len(not_run)} not run" if not_run else ""
         print(f"{len(verdicts) - failed} passed, {failed} failed, {len(skipped)} without a "
-              f"certificate to replay, {len(problems)} could not be evaluated",
+              f"certificate to replay, {len(problems)} could not be evaluated{left}",
               file=sys.stderr)  # fmt: skip
     if problems:
         codes = {exit_code(error) for _, _, error in problems}

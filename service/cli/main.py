@@ -86,11 +86,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"scengen: {label}: {exc}", file=sys.stderr)
         return code
     except KeyboardInterrupt:  # Ctrl-C: a normal way to stop, not a fault
-        print(
-            "scengen: stopped (Ctrl-C); files written before are kept, and a campaign goes "
-            "on where it stopped when run again",
-            file=sys.stderr,
+        again = (
+            "run the same command to go on where it stopped"
+            if args.run.__name__ == "campaign"
+            else "nothing half-written is left; run the same command to start again"
         )
+        print(f"scengen: stopped (Ctrl-C); {again}", file=sys.stderr)
         return EXIT_INTERRUPTED
 
 

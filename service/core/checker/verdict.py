@@ -268,14 +268,20 @@ def junit_report(
     suite_name: str = "scengen",
     errors: Sequence[tuple[str, str]] = (),
     skipped: Sequence[str] = (),
+    not_run: Sequence[str] = (),
 ) -> str:
     """One JUnit test suite with a test case per verdict (test-case / controller), one per
-    evaluation that could not run (``errors``: name and why) and one per skipped cell."""
+    evaluation that could not run (``errors``: name and why), one per skipped cell and one
+    per evaluation never started (``not_run``: the run was interrupted)."""
     cases = [verdict_case(verdict) for verdict in verdicts]
     cases += [JUnitCase("scengen.check", name, "error", why) for name, why in errors]
     cases += [
         JUnitCase("scengen.check", name, "skipped", "the test-case has no certificate to replay")
         for name in skipped
+    ]
+    cases += [
+        JUnitCase("scengen.check", name, "skipped", "not run: the evaluation was interrupted")
+        for name in not_run
     ]
     return junit_document(cases, suite_name)
 
