@@ -42,6 +42,7 @@ from service.api.schemas import (
 )
 from service.api.state import AppState, Metrics, get_state, token_matches
 from service.core.budget import MEMORY_VARIABLE
+from service.core.version import package_version
 from service.jobs.dispatch import make_dispatcher
 from service.jobs.executor import LocalExecutor
 from service.pictures.report import UI
@@ -105,7 +106,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     app = FastAPI(
         title=TITLE,
         description=DESCRIPTION,
-        version="1.0.0",
+        version=package_version(),
         lifespan=lifespan,
         docs_url=None,
         redoc_url=None,

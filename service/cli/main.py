@@ -58,10 +58,9 @@ def version() -> str:
     from importlib.metadata import PackageNotFoundError
     from importlib.metadata import version as installed
 
-    try:
-        ours = installed("scengen")
-    except PackageNotFoundError:  # run from a source tree that was never installed
-        ours = "(not installed)"
+    from service.core.version import package_version
+
+    ours = package_version()
     try:
         return f"{ours} (SUMO {installed('eclipse-sumo')})"
     except PackageNotFoundError:

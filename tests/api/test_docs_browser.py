@@ -13,6 +13,7 @@ from typing import Any
 import pytest
 from playwright.sync_api import Page, sync_playwright
 
+from service.core.version import package_version
 from tests.servers import Server
 
 pytestmark = pytest.mark.slow
@@ -117,7 +118,7 @@ def test_picture_shows_inline(server: Server, page: tuple[Page, list[str]]) -> N
 def test_redoc_renders_offline(server: Server, page: tuple[Page, list[str]]) -> None:
     browser, requested = page
     browser.goto(f"{server.url}/redoc")
-    browser.wait_for_selector("text=scengen (1.0.0)", timeout=30_000)
+    browser.wait_for_selector(f"text=scengen ({package_version()})", timeout=30_000)
     browser.wait_for_timeout(1000)  # let it finish rendering and fetching
     browser.screenshot(path=str(SCREENSHOTS / "redoc.png"))
     assert external(server, requested) == []
