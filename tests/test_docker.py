@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from service.cli.main import parser
+from service.cli.commands import parser
 from service.settings import Settings
 
 ROOT = Path(__file__).parents[1]

@@ -1,6 +1,6 @@
 """The ``scengen`` command line: a thin adapter over ``service.core`` and the service.
 
-``main`` runs the table of commands (service.cli.main); each command group has a module
+``main`` runs the table of commands (service.cli.commands); each command group has a module
 (networks, testcases, judging, exports, servers, campaigns) with its commands' arguments
 beside their handlers; the arguments they share are defined once (service.cli.arguments).
 ``submit``, ``campaign_folder`` and ``examples`` do the work behind some of them.
@@ -17,9 +17,9 @@ __all__ = ["main"]
 def main(argv: Sequence[str] | None = None) -> int:
     """The ``scengen`` command. Its table of commands is imported here, not when this
     package is, so that Ctrl-C while it loads (a second of imports) stops it as quietly as
-    Ctrl-C later does (service.cli.main)."""
+    Ctrl-C later does (service.cli.commands)."""
     try:
-        from service.cli.main import main as run
+        from service.cli.commands import main as run
     except KeyboardInterrupt:
         print("scengen: stopped (Ctrl-C) while starting", file=sys.stderr)
         return 130  # service.cli.output.EXIT_INTERRUPTED, not imported yet

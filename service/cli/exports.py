@@ -86,8 +86,11 @@ def export(args: argparse.Namespace) -> int:
 def plot(args: argparse.Namespace) -> int:
     suffixes = (".gif",) if args.animate else (".png", ".svg")
     if args.output.suffix.lower() not in suffixes:
+        hint = {".gif": "; an animated GIF needs --animate",
+                ".png": "; --animate writes a GIF", ".svg": "; --animate writes a GIF"}  # fmt: skip
         raise InvalidInput(
             f"plot file must end in {' or '.join(suffixes)}, got {args.output.name!r}"
+            f"{hint.get(args.output.suffix.lower(), '')}"
         )
     say = progress(time.monotonic())
     from service.pictures.animation import animate_testcase  # matplotlib: on use

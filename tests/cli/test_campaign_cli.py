@@ -128,7 +128,7 @@ def test_the_summary_prints_the_papers_table_and_criticality_by_level(
     """The command's printing over a campaign of hand-made verdicts (the loop and the
     measures are tested in the core)."""
     from service.cli import campaign_folder, campaigns
-    from service.cli.main import main
+    from service.cli.commands import main
     from service.core.campaign.growing import run_campaign
     from tests.core.campaign.test_campaign import RULES, FakeSteps, plan
 

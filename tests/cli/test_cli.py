@@ -13,8 +13,8 @@ import pytest
 
 from service import cli
 from service.cli import submit as _submit  # noqa: F401 (its errors join the tree: collected always)
+from service.cli.commands import parser
 from service.cli.examples import EXAMPLES
-from service.cli.main import parser
 from service.cli.output import exit_code
 from service.cli.testcases import start_distances
 from service.core import errors
@@ -583,7 +583,10 @@ def test_plot_animates_a_replay(tmp_path: Path) -> None:
 
     with Image.open(gif) as image:
         assert image.n_frames == 13  # one frame every 0.5 s of 6 s
-    assert run("plot", str(testcase), "-o", str(tmp_path / "x.png"), "--animate").returncode == 2
+    wrong = run("plot", str(testcase), "-o", str(tmp_path / "x.png"), "--animate")
+    assert wrong.returncode == 2 and "--animate writes a GIF" in wrong.stderr
+    gif_alone = run("plot", str(testcase), "-o", str(tmp_path / "x.gif"))
+    assert gif_alone.returncode == 2 and "an animated GIF needs --animate" in gif_alone.stderr
 
 
 def test_cli_testcases_get_readable_default_names(tmp_path: Path) -> None:

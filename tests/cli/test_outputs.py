@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from service.cli.main import main, parser
+from service.cli.commands import main, parser
 from service.cli.output import EXIT_BAD_INPUT
 from service.core.files import replacing, write_atomically
 from service.core.testcase import dump_testcase, new_testcase

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from service.cli.main import main
+from service.cli.commands import main
 from service.core.testcase import dump_testcase, new_testcase, parse_testcase
 from tests.conftest import TOWN05
 
