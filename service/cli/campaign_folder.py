@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import fcntl
 import json
+import os
 import sys
 import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 from service.cli.output import make_folder
 from service.core import errors
@@ -78,12 +79,7 @@ def run_folder_campaign(
     ``workers``)."""
     parse_batch({"items": [{"kind": "campaign", **spec}]})  # bad input makes no folder
     make_folder(folder)
-    lock = (folder / LOCK_FILE).open("w")
-    try:
-        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        lock.close()
-        raise InvalidInput(f"another scengen campaign is running in {folder}") from None
+    lock = hold_lock(folder / LOCK_FILE)
     store, settings = open_store(folder, workers)
     try:
         spec = {**spec, "network": network_id(store, spec["network"])}
@@ -107,7 +103,27 @@ def run_folder_campaign(
         return write_results(store, settings, job.id, folder)
     finally:
         store.close()
+        (folder / LOCK_FILE).unlink(missing_ok=True)  # while it is ours: nothing left behind
         lock.close()  # and with it the lock
+
+
+def hold_lock(path: Path) -> IO[str]:
+    """The folder's lock file, held (InvalidInput when another run holds it). A run that
+    ends removes the file while it holds it; one that opened it just before and locks it
+    after finds it gone and takes the new one."""
+    while True:
+        lock = path.open("w")
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            lock.close()
+            raise InvalidInput(f"another scengen campaign is running in {path.parent}") from None
+        try:
+            if path.stat().st_ino == os.fstat(lock.fileno()).st_ino:
+                return lock
+        except FileNotFoundError:
+            pass
+        lock.close()  # removed by the run before, as it ended: lock the new one
 
 
 def _raise_failure(error: str, kind: str | None) -> None:

@@ -70,6 +70,7 @@ def test_a_killed_campaign_resumes_and_ends_as_an_uninterrupted_one(tmp_path: Pa
     fresh = tmp_path / "fresh"
     uninterrupted = scengen(*COMMAND, "--workers", "1", "-o", str(fresh))
     assert uninterrupted.returncode == 1, uninterrupted.stderr
+    assert not (fresh / ".campaign.lock").exists() and not (resumed / ".campaign.lock").exists()
     assert without_evaluation_ids(resumed) == without_evaluation_ids(fresh)
     assert re.search(r"^level +test-cases +sumo +sumo-rolling-stop$", again.stdout, re.M)
     assert "FAIL sumo-rolling-stop: failed 3 of 3 test-cases; first at level 0" in again.stdout
@@ -277,3 +278,20 @@ def test_a_campaign_on_a_signalized_junction_carries_its_program(tmp_path: Path)
                 assert motion_fault(car.trajectory, child.params, child.timestep) is None
     verdicts = [lv["verdicts"]["sumo"] for c in outcome["chains"] for lv in c["levels"]]
     assert len(verdicts) == 2 * 3 and all(not v["errors"] for v in verdicts)
+
+
+def test_a_folder_holds_one_run_at_a_time_and_its_lock_goes_with_it(tmp_path: Path) -> None:
+    from service.cli.campaign_folder import LOCK_FILE, hold_lock
+    from service.core.errors import InvalidInput
+
+    path = tmp_path / LOCK_FILE
+    held = hold_lock(path)
+    with pytest.raises(InvalidInput, match=f"another scengen campaign is running in {tmp_path}"):
+        hold_lock(path)
+    stale = path.open("w")  # a run that opened the file just before the holder ended
+    path.unlink()  # the holder ends: it removes the file, then lets go
+    held.close()
+    taken = hold_lock(path)  # a new file, not the removed one the late opener holds
+    assert path.stat().st_ino == os.fstat(taken.fileno()).st_ino
+    stale.close()
+    taken.close()
