@@ -48,6 +48,7 @@ from service.core.generator.variety import (
     LATTICE,
     Signature,
     aim_points,
+    describe_aim,
     is_new,
     seed_aim,
     signature,
@@ -256,8 +257,8 @@ class ExtensionSearch:
                 self.variants.append((number, aim))
                 tried += 1
                 outcome, candidate, _ = self.attempt(ordering, aim, number, arrival=arrival)
-                where = f"{aim:.4g}" + ("" if arrival is None else f", {arrival:.4g}")
-                self.say(f"step 3 answer set {number} at {where} of its timings: {outcome}")
+                aimed = {"share": aim, "arrival_share": arrival}
+                self.say(f"step 3 answer set {number}, {describe_aim(aimed)}: {outcome}")
                 if candidate is None or not is_new(signature(candidate), taken):
                     continue
                 given += 1

@@ -208,13 +208,14 @@ def describe_variants(testcases: Sequence[TestCase]) -> list[str]:
         rear_end = (provenance.get("complexity_certificate") or {}).get("rear_end") or []
         broken += [f"drives into {car} (rear-end)" for car in rear_end]
         parts.append(f"breaks {', '.join(broken)}" if broken else "breaks no rule named")
-        parts.append(_aimed(provenance.get("timing_aim")))
+        parts.append(describe_aim(provenance.get("timing_aim")))
         lines.append("; ".join(parts))
     return lines
 
 
-def _aimed(aim: dict[str, Any] | None) -> str:
-    """Where Step 3 aimed the new cars' entries (provenance["timing_aim"])."""
+def describe_aim(aim: dict[str, Any] | None) -> str:
+    """Where Step 3 aimed the new cars' entries (provenance["timing_aim"]: ``share`` of
+    their entry windows, ``arrival_share`` of their arrival windows), in words."""
     if not aim:
         return "smoothest timing"
     share = float(aim["share"])
