@@ -33,4 +33,4 @@ def test_a_duration_too_short_for_any_ego_is_refused_when_made(api: httpx.Client
     assert refused.status_code == 422, refused.text
     detail = refused.json()["detail"]
     assert "duration 2 s is too short for the ego to reach its exit" in detail
-    assert "give a duration of 4.3 s or more" in detail
+    assert "give a duration of 6.1 s or more" in detail

@@ -574,7 +574,7 @@ def test_plot_draws_a_testcase_and_an_evaluation(tmp_path: Path) -> None:
 
 def test_plot_animates_a_replay(tmp_path: Path) -> None:
     testcase = tmp_path / "left.json"
-    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "--duration", "6", "-o",
+    assert cli.main(["new", "4way-stop", "--ego", "S2C_1:C2W_1", "--duration", "7", "-o",
                      str(testcase)]) == 0  # fmt: skip
     gif = tmp_path / "left.gif"
     result = run("plot", str(testcase), "-o", str(gif), "--animate", "--controller", "sumo")
@@ -582,7 +582,7 @@ def test_plot_animates_a_replay(tmp_path: Path) -> None:
     from PIL import Image
 
     with Image.open(gif) as image:
-        assert image.n_frames == 13  # one frame every 0.5 s of 6 s
+        assert image.n_frames == 15  # one frame every 0.5 s of 7 s
     wrong = run("plot", str(testcase), "-o", str(tmp_path / "x.png"), "--animate")
     assert wrong.returncode == 2 and "--animate writes a GIF" in wrong.stderr
     gif_alone = run("plot", str(testcase), "-o", str(tmp_path / "x.gif"))

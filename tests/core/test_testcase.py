@@ -116,18 +116,22 @@ def test_new_testcase_rejects_start_faster_than_its_lane_allows() -> None:
 
 
 def test_new_testcase_refuses_a_duration_no_ego_can_reach_its_exit_in() -> None:
-    """From 30 m before the stop line at its start speed, the ego drives 55.4 m until its
-    back has left the junction: 4.2 s at the least, accelerating at 3 m/s² up to 15 m/s
-    (the bound of service.core.motion.kinematics.fastest); a stop sign only adds to it."""
+    """From 30 m before the stop line at 8 m/s, the ego drives 55.4 m until its back has
+    left the four-way stop: braking to a stand at its stop sign (2 s at 4 m/s²) and on from
+    there at up to 3 m/s² take 6.05 s at the least (service.core.motion.kinematics.fastest).
+    On the uncontrolled Y no sign stops it: 46.3 m take 3.63 s at the least."""
     message = (r"duration 2 s is too short for the ego to reach its exit: .* drives 55\.4 m to "
-               r"leave the junction, which takes at least 4\.2\d s .* give a duration of 4\.3 s "
-               "or more")  # fmt: skip
+               r"leave the junction, which takes at least 6\.05 s .* stopping only at the stop "
+               r"sign.* give a duration of 6\.1 s or more")  # fmt: skip
     with pytest.raises(InvalidInput, match=message):
         new_testcase("4way-stop", "E2C_1:C2S_1", duration=2)
-    with pytest.raises(InvalidInput, match=r"duration 4\.2 s is too short"):
-        new_testcase("4way-stop", "E2C_1:C2S_1", duration=4.2)
-    assert new_testcase("4way-stop", "E2C_1:C2S_1", duration=4.3).duration == 4.3
-    assert new_testcase("4way-stop", "E2C_1:C2S_1", duration=3, start_distance=5.0)  # 2.57 s
+    with pytest.raises(InvalidInput, match=r"duration 6 s is too short"):
+        new_testcase("4way-stop", "E2C_1:C2S_1", duration=6)
+    assert new_testcase("4way-stop", "E2C_1:C2S_1", duration=6.1).duration == 6.1
+    first = sorted(load_intersection("y-uncontrolled").offered_routes)[0]
+    with pytest.raises(InvalidInput, match=r"at least 3\.63 s .* never stopping"):
+        new_testcase("y-uncontrolled", first, duration=3.6)
+    assert new_testcase("y-uncontrolled", first, duration=3.7)
 
 
 def test_new_testcase_refuses_an_ego_whose_light_stays_red() -> None:

@@ -97,7 +97,11 @@ def test_the_car_behind_another_on_its_fork_is_marked() -> None:
 def _three_on_one_fork() -> TestCase:
     """Three non-egos on the fork E2C_0 (10, 20 and 30 m out, two routes), standing; the ego
     comes from the south."""
-    base = new_testcase("4way-stop", "S2C_1:C2N_1", duration=5.0)
+    # a picture of cars standing in a queue: 5 s, shorter than any ego needs to pass (which
+    # new refuses), is enough to draw
+    base = new_testcase("4way-stop", "S2C_1:C2N_1", duration=7.0).model_copy(
+        update={"duration": 5.0}
+    )
     junction = load_testcase_intersection(base)
     starts = [("first", "E2C_0:C2W_0", 10.0), ("second", "E2C_0:C2N_0", 20.0),
               ("third", "E2C_0:C2W_0", 30.0)]  # fmt: skip

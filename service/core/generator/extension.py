@@ -37,6 +37,7 @@ from service.core.generator.additions import (
     queue_of,
     validate_routes,
 )
+from service.core.generator.failure import not_found
 from service.core.generator.ordering import Ordering
 from service.core.generator.search import (
     MAX_TIMINGS,
@@ -45,7 +46,6 @@ from service.core.generator.search import (
     Deadline,
     ExtensionSearch,
     Progress,
-    not_found,
 )
 from service.core.generator.timing import TimingProblem
 from service.core.generator.variety import AIM_POINTS, is_new, signature

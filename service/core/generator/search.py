@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from service.core.checker.check import Judge
-from service.core.errors import NoMoreComplexTestCase, NoneFound
+from service.core.errors import NoneFound
 from service.core.generator.additions import Added, Queue
 from service.core.generator.candidate import judged_candidate, safety_margin, timing_problem
 from service.core.generator.ordering import (
@@ -30,7 +30,6 @@ from service.core.generator.ordering import (
 from service.core.generator.ordering_facts import (
     Limits,
     OrderingCar,
-    QueueBounds,
 )
 from service.core.generator.timing import (
     SHARES,
@@ -443,48 +442,4 @@ def order_limits(old: TestCase, margin: float | None = None, share: float = 1.0)
         safety_margin(old) if margin is None else margin,
         None if margin == 0.0 else params.v_run,
         Bounds(walk.v_max, walk.a_max, walk.a_min).scaled(share),
-    )
-
-
-def not_found(
-    old: TestCase,
-    junction: Intersection,
-    cars: Sequence[OrderingCar],
-    bounds: QueueBounds,
-    seed: int,
-    routes: Sequence[str],
-    attempts: Sequence[Attempt],
-    exhausted: bool,
-) -> NoMoreComplexTestCase | NoneFound:
-    """Why the search ended without a result. "No more complex test-case exists" only when
-    even without any safety margin no order of events has consistent times: the whole
-    search space is then empty."""
-    tried = "; ".join(f"#{a.index + 1}: {a.outcome}" for a in attempts[:8])
-    detail = f" ({tried})" if tried else ""
-    if not exhausted:
-        return NoneFound(
-            f"none found among the first {len(attempts)} answer sets{detail}",
-            routes=list(routes),
-            seed=seed,
-            search_exhausted=False,
-        )
-    bare = OrderingSearch(junction, cars, old.params.m, seed, order_limits(old, margin=0.0), bounds)
-    if not bare.satisfiable():
-        return NoMoreComplexTestCase(
-            f"no more complex test-case exists for these routes: {bare.explain_unsatisfiable()}",
-            routes=list(routes),
-        )
-    if not attempts:
-        return NoneFound(
-            "none found: orders of events exist only without the safety margin of "
-            f"{safety_margin(old):g} s on every relation, too close to call",
-            routes=list(routes),
-            seed=seed,
-            search_exhausted=True,
-        )
-    return NoneFound(
-        f"none found among all {len(attempts)} orders of events{detail}",
-        routes=list(routes),
-        seed=seed,
-        search_exhausted=True,
     )

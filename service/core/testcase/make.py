@@ -104,7 +104,9 @@ def new_testcase(
     testcase = parse_testcase(document)
     # Fails with a clear message when the start lies beyond the mapped road.
     plan = plan_drive(intersection, route, start_distance, max(speed, 1.0), duration, timestep)
-    _check_ego_can_arrive(plan.leave_distance, speed, chosen, duration, start_distance)
+    fork = intersection.forks[route.fork]
+    stop_at = start_distance + fork.limit_offset if fork.stop_sign else None
+    _check_ego_can_arrive(plan.leave_distance, speed, chosen, duration, start_distance, stop_at)
     if start_speed is not None:
         check_start_speed(intersection, plan, start_speed)
     elif speed > start_speed_limit(intersection, plan):
@@ -163,14 +165,23 @@ def _check_ego_can_go(intersection: Intersection, route: Route, duration: float)
 
 
 def _check_ego_can_arrive(
-    distance: float, speed: float, params: Params, duration: float, start_distance: float
-) -> None:
+    distance: float, speed: float, params: Params, duration: float, start_distance: float,
+    stop_at: float | None,
+) -> None:  # fmt: skip
     """InvalidInput when the ego cannot reach its goal (its back out of the junction,
     ``distance`` metres from its start) within ``duration`` even at full speed: from its
-    start speed, accelerating at a_max up to v_max and never stopping. No ego could pass
-    such a test-case, so no harder one exists; the message names the shortest duration in
-    which one could (a lower bound: a stop sign or a red light adds to it)."""
+    start speed, accelerating at a_max up to v_max, braking at a_min, stopping only where
+    it must: at a stop sign, before the junction's entry ``stop_at`` metres from its start
+    (at v_stop or below; None: no sign). No ego could pass such a test-case, so no harder
+    one exists; the message names the shortest duration in which one could (a lower bound:
+    a red light or the traffic add to it)."""
     least = fastest(distance, speed, params.a_max, params.v_max)
+    how = "never stopping"
+    if stop_at is not None:  # it slows to v_stop somewhere before stop_at, then goes on
+        braking = max(0.0, speed - params.v_stop) / -params.a_min
+        going = fastest(distance - stop_at, params.v_stop, params.a_max, params.v_max)
+        least = max(least, braking + going)
+        how = "stopping only at the stop sign, for no time"
     if least <= duration:
         return
     shortest = math.ceil(least * 10) / 10
@@ -178,9 +189,9 @@ def _check_ego_can_arrive(
         f"duration {duration:g} s is too short for the ego to reach its exit: from its start "
         f"{start_distance:g} m before the stop line it drives {distance:.1f} m to leave the "
         f"junction, which takes at least {least:.2f} s even at full speed (a_max "
-        f"{params.a_max:g} m/s², v_max {params.v_max:g} m/s, never stopping); give a duration "
-        f"of {shortest:g} s or more (more where it must stop or wait), or a shorter start "
-        "distance"
+        f"{params.a_max:g} m/s², a_min {params.a_min:g} m/s², v_max {params.v_max:g} m/s, "
+        f"{how}); give a duration of {shortest:g} s or more (more where it must wait), or a "
+        "shorter start distance"
     )
 
 

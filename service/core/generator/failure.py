@@ -1,0 +1,105 @@
+"""Why a search for a more complex test-case found none, in words a user can act on.
+
+"No more complex test-case exists" is said only when, even without any safety margin, no
+order of events has consistent times (the search space is empty), and then whether a
+longer test-case would have room; "none found" says what the answer sets it drew came to,
+each outcome once, and what to try (another seed, another route, a longer test-case).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+
+from service.core.errors import NoMoreComplexTestCase, NoneFound
+from service.core.generator.candidate import safety_margin
+from service.core.generator.ordering import OrderingSearch
+from service.core.generator.ordering_facts import OrderingCar, QueueBounds
+from service.core.generator.search import Attempt, order_limits
+from service.core.network import Intersection
+from service.core.testcase import TestCase
+
+LONGER = 2.0  # a failed search asks whether a test-case this many times longer has room
+
+
+def outcomes_said(attempts: Sequence[Attempt]) -> str:
+    """What the attempts came to, each outcome once with the answer sets that had it
+    ("#1-#8: timing: no speed profile within 85 % of the bounds; #9: ...")."""
+    numbers: dict[str, list[int]] = {}
+    for attempt in attempts:
+        numbers.setdefault(attempt.outcome, []).append(attempt.index + 1)
+    said = []
+    for outcome, which in list(numbers.items())[:4]:
+        runs = ", ".join(f"#{a}" if a == b else f"#{a}-#{b}" for a, b in _runs(which))
+        said.append(f"{runs}: {outcome}")
+    more = len(numbers) - 4
+    return "; ".join(said) + (f"; {more} other outcome(s)" if more > 0 else "")
+
+
+def _runs(numbers: Sequence[int]) -> list[tuple[int, int]]:
+    """Consecutive numbers as (first, last) runs: 1, 2, 3, 5 -> (1, 3), (5, 5)."""
+    runs: list[tuple[int, int]] = []
+    for number in numbers:
+        if runs and number == runs[-1][1] + 1:
+            runs[-1] = (runs[-1][0], number)
+        else:
+            runs.append((number, number))
+    return runs
+
+
+def not_found(
+    old: TestCase,
+    junction: Intersection,
+    cars: Sequence[OrderingCar],
+    bounds: QueueBounds,
+    seed: int,
+    routes: Sequence[str],
+    attempts: Sequence[Attempt],
+    exhausted: bool,
+) -> NoMoreComplexTestCase | NoneFound:
+    """Why the search ended without a result. "No more complex test-case exists" only when
+    even without any safety margin no order of events has consistent times: the whole
+    search space is then empty."""
+    tried = outcomes_said(attempts)
+    detail = f" ({tried})" if tried else ""
+    if not exhausted:
+        return NoneFound(
+            f"none found among the first {len(attempts)} answer sets{detail}; the search's "
+            "count of answer sets ran out: another seed draws others, another route or a "
+            f"longer test-case (this one lasts {old.duration:g} s) gives more room",
+            routes=list(routes),
+            seed=seed,
+            search_exhausted=False,
+        )
+    limits = order_limits(old, margin=0.0)
+    bare = OrderingSearch(junction, cars, old.params.m, seed, limits, bounds)
+    if not bare.satisfiable():
+        longer = dataclasses.replace(limits, duration=LONGER * old.duration)
+        room = OrderingSearch(junction, cars, old.params.m, seed, longer, bounds).satisfiable()
+        hint = (
+            f"; the duration is what limits: had the test-case lasted {LONGER * old.duration:g} "
+            f"s instead of {old.duration:g} s, orders of events would exist (make it with a "
+            "longer --duration)"
+            if room
+            else ""
+        )
+        return NoMoreComplexTestCase(
+            f"no more complex test-case exists for these routes: "
+            f"{bare.explain_unsatisfiable()}{hint}",
+            routes=list(routes),
+        )
+    if not attempts:
+        return NoneFound(
+            "none found: orders of events exist only without the safety margin of "
+            f"{safety_margin(old):g} s on every relation, too close to call",
+            routes=list(routes),
+            seed=seed,
+            search_exhausted=True,
+        )
+    return NoneFound(
+        f"none found among all {len(attempts)} orders of events{detail}; another route or a "
+        f"longer test-case (this one lasts {old.duration:g} s) gives more room",
+        routes=list(routes),
+        seed=seed,
+        search_exhausted=True,
+    )
