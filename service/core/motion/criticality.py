@@ -15,7 +15,9 @@ MSDevice_SSM.cpp), so that the values can be checked against it:
   longer does (its back has left it). The area is named ``EGO_LANE|OTHER_LANE``.
 - TTC (time-to-collision) at a sample time, with both cars holding their current speeds
   along their paths: at a conflict area, the time until the second car to arrive enters
-  it, if it arrives before the first has left (SUMO's crossing and merging TTC); a car
+  it, if it arrives before the first has left (SUMO's crossing and merging TTC; at a merge
+  only while neither has reached the area: once one has passed the merge point the pair
+  is following, as in SUMO); a car
   behind another on its path (the other's back within half their widths of its path,
   heading within 45 degrees of it: one fork, one exit lane, a merge): gap / (v_behind -
   v_ahead) while it is faster (SUMO's following TTC). The smallest over the drive, at the
@@ -268,7 +270,8 @@ def _ttc_drac(
     if area is not None:
         bounds = area_bounds(junction, ego.car, area), area_bounds(junction, other.car, area)
         if bounds[0] is not None and bounds[1] is not None:
-            ttc, drac = _crossing(mine, theirs, bounds[0], bounds[1])
+            merging = ego.car.route.exit == other.car.route.exit
+            ttc, drac = _crossing(mine, theirs, bounds[0], bounds[1], merging)
     apart = np.hypot(mine.x - theirs.x, mine.y - theirs.y)
     for behind, ahead, view, car in (
         (mine, theirs, ego, other.car),
@@ -328,14 +331,20 @@ def _time_to(distance: np.ndarray, speed: np.ndarray) -> np.ndarray:
 
 
 def _crossing(
-    mine: Poses, theirs: Poses, my_bounds: tuple[float, float], their_bounds: tuple[float, float]
-) -> tuple[np.ndarray, np.ndarray]:
-    """(TTC, DRAC) at each time at one conflict area (inf and 0 where none applies)."""
+    mine: Poses, theirs: Poses, my_bounds: tuple[float, float],
+    their_bounds: tuple[float, float], merging: bool,
+) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """(TTC, DRAC) at each time at one conflict area (inf and 0 where none applies). At a
+    merge (both routes leave by one lane) only while neither car has reached the area: once
+    one has passed the merge point, the other follows it (SUMO's SSM device: a merging
+    conflict becomes a following one), measured behind it on its path (``_following``)."""
     to_in = (my_bounds[0] - mine.place, their_bounds[0] - theirs.place)
     to_out = (my_bounds[1] - mine.place, their_bounds[1] - theirs.place)
     speeds = (mine.speed, theirs.speed)
     # both still to leave the area, not both in it already (SUMO: a collision, no measure)
     active = (to_out[0] > 0) & (to_out[1] > 0) & ((to_in[0] > 0) | (to_in[1] > 0))
+    if merging:
+        active &= (to_in[0] > 0) & (to_in[1] > 0)
     entry = [_time_to(np.maximum(d, 0.0), v) for d, v in zip(to_in, speeds, strict=True)]
     leave = [_time_to(d, v) for d, v in zip(to_out, speeds, strict=True)]
     first = entry[0] < entry[1]

@@ -133,3 +133,30 @@ def test_overall_takes_each_extreme_with_its_car(four_way: Intersection) -> None
     assert document["overall"]["ttc"] == {"value": found.ttc.value, "car": "car1",
                                           "t": found.ttc.t}  # fmt: skip
     assert Criticality.from_dict(document) == found
+
+
+def test_at_a_merge_a_car_past_the_merge_point_is_followed_not_crossed(
+    four_way: Intersection,
+) -> None:
+    """N2C_0:C2W_0 (a right turn) and E2C_0:C2W_0 (straight on) merge into C2W_0. car1 is
+    9 m into the merge area at 5 m/s, the ego 1 m before it at 6 m/s: as SUMO's SSM device
+    does, the ego follows car1 now (gap over closing speed: about 4.3 m at 1 m/s), where
+    measuring the area as a crossing said 0.058 s with the cars 3.1 m apart, a collision no
+    closing speed under 54 m/s could bring about."""
+    ego_route, lead_route = "N2C_0:C2W_0", "E2C_0:C2W_0"
+    probe = (
+        drive(four_way, "ego", ego_route, 0.0, 1.0),
+        drive(four_way, "car1", lead_route, 0.0, 1.0),
+    )
+    area = conflict_area(four_way, *probe)
+    assert area is not None
+    ego_in, _ = area_bounds(four_way, probe[0], area) or (0.0, 0.0)
+    lead_in, _ = area_bounds(four_way, probe[1], area) or (0.0, 0.0)
+    ego = drive(four_way, "ego", ego_route, ego_in - 1.0, 6.0, end=0.1)
+    lead = drive(four_way, "car1", lead_route, lead_in + 9.0, 5.0, end=0.1)
+    found = measure_criticality(four_way, ego, [lead]).others[0]
+    assert found.ttc is not None and found.distance is not None and found.drac is not None
+    assert found.distance.value == pytest.approx(3.1, abs=0.05)
+    assert found.ttc.value == pytest.approx(4.28, abs=0.05)  # following, not 0.058
+    assert found.ttc.value >= found.distance.value / (6.0 - 5.0)
+    assert found.drac.value == pytest.approx(1.0 / (2 * 4.28), abs=0.01)

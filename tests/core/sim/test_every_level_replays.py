@@ -101,5 +101,11 @@ def test_every_level_replays_with_every_controller_on_the_map(name: str) -> None
                 assert verdict.passed, (level, verdict.reasons)
             if controller == "certificate:complexity":
                 assert not verdict.passed and verdict.goal_reached, (level, verdict.reasons)
+            # a predicted collision comes no sooner than the cars' closest distance allows
+            # at twice the top speed (a merge measured as a crossing said otherwise)
+            for pair in verdict.criticality.others if verdict.criticality else ():
+                if pair.ttc is not None and pair.distance is not None:
+                    least = pair.distance.value / (2 * testcase.params.v_max)
+                    assert pair.ttc.value >= least - 1e-3, (level, controller, pair)
             replayed = [("ego", evaluation.trajectory)]
             assert off_road_samples(testcase, replayed) == [], (level, controller)
