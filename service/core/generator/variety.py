@@ -210,7 +210,39 @@ def describe_variants(testcases: Sequence[TestCase]) -> list[str]:
         parts.append(f"breaks {', '.join(broken)}" if broken else "breaks no rule named")
         parts.append(describe_aim(provenance.get("timing_aim")))
         lines.append("; ".join(parts))
-    return lines
+    return _told_apart(lines, testcases, marks)
+
+
+def _told_apart(
+    lines: list[str], testcases: Sequence[TestCase], marks: Sequence[Signature]
+) -> list[str]:
+    """``lines`` where two read alike but for their order's number (their cars' times
+    round alike; the orders differ in relations the line does not name) told apart: the
+    variants alike (numbered from 1), each new car's lowest speed before it enters, and how
+    many relations of its order of events the others' do not hold."""
+    rests = [line.split("; ", 1)[1] for line in lines]
+    told = []
+    for k, (line, testcase, mark) in enumerate(zip(lines, testcases, marks, strict=True)):
+        alike = [j for j, rest in enumerate(rests) if rest == rests[k] and j != k]
+        if not alike:
+            told.append(line)
+            continue
+        speeds = [
+            f"{car.car} slows to {_lowest_before(testcase, car.car, car.entry):.2f} m/s"
+            for car in mark.cars
+        ]
+        own = set(mark.order) - set().union(*(marks[j].order for j in alike))
+        if own:
+            speeds.append(f"{len(own)} relation(s) of its order of events are not theirs")
+        others = ", ".join(str(j + 1) for j in alike)
+        told.append(f"{line}; reads like variant {others} but: {', '.join(speeds)}")
+    return told
+
+
+def _lowest_before(testcase: TestCase, car: str, until: float) -> float:
+    """The lowest speed of ``car`` before ``until`` (its entry into the junction)."""
+    found = next(n for n in testcase.nonegos if n.id == car)
+    return min((s.speed for s in found.trajectory if s.t <= until), default=0.0)
 
 
 def describe_aim(aim: dict[str, Any] | None) -> str:

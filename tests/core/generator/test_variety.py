@@ -133,6 +133,36 @@ def test_each_variant_is_described_by_what_tells_it_apart(five: Extensions) -> N
                for i, j in itertools.combinations(range(len(lines)), 2))  # fmt: skip
 
 
+def test_variants_that_read_alike_are_told_apart(five: Extensions) -> None:
+    """Two variants whose lines differ only in their order's number (their times round
+    alike; their orders differ in a relation the line does not name): each says which it
+    reads like, its new car's lowest speed before entering and what its order holds."""
+    first = five.found[0].testcase
+    car = first.nonegos[-1]
+    slower = [s.model_copy(update={"speed": max(0.0, s.speed - 0.2)}) for s in car.trajectory]
+    provenance = dict(first.provenance or {})
+    provenance["order"] = [*provenance["order"], 'lessThan(t("car1",0),t("car1",99))']
+    second = first.model_copy(
+        update={"nonegos": [*first.nonegos[:-1], car.model_copy(update={"trajectory": slower})],
+                "provenance": provenance}
+    )  # fmt: skip
+    one, two = describe_variants([first, second])
+    assert one.startswith("order 1 of 2; ") and two.startswith("order 2 of 2; ")
+    assert (
+        one.split("; reads like")[0][len("order 1 of 2") :]
+        == two.split("; reads like")[0][len("order 2 of 2") :]
+    )
+    entry = signature(first).cars[0].entry
+    lowest = min(s.speed for s in car.trajectory if s.t <= entry)
+    assert one.endswith(f"; reads like variant 2 but: car1 slows to {lowest:.2f} m/s")
+    assert two.endswith(
+        f"; reads like variant 1 but: car1 slows to {max(0.0, lowest - 0.2):.2f} m/s, "
+        "1 relation(s) of its order of events are not theirs"
+    )
+    alone = one.split("; reads like")[0].replace("order 1 of 2", "order 1 of 1")
+    assert describe_variants([first]) == [alone]  # nothing reads like it
+
+
 @pytest.mark.parametrize(
     ("name", "number", "expected"),
     [
