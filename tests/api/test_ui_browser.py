@@ -322,14 +322,30 @@ def test_campaign_matrix_opens_the_replay_of_that_evaluation(
     page.goto(f"{server.url}/ui/#/jobs/{job}")
     page.wait_for_selector("#failure-plot polyline")
     assert page.locator("#failure-plot polyline").count() == 2  # one line per controller
+    # lines of equal shares stay apart: each its own dashes, a few pixels beside the other
+    lines = page.locator("#failure-plot polyline.failure-line")
+    dashes = [lines.nth(k).get_attribute("stroke-dasharray") for k in range(2)]
+    assert dashes[0] != dashes[1]
+    assert lines.nth(0).get_attribute("points") != lines.nth(1).get_attribute("points")
     page.screenshot(path=str(SCREENSHOTS / "ui-campaign.png"), full_page=True)
+    state = page.locator("#job-state").inner_text()
+    assert state.startswith("job succeeded · 1/1 items ran · the controllers' verdicts below")
     level = outcome["chains"][0]["levels"][2]
     verdict = level["verdicts"]["sumo-rolling-stop"]
     cell = page.locator(
         f"#verdict-matrix a[data-testcase='{level['testcase']}']"
         "[data-controller='sumo-rolling-stop']"
     ).first
-    assert cell.inner_text() == ("pass" if verdict["passed"] else ", ".join(verdict["rules"]))
+    # a failed cell says every reason of the verdict, as the campaign's JUnit does
+    assert cell.inner_text() == ("pass" if verdict["passed"] else "; ".join(verdict["reasons"]))
+    for chain in outcome["chains"]:
+        for each in chain["levels"]:
+            for controller, judged in each["verdicts"].items():
+                shown = page.locator(
+                    f"#verdict-matrix a[data-testcase='{each['testcase']}']"
+                    f"[data-controller='{controller}']"
+                ).first.inner_text()
+                assert all(reason in shown for reason in judged["reasons"]), (shown, judged)
     cell.click()
     page.wait_for_selector("#verdict")
     assert page.url.endswith(f"#/replay/{verdict['evaluation']}")

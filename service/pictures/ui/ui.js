@@ -755,7 +755,17 @@ function titleOf(testcase, id) {
 
 function verdictCell(verdict) {
   if (verdict.passed) return h("span", { class: "pass", title: (verdict.information || []).join("\n") || null }, "pass");
-  return h("span", { class: "fail", title: verdict.reasons.join("\n") }, `FAIL: ${failureOf(verdict)}`);
+  return h("span", { class: "fail", title: verdict.reasons.join("\n") }, `FAIL: ${failureText({ verdict })}`);
+}
+
+// a failed evaluation's cell: every reason its verdict gives, as its JUnit does (rules with
+// their laws, collisions and goal misses with their times); older records without reasons:
+// the rules, else the kind of failure
+function failureText(e) {
+  const reasons = e.reasons || (e.verdict && e.verdict.reasons) || [];
+  if (reasons.length) return reasons.join("; ");
+  if (e.rules && e.rules.length) return e.rules.join(", ");
+  return e.verdict ? failureOf(e.verdict) : "failed";
 }
 
 function failureOf(verdict) {
@@ -851,7 +861,7 @@ function matrix(testcases, controllers, lookup) {
       const e = lookup(t, c);
       if (!e) return h("td", { class: "muted" }, "—");
       const passed = e.passed;
-      const text = passed ? "pass" : (e.rules && e.rules.length ? e.rules.join(", ") : (e.verdict ? failureOf(e.verdict) : "failed"));
+      const text = passed ? "pass" : failureText(e);
       return h("td", { class: `cell ${passed ? "pass" : "fail"}` }, h("a", { href: `#/replay/${e.evaluation || e.id}`, "data-evaluation": e.evaluation || e.id, "data-testcase": t.id, "data-controller": c }, text));
     }))));
 }
@@ -876,7 +886,8 @@ async function jobPage(id) {
     const campaign = hasCampaign ? await get(`/jobs/${id}/campaign`).catch(() => null) : null;
     const content = [
       h("h1", {}, campaign ? `Campaign: ${campaign.plan.network} · junction ${campaign.plan.junction}` : `Job ${job.name || short(id)}`),
-      h("p", { id: "job-state" }, h("span", { class: `state-${job.state}` }, job.state), ` · ${job.done}/${job.total} items`),
+      h("p", { id: "job-state" }, "job ", h("span", { class: `state-${job.state}` }, job.state), ` · ${job.done}/${job.total} items ran`,
+        campaign ? ` · the controllers' verdicts below (a job that ran succeeds whatever they are)` : null),
       table(["item", "kind", "state", "progress", "error"], job.items.map((i) => [String(i.position), i.kind, h("span", { class: `state-${i.state}` }, i.state), i.progress, i.error ? h("span", { class: "error" }, i.error) : ""])),
     ];
     if (!REPORT) content.push(h("p", {}, h("a", { href: `/jobs/${id}/junit` }, "JUnit"), " · ", h("a", { href: `/jobs/${id}/bundles` }, "SUMO bundles"),
@@ -925,6 +936,8 @@ function campaignView(outcome) {
   ];
 }
 
+const LINE_DASHES = ["", "7 3", "2 3", "9 3 2 3"]; // the failure plot's lines, by controller
+
 function failurePlot(outcome) {
   const controllers = outcome.plan.controllers;
   const width = 640, height = 320, left = 50, bottom = 36, right = 170;
@@ -942,17 +955,21 @@ function failurePlot(outcome) {
     svg("text", { x: 12, y: (height - bottom) / 2, "font-size": 12, "text-anchor": "middle", transform: `rotate(-90 12 ${(height - bottom) / 2})` }, "test-cases failed"));
   controllers.forEach((c, i) => {
     const colour = colourOf(c, controllers);
-    const points = outcome.levels.map((l) => [x(l.level), y(l.controllers[c].share || 0)]);
-    plot.append(svg("polyline", { points: points.map((p) => p.join(",")).join(" "), fill: "none", stroke: colour, "stroke-width": 2.2 }));
+    // each controller's line a few pixels beside the others' and dashed its own way, so
+    // that lines of equal shares stay visible, each as the legend shows it
+    const shift = (i - (controllers.length - 1) / 2) * 4;
+    const dashes = LINE_DASHES[i % LINE_DASHES.length];
+    const points = outcome.levels.map((l) => [x(l.level) + shift, y(l.controllers[c].share || 0)]);
+    plot.append(svg("polyline", { points: points.map((p) => p.join(",")).join(" "), fill: "none", stroke: colour, "stroke-width": 2.2, class: "failure-line", "data-controller": c, ...(dashes ? { "stroke-dasharray": dashes } : {}) }));
     points.forEach(([px, py]) => plot.append(svg("circle", { cx: px, cy: py, r: 3.5, fill: colour })));
     outcome.levels.forEach((l) => { // the share's interval, a bar beside its point
       const interval = l.controllers[c].interval;
       if (!interval) return;
-      const bx = x(l.level) + (i - (controllers.length - 1) / 2) * 4;
+      const bx = x(l.level) + shift;
       plot.append(svg("line", { x1: bx, y1: y(interval.lower), x2: bx, y2: y(interval.upper), stroke: colour, "stroke-width": 1.2, opacity: 0.6, class: "interval", "data-controller": c, "data-level": l.level },
         svg("title", {}, `${c}, level ${l.level}: ${shareText(l.controllers[c])}`)));
     });
-    plot.append(svg("rect", { x: width - right + 14, y: 20 + i * 20, width: 12, height: 12, fill: colour }),
+    plot.append(svg("line", { x1: width - right + 10, y1: 26 + i * 20, x2: width - right + 28, y2: 26 + i * 20, stroke: colour, "stroke-width": 2.2, ...(dashes ? { "stroke-dasharray": dashes } : {}) }),
       svg("text", { x: width - right + 32, y: 30 + i * 20, "font-size": 12 }, c));
   });
   return plot;
