@@ -153,6 +153,34 @@ def test_lineage_tree_filters_by_ego_and_level(
     assert page.locator(f"a[href='#/testcases/{made[1]}']").count() == 0
 
 
+def test_variants_are_listed_in_their_order_not_newest_first(
+    browser_page: tuple[Page, list[str]], tmp_path: Path
+) -> None:
+    """Three variants of one test-case (POST /extend, count 3) sit under it by name:
+    variant 1, 2, 3 (the API lists the newest first)."""
+    server = Server(tmp_path, workers="2")
+    try:
+        root = server.client.post(
+            "/testcases", json={"network": "t-stop", "ego_route": "S2C_0:C2E_0"}
+        ).json()["id"]
+        made = server.client.post(
+            "/extend", json={"testcase_id": root, "routes": ["W2C_0:C2E_0"], "count": 3}
+        )
+        assert made.status_code == 201, made.text
+        page, requested = browser_page  # the module's page, on a server of this test's own
+        before = len(requested)
+        page.goto(f"{server.url}/ui/#/testcases")
+        page.wait_for_selector(f"#lineage li[data-testcase='{root}'] > ul > li")
+        names = page.locator(f"#lineage li[data-testcase='{root}'] > ul > li > a").all_inner_texts()
+        del requested[before:]  # this server's pages are not the module server's requests
+    finally:
+        server.stop()
+    assert len(names) == len(made.json()["extensions"]) >= 2
+    assert [n.split(" variant ")[1] for n in names] == [
+        f"{k} level 1" for k in range(1, len(names) + 1)
+    ]
+
+
 def test_roots_on_one_route_are_told_apart_and_names_say_the_level(
     served: tuple[Server, str, dict[str, Any]], browser_page: tuple[Page, list[str]]
 ) -> None:

@@ -332,6 +332,9 @@ async function testcasesPage(query) {
   }));
   const visit = (t, root) => { egos[t.id] = egos[root.id]; (children[t.id] || []).forEach((c) => visit(c, root)); };
   roots.forEach((r) => visit(r, r));
+  // siblings by name, numbers in it counted (variant 2 before variant 10), not newest first
+  const byName = (a, b) => nameOf(a, egos[a.id]).localeCompare(nameOf(b, egos[b.id]), undefined, { numeric: true });
+  Object.values(children).forEach((list) => list.sort(byName));
 
   const choices = (key, values) => h("label", {}, key, h("select", { name: key },
     h("option", { value: "" }, "any"), [...new Set(values)].sort().map((v) => h("option", { value: v, selected: filters.get(key) === String(v) ? true : null }, v))));
@@ -347,7 +350,7 @@ async function testcasesPage(query) {
   render(h("h1", {}, "Test-cases"), form);
   if (filters.get("level")) {
     const wanted = Number(filters.get("level"));
-    const rows = found.filter((t) => keep(t) && t.level === wanted).map((t) => [link(nameOf(t, egos[t.id]), `#/testcases/${t.id}`),
+    const rows = found.filter((t) => keep(t) && t.level === wanted).sort(byName).map((t) => [link(nameOf(t, egos[t.id]), `#/testcases/${t.id}`),
       String(t.level), seconds(t.duration), t.network, t.junction, egos[t.id], String(t.nonegos), short(t.id)]);
     main.append(h("p", { class: "muted" }, `${rows.length} test-cases at level ${wanted}`),
       h("div", { id: "listing" }, table(["test-case", "level", "duration", "network", "junction", "ego route", "other cars", "id"], rows)));
