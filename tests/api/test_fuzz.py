@@ -24,7 +24,7 @@ from tests.servers import Server
 FUZZ = Path(__file__).parent / "fuzz"
 TOKEN = "fuzz-token"
 SEED = 1
-CASES_PER_OPERATION = 5
+CASES_PER_OPERATION = 3
 
 
 @pytest.fixture(scope="module")
