@@ -7,13 +7,14 @@ QC_VENV := .venv-qc
 QC_STAMP := $(QC_VENV)/.installed
 NETS := 4way-stop t-stop y-uncontrolled 4way-signal t-signal crosswalk-stop crosswalk-signal
 
-.PHONY: help install system-tools test lint format nets run demo openapi bench bench-api bench-jobs \
+.PHONY: help install system-tools test test-fast lint format nets run demo openapi bench bench-api bench-jobs \
 	bench-generator bench-variety bench-pedestrians bench-reliability campaign-curve \
 	coverage clean
 
 help:
 	@echo "make run      serve the HTTP API on http://127.0.0.1:8000 (/docs, results at /ui/)"
 	@echo "make test     install into .venv (Chromium and jq too, as root) and run every test"
+	@echo "make test-fast   every test module but the slow ones (about 2 minutes): the edit loop"
 	@echo "make openapi  regenerate openapi/openapi.json from the app"
 	@echo "make lint     ruff and mypy --strict"
 	@echo "make nets     rebuild sumo_nets/*.net.xml from their plain-XML sources"
@@ -54,6 +55,11 @@ system-tools:
 
 test: $(STAMP) $(QC_STAMP) system-tools
 	$(BIN)/pytest -n 2
+
+# the edit loop: every module but the slow ones (pytest -m slow: servers, browsers, SUMO on
+# real maps, campaigns), in about 2 minutes; `make test` before you push
+test-fast: $(STAMP) $(QC_STAMP) system-tools
+	$(BIN)/pytest -n 2 -m "not slow"
 
 lint: $(STAMP)
 	$(BIN)/ruff check service tests bench

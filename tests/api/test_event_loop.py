@@ -22,6 +22,8 @@ from service.core.testcase import TestCase
 from service.settings import Settings
 from service.store import Store
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 HEALTH_PROBE = {"ping"}  # /healthz's SELECT 1 stays on the loop: it is what the probe measures
 
 

@@ -21,6 +21,8 @@ import pytest
 
 from tests.servers import Server
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 FUZZ = Path(__file__).parent / "fuzz"
 TOKEN = "fuzz-token"
 SEED = 1

@@ -23,6 +23,8 @@ from service.core.network import load_intersection
 from service.core.testcase import read_testcase
 from tests.conftest import TOWN05, TOWN07
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 UNREGULATED = Path(__file__).parents[1] / "data" / "junctions" / "skewed-unregulated.net.xml"
 
 

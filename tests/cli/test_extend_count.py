@@ -15,6 +15,8 @@ from service.core.generator.variety import distinct_count, signature
 from service.core.motion.poses import PoseSample
 from service.core.testcase import TestCase, load_testcase_intersection, read_testcase
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 # A case where the generator finds distinct extensions in about a second: the ego straight
 # on from the south of the all-way stop, a new car straight on from the west.
 EGO, NEW = "S2C_1:C2N_1", "W2C_0:C2E_0"

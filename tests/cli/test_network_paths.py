@@ -22,6 +22,8 @@ from service.core.testcase import (
 )
 from tests.conftest import DATA
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 SKEWED = DATA / "junctions" / "skewed-allway.net.xml"  # not bundled: found only by its path
 EGO = "SSW2C_0:C2WSW_0"  # a left turn
 NEW_CAR = "WSW2C_0:C2ENE_0"  # straight across it

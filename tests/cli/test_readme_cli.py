@@ -21,6 +21,8 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 ROOT = Path(__file__).parents[2]
 README = ROOT / "README.md"
 MARKERS = ("<!-- readme: not run", "<!-- readme: server", "<!-- curl-example")

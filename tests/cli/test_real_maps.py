@@ -16,6 +16,8 @@ from service.core.network import load_intersection
 from tests.conftest import TOWN05, TOWN07
 from tests.core.network.test_forks import entered
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 CONTROLS = (None, "allway_stop", "priority_stop", "right_before_left")
 
 

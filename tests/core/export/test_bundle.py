@@ -28,6 +28,8 @@ from service.core.testcase import TestCase, load_testcase_intersection, new_test
 from tests.helpers import every_exported_case, next_junction_network, retime, with_nonegos
 from tests.walkers import crosswalk_scene, in_path_times, on_crossing_times
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 
 @pytest.fixture(scope="module")
 def four_way() -> TestCase:

@@ -23,6 +23,8 @@ from service.core.sumo.binaries import sumo_binary
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
 from tests.helpers import every_exported_case
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 CENTIMETRE = 0.01
 
 

@@ -27,6 +27,8 @@ from service.core.testcase import (
 )
 from tests.core.generator.test_extension import assert_strictly_more_complex
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 ROUTE = ["W2C_0:C2E_0"]  # crosses the ego's route at the four-way stop
 
 

@@ -25,6 +25,8 @@ from service.core.testcase import TestCase, load_testcase_intersection, new_test
 from tests.conftest import TOWN05, TOWN07
 from tests.helpers import off_road_samples, off_walkable_samples
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 UNSEEN = Path(__file__).parents[2] / "data" / "junctions"
 DURATION = 45.0
 

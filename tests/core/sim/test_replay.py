@@ -28,6 +28,8 @@ from service.core.testcase import (
 from tests.conftest import TOWN05, TOWN07
 from tests.helpers import car_ahead_of_ego, retime, with_nonegos
 
+pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
+
 DOCS = Path(__file__).resolve().parents[3] / "docs" / "controllers.md"
 
 
