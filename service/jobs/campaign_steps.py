@@ -37,9 +37,6 @@ from service.settings import Settings
 from service.store import Store
 
 OUTCOME = "outcome"  # the memo key of the campaign's outcome (so far)
-# Steps a campaign on Celery keeps sent at once: its waves' steps wait in the broker's queue
-# for whichever worker is free, so every worker of the deployment has one to take
-STEPS_SENT = 64
 _ENDS = {error.__name__: error for error in CHAIN_ENDS}
 
 
@@ -52,6 +49,7 @@ class ItemWork(Protocol):
     settings: Settings
     item: ItemRecord
     owner: str
+    stop: threading.Event  # set when the item must end (cancelled, lease lost, shutdown)
 
     def call(
         self, function: Callable[..., Any], args: tuple[Any, ...], budget: float, what: str
@@ -85,7 +83,9 @@ def routes_that_can_go(
 
 class StepRunner(Protocol):
     """Where a campaign's steps run: ``run`` does the step of ``key`` that ``request`` names
-    (``JobCampaign.perform``) and answers its result."""
+    (``JobCampaign.perform``) and answers its result; ``at_once`` steps run at a time."""
+
+    at_once: int
 
     def run(self, key: str, request: dict[str, Any]) -> Any: ...
 
@@ -95,6 +95,7 @@ class LocalSteps:
 
     def __init__(self, campaign: JobCampaign) -> None:
         self.campaign = campaign
+        self.at_once = campaign.work.settings.workers
 
     def run(self, key: str, request: dict[str, Any]) -> Any:
         return self.campaign.perform(request)
@@ -166,7 +167,7 @@ class JobCampaign:
         )
         return run_campaign(
             plan, self, [(rule, law) for rule, law in laws], self._progress, self._save,
-            self.work.settings.workers if isinstance(self.steps, LocalSteps) else STEPS_SENT,
+            self.steps.at_once,
         )  # fmt: skip
 
     # CampaignSteps

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 import redis
 from celery import Celery
 
+from service.jobs.step_news import is_redis
 from service.settings import Settings, get_settings
 
 if TYPE_CHECKING:
@@ -160,7 +161,7 @@ def held_steps(broker_url: str, fresh: float) -> set[str] | None:
 def _held_messages(broker_url: str, fresh: float) -> list[bytes] | None:
     """The messages in the broker's queues and those delivered less than ``fresh``
     seconds ago; None when the broker is not Redis."""
-    if not broker_url.startswith(("redis://", "rediss://", "unix://")):
+    if not is_redis(broker_url):
         return None
     client = redis.Redis.from_url(broker_url)
     try:

@@ -24,12 +24,15 @@ import redis
 
 from service.core import errors
 from service.jobs.calls import Stopped
-from service.jobs.step_news import has_news, wait_for_news
-from service.jobs.steps import StepRecord, StepStore
+from service.jobs.step_news import is_redis, wait_for_news
+from service.jobs.steps import WORKER_LOST, StepRecord, StepStore
 
 if TYPE_CHECKING:
     from service.jobs.campaign_steps import ItemWork
 
+# Steps a campaign on Celery keeps sent at once: its waves' steps wait in the broker's queue
+# for whichever worker is free, so every worker of the deployment has one to take
+STEPS_SENT = 64
 POLL = 0.1  # seconds between the poller's looks when the broker brings no news (not Redis)
 LOOK_EVERY = 1.0  # seconds between its looks at the database without news
 
@@ -58,10 +61,11 @@ class CelerySteps:
 
     def __init__(self, work: ItemWork, broker: StepBroker) -> None:
         self.work, self.broker = work, broker
+        self.at_once = STEPS_SENT
         self.steps = StepStore(work.store)
         self.job, self.position = work.item.job, work.item.position
         self.settings = work.settings
-        self.stop: threading.Event = getattr(work, "stop", threading.Event())
+        self.stop = work.stop
         self.lock = threading.Lock()
         self.waiting: dict[str, threading.Event] = {}  # step id -> set when it finished
         self.answers: dict[str, StepRecord] = {}
@@ -70,7 +74,11 @@ class CelerySteps:
     def run(self, key: str, request: dict[str, Any]) -> Any:
         record = self.steps.post(self.job, self.position, key, request)
         if record.state == "queued" and record.sent_at is None:
-            self._send(record.step)
+            try:
+                self._send(record.step)
+            except Exception as error:  # the broker is away: the poller sends it later
+                print(f"scengen: job {self.job} item {self.position}: step {key} not sent yet: "
+                      f"{type(error).__name__}: {error}", file=sys.stderr)  # fmt: skip
         if record.state not in ("done", "failed"):
             finished = threading.Event()
             with self.lock:
@@ -89,7 +97,7 @@ class CelerySteps:
     def _poll(self) -> None:
         news = (
             redis.Redis.from_url(self.settings.broker_url)
-            if has_news(self.settings.broker_url)
+            if is_redis(self.settings.broker_url)
             else None
         )
         try:
@@ -154,6 +162,6 @@ def step_answer(record: StepRecord) -> Any:
     message = f"{record.error}"
     if isinstance(kind, type) and issubclass(kind, errors.ScengenError):
         raise kind(message)
-    if record.error_kind is None and record.error and record.error.startswith("its worker"):
+    if record.error_kind == WORKER_LOST:  # not a bug: the machine killed it, again and again
         raise errors.ScengenError(f"campaign step {record.key}: {record.error}")
     raise StepFailed(f"campaign step {record.key}: {record.error}")

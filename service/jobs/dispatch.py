@@ -14,6 +14,7 @@ import functools
 import sys
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -62,7 +63,7 @@ class ItemThreads:
     their steps to Celery workers and wait for them (service.jobs.celery_steps)."""
 
     def __init__(self, store: Store, settings: Settings, kind: str,
-                 step_broker: StepBroker | None, nudge: Any) -> None:  # fmt: skip
+                 step_broker: StepBroker | None, nudge: Callable[[], None]) -> None:  # fmt: skip
         self.store, self.settings, self.nudge = store, settings, nudge
         self.slots = settings.job_slots
         self.pool = ThreadPoolExecutor(self.slots, thread_name_prefix="scengen-item")

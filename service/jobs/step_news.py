@@ -17,7 +17,8 @@ import redis
 NEWS_KEPT = 3600  # seconds a coordinator's news list outlives its last news
 
 
-def has_news(broker_url: str) -> bool:
+def is_redis(broker_url: str) -> bool:
+    """Whether the broker is Redis (news, and a look at the messages it holds, need it)."""
     return broker_url.startswith(("redis://", "rediss://", "unix://"))
 
 
@@ -30,7 +31,7 @@ def step_news_key(job: str, position: int) -> str:
 def tell_step_done(broker_url: str, job: str, position: int, step: str) -> None:
     """Wake the coordinator waiting for ``step`` (best effort: it also looks at the
     database every second, so news lost with Redis only costs that second)."""
-    if not has_news(broker_url):
+    if not is_redis(broker_url):
         return
     client = redis.Redis.from_url(broker_url)
     try:

@@ -47,6 +47,7 @@ steps = sa.Table(
 )
 
 STEP_STATES = ("queued", "running", "done", "failed")
+WORKER_LOST = "WorkerLost"  # error_kind of a step failed because its workers kept dying
 
 
 def step_id(key: str) -> str:
@@ -178,7 +179,7 @@ class StepStore:
             return
         values: dict[str, Any] = {"state": "queued", "owner": None, "sent_at": None}
         if found.attempts >= attempts:
-            values = {"state": "failed", "finished_at": cutoff,
+            values = {"state": "failed", "finished_at": cutoff, "error_kind": WORKER_LOST,
                       "error": f"its worker stopped answering {found.attempts} times (killed "
                                f"or out of memory?); last owner {found.owner}"}  # fmt: skip
         with self.engine.begin() as connection:

@@ -15,7 +15,7 @@ import pytest
 from service.core.errors import NoneFound, ScengenError
 from service.jobs.batch import parse_batch
 from service.jobs.celery_steps import StepFailed, step_answer
-from service.jobs.steps import StepStore, step_id
+from service.jobs.steps import WORKER_LOST, StepStore, step_id
 from service.jobs.store import JobStore
 from service.store import Store
 
@@ -94,6 +94,7 @@ def test_a_dead_workers_step_goes_back_to_queued_then_fails_after_its_attempts(
     steps.reclaim(job, 0, step, attempts=2)
     failed = steps.get(job, 0, step)
     assert failed is not None and failed.state == "failed" and failed.attempts == 2
+    assert failed.error_kind == WORKER_LOST  # not a bug on the worker: it was killed
     assert failed.error == "its worker stopped answering 2 times (killed or out of memory?); " \
         "last owner w2"  # fmt: skip
     with pytest.raises(ScengenError, match="campaign step evaluate/e: its worker stopped"):

@@ -1,14 +1,13 @@
 """Why a search for a more complex test-case found none, in words a user can act on.
 
 "No more complex test-case exists" is said only when, even without any safety margin, no
-order of events has consistent times (the search space is empty), and then whether a
-longer test-case would have room; "none found" says what the answer sets it drew came to,
-each outcome once, and what to try (another seed, another route, a longer test-case).
+order of events has consistent times (the search space is empty); "none found" says what
+the answer sets it drew came to, each outcome once, and what to try (another seed, another
+route, a longer test-case).
 """
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 
 from service.core.errors import NoMoreComplexTestCase, NoneFound
@@ -18,8 +17,6 @@ from service.core.generator.ordering_facts import OrderingCar, QueueBounds
 from service.core.generator.search import Attempt, order_limits
 from service.core.network import Intersection
 from service.core.testcase import TestCase
-
-LONGER = 2.0  # a failed search asks whether a test-case this many times longer has room
 
 
 def outcomes_said(attempts: Sequence[Attempt]) -> str:
@@ -71,21 +68,10 @@ def not_found(
             seed=seed,
             search_exhausted=False,
         )
-    limits = order_limits(old, margin=0.0)
-    bare = OrderingSearch(junction, cars, old.params.m, seed, limits, bounds)
+    bare = OrderingSearch(junction, cars, old.params.m, seed, order_limits(old, margin=0.0), bounds)
     if not bare.satisfiable():
-        longer = dataclasses.replace(limits, duration=LONGER * old.duration)
-        room = OrderingSearch(junction, cars, old.params.m, seed, longer, bounds).satisfiable()
-        hint = (
-            f"; the duration is what limits: had the test-case lasted {LONGER * old.duration:g} "
-            f"s instead of {old.duration:g} s, orders of events would exist (make it with a "
-            "longer --duration)"
-            if room
-            else ""
-        )
         return NoMoreComplexTestCase(
-            f"no more complex test-case exists for these routes: "
-            f"{bare.explain_unsatisfiable()}{hint}",
+            f"no more complex test-case exists for these routes: {bare.explain_unsatisfiable()}",
             routes=list(routes),
         )
     if not attempts:
