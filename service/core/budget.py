@@ -75,6 +75,25 @@ def run_with_budget(
 
 
 CHILD_COMMAND = [sys.executable, "-m", "service.core.budget"]
+REAP_SECONDS = 5.0  # how long a killed child may take to be collected through Popen
+
+
+def kill_and_reap(process: subprocess.Popen[Any], reap_seconds: float = REAP_SECONDS) -> None:
+    """Kill ``process`` (if it still runs) and collect its exit status.
+
+    A Ctrl-C that lands inside ``Popen.poll()`` can leave Popen's internal waitpid lock
+    held for good; ``Popen.wait()`` would then block forever (an interpreter that never
+    exits after the KeyboardInterrupt). So the wait has a timeout, and when it runs out the
+    child is collected here, without that lock.
+    """
+    with contextlib.suppress(OSError):
+        process.kill()
+    try:
+        process.wait(timeout=reap_seconds)
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(ChildProcessError):  # someone else collected it
+            _, status = os.waitpid(process.pid, 0)
+            process.returncode = os.waitstatus_to_exitcode(status)
 
 
 def run_here(function: Callable[..., T], args: tuple[Any, ...], budget: float, what: str) -> T:
@@ -205,9 +224,7 @@ class WarmWorker:
 
     def _stop(self) -> None:
         if self._process is not None:
-            with contextlib.suppress(OSError):
-                self._process.kill()
-            self._process.wait()
+            kill_and_reap(self._process)
             self._process = None
 
     def close(self) -> None:

@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from service.core.budget import decode_outcome, run_with_budget
+from service.core.budget import decode_outcome, kill_and_reap, run_with_budget
 from service.core.errors import BudgetExceeded, MemoryExceeded, ScengenError, UnknownNetwork
 from service.core.network import resolve_network
 
@@ -93,3 +93,14 @@ def test_a_nested_call_over_its_budget_is_stopped_in_the_child() -> None:
 def test_a_nested_crash_is_reported_as_a_child_would() -> None:
     with pytest.raises(ScengenError, match=r"inner sqrt crashed: ValueError: math domain error"):
         run_with_budget(run_with_budget, (math.sqrt, (-1.0,), 30.0, "inner sqrt"), 60.0, "outer")
+
+
+def test_a_child_is_reaped_even_when_popens_lock_was_left_held() -> None:
+    # A Ctrl-C inside Popen.poll() can leave Popen's private waitpid lock held (CPython's
+    # subprocess); Popen.wait() would then block forever, as it once did in CI.
+    process = subprocess.Popen(["sleep", "60"])
+    assert process._waitpid_lock.acquire(blocking=False)  # type: ignore[attr-defined]
+    kill_and_reap(process, reap_seconds=0.2)
+    assert process.returncode == -9
+    with pytest.raises(ProcessLookupError):
+        os.kill(process.pid, 0)

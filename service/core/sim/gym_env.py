@@ -50,7 +50,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from service.core.budget import FRAME, read_frame
+from service.core.budget import FRAME, kill_and_reap, read_frame
 from service.core.checker.verdict import Verdict
 from service.core.errors import BudgetExceeded, InvalidInput, ScengenError
 from service.core.network import Intersection
@@ -187,10 +187,10 @@ class ScengenEnv(gym.Env[Obs, Action]):
 
     def _ask(self, message: tuple[Any, ...], what: str) -> tuple[Any, ...]:
         """Send ``message`` to the child and wait for its answer within the budget."""
-        process = self._held.child()
-        assert process.stdin is not None and process.stdout is not None
         data = pickle.dumps(message)
         try:
+            process = self._held.child()
+            assert process.stdin is not None and process.stdout is not None
             process.stdin.write(FRAME.pack(len(data)) + data)
             process.stdin.flush()
             reply = read_frame(process.stdout.fileno(), time.monotonic() + self.budget)
@@ -273,9 +273,7 @@ class _Held:
         process, self.process = self.process, None
         if process is None:
             return
-        if process.poll() is None:
-            process.kill()
-        process.wait()
+        kill_and_reap(process)
         for stream in (process.stdin, process.stdout):
             if stream is not None:
                 with contextlib.suppress(OSError):

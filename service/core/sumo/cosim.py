@@ -29,6 +29,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from service.core.budget import kill_and_reap
+
 CLIENT_ORDER = 2  # the driving stack's setOrder
 CMD_CLOSE = 0x7F  # TraCI's close command (traci.constants.CMD_CLOSE)
 SCENGEN_ORDER = 1
@@ -273,8 +275,7 @@ def cosimulate(
         if timer is not None:
             timer.cancel()
         if process is not None:
-            process.kill()
-            process.wait()
+            kill_and_reap(process)
         if connection is not None:
             with contextlib.suppress(Exception):  # SUMO is gone: the goodbye cannot arrive
                 connection.close(wait=False)
