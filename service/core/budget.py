@@ -24,10 +24,12 @@ import os
 import pickle
 import re
 import select
+import shutil
 import signal
 import struct
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 import traceback
@@ -60,13 +62,15 @@ def run_with_budget(
         return run_here(function, args, budget, what)
     request = encode_call(function, args)
     try:
-        result = subprocess.run(
-            CHILD_COMMAND,
-            input=request,
-            capture_output=True,
-            timeout=budget,
-            check=False,
-        )
+        with tempfile.TemporaryDirectory(prefix="scengen-call-") as scratch:
+            result = subprocess.run(
+                CHILD_COMMAND,
+                input=request,
+                capture_output=True,
+                timeout=budget,
+                check=False,
+                env=_child_environment(scratch),
+            )
     except subprocess.TimeoutExpired:
         raise BudgetExceeded(
             f"{what} did not finish within its budget of {budget:g} s and was stopped"
@@ -75,6 +79,15 @@ def run_with_budget(
 
 
 CHILD_COMMAND = [sys.executable, "-m", "service.core.budget"]
+
+
+def _child_environment(scratch: str) -> dict[str, str]:
+    """The child's environment: its temporary files go into ``scratch``, a folder the
+    parent removes once the child is gone, so that a child killed at its budget (or by
+    Ctrl-C) leaves no files behind."""
+    return {**os.environ, "TMPDIR": scratch}
+
+
 REAP_SECONDS = 5.0  # how long a killed child may take to be collected through Popen
 
 
@@ -182,6 +195,7 @@ class WarmWorker:
 
     def __init__(self) -> None:
         self._process: subprocess.Popen[bytes] | None = None
+        self._scratch: str | None = None  # the child's TMPDIR, removed with the child
         self._owner = 0
         self._lock = threading.Lock()
         atexit.register(self.close)
@@ -212,13 +226,16 @@ class WarmWorker:
 
     def _child(self) -> subprocess.Popen[bytes]:
         if self._owner != os.getpid():  # a forked copy of a parent's worker is not ours
-            self._process, self._owner = None, os.getpid()
+            self._process, self._scratch, self._owner = None, None, os.getpid()
         if self._process is None or self._process.poll() is not None:
+            self._stop()
+            self._scratch = tempfile.mkdtemp(prefix="scengen-worker-")
             self._process = subprocess.Popen(
                 [*CHILD_COMMAND, "--many"],
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.DEVNULL,
+                env=_child_environment(self._scratch),
             )
         return self._process
 
@@ -226,6 +243,9 @@ class WarmWorker:
         if self._process is not None:
             kill_and_reap(self._process)
             self._process = None
+        if self._scratch is not None:
+            shutil.rmtree(self._scratch, ignore_errors=True)
+            self._scratch = None
 
     def close(self) -> None:
         """End the child (it also ends when this process does)."""

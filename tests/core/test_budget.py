@@ -5,13 +5,15 @@ from __future__ import annotations
 import math
 import os
 import subprocess
+import tempfile
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import pytest
 
-from service.core.budget import decode_outcome, kill_and_reap, run_with_budget
+from service.core.budget import WarmWorker, decode_outcome, kill_and_reap, run_with_budget
 from service.core.errors import BudgetExceeded, MemoryExceeded, ScengenError, UnknownNetwork
 from service.core.network import resolve_network
 
@@ -104,3 +106,23 @@ def test_a_child_is_reaped_even_when_popens_lock_was_left_held() -> None:
     assert process.returncode == -9
     with pytest.raises(ProcessLookupError):
         os.kill(process.pid, 0)
+
+
+def leave_a_file_and_hang(marker: str) -> None:
+    """In a budget child: a temporary folder (as SUMO runs make), its path in ``marker``,
+    then a call that never ends."""
+    folder = tempfile.mkdtemp(prefix="half-done-")
+    Path(marker).write_text(folder)
+    time.sleep(60)
+
+
+@pytest.mark.parametrize("warm", [False, True], ids=["one-call child", "warm child"])
+def test_a_child_killed_at_its_budget_leaves_no_temporary_files(warm: bool, tmp_path: Path) -> None:
+    marker = tmp_path / "folder.txt"
+    worker = WarmWorker()
+    call = worker.call if warm else run_with_budget
+    with pytest.raises(BudgetExceeded):
+        call(leave_a_file_and_hang, (str(marker),), 3.0, "hang")
+    left = Path(marker.read_text())
+    assert left.name.startswith("half-done-") and not left.exists() and not left.parent.exists()
+    worker.close()

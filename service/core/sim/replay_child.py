@@ -105,7 +105,11 @@ def run_episode(
         return None
 
     folder = Path(plan_file).parent
-    with _sumo_errors(libsumo), tempfile.TemporaryDirectory(prefix="scengen-gym-") as scratch:
+    # in the parent's folder: the parent removes it when it kills this child mid-episode
+    with (
+        _sumo_errors(libsumo),
+        tempfile.TemporaryDirectory(prefix="scratch-", dir=folder) as scratch,
+    ):
         types = sumo_run.write_types(plan, folder, EXTERNAL, Path(scratch) / "types.xml")
         libsumo.start(["sumo", *sumo_run.sumo_arguments(plan, folder, types)])
         try:

@@ -200,11 +200,14 @@ def _as_a_shell_starts_it() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def test_ctrl_c_leaves_no_child(tmp_path: Path) -> None:
+def test_ctrl_c_leaves_no_child_and_no_files(tmp_path: Path) -> None:
     script = tmp_path / "policy.py"
     script.write_text(textwrap.dedent(SCRIPT))
+    scratch = tmp_path / "tmp"  # the script's temporary files, and its child's
+    scratch.mkdir()
     process = subprocess.Popen(
         [sys.executable, str(script)],
+        env={**os.environ, "TMPDIR": str(scratch)},
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -220,3 +223,4 @@ def test_ctrl_c_leaves_no_child(tmp_path: Path) -> None:
         ["pgrep", "-g", str(process.pid)], capture_output=True, text=True, check=False
     )
     assert survivors.stdout == "" and not _alive(child)
+    assert list(scratch.iterdir()) == []  # nothing half-written left
