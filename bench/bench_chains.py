@@ -32,7 +32,8 @@ from pathlib import Path
 
 from bench.cpu import cpu_seconds
 from service.core.errors import NoMoreComplexTestCase, ScengenError
-from service.core.generator.chain import candidate_routes, grow
+from service.core.generator.additions import candidate_routes
+from service.core.generator.chain import grow
 from service.core.network import Intersection, load_intersection
 from service.core.testcase import TestCase, new_testcase
 

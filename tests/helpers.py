@@ -12,7 +12,7 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 
 from service.cli.examples import EXAMPLES, run_example
-from service.core.generator.chain import candidate_routes
+from service.core.generator.additions import candidate_routes
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import PoseSample, PoseTrack
 from service.core.network import parsed_network

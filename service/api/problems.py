@@ -228,7 +228,7 @@ def install_problem_handlers(app: FastAPI) -> None:
         kind = problem_type_of(error)
         if "traceback" in error.context:
             LOG.error("worker crash on %s: %s", request.url.path, error.context["traceback"])
-        hidden = ("budget_exhausted", "traceback")
+        hidden = ("budget_exhausted", "traceback", "why", "longer")  # why: in the detail
         context = {k: v for k, v in error.context.items() if k not in hidden}
         return problem_response(kind, _scrub(error.message), request.url.path, **_jsonable(context))
 

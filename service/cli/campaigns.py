@@ -13,6 +13,7 @@ from urllib.parse import quote
 from service.cli.arguments import NETWORK, SIGNALS, TOKEN, output, signals_program
 from service.cli.output import EXIT_FAILED_CHECK, EXIT_OK, print_table, write_output
 from service.cli.table import OneOf, arg, command
+from service.core.campaign import CAMPAIGN_DURATION
 from service.core.sim.controllers import controller_names, resolve_driver
 
 
@@ -52,9 +53,11 @@ from service.core.sim.controllers import controller_names, resolve_driver
     arg(
         "--duration",
         type=float,
-        default=20.0,
+        default=CAMPAIGN_DURATION,
         metavar="SECONDS",
-        help="how long each test-case lasts (default 20 s; deep chains need room: try 45)",
+        help=f"how long each test-case lasts (default {CAMPAIGN_DURATION:g} s: room for a "
+        "deep chain's ego to wait for the cars added and still leave; 20 s is too short for "
+        "SUMO's own driver at a T-junction)",
     ),
     arg(
         "--budget-per-level",

@@ -14,6 +14,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
+from service.core.campaign import CAMPAIGN_DURATION
 from service.core.errors import InvalidInput
 from service.core.generator.variety import MAX_COUNT
 from service.core.testcase import Control, Signals
@@ -135,7 +136,13 @@ class CampaignItem(_Item):
     chains: int = Field(ge=1, le=100, description="chains per ego route")
     controllers: list[str] = Field(min_length=1, max_length=20)
     seed: int = Field(0, ge=0, le=MAX_SEED)
-    duration: float = Field(20.0, gt=0, le=120, description="seconds each test-case lasts")
+    duration: float = Field(
+        CAMPAIGN_DURATION,
+        gt=0,
+        le=120,
+        description=f"seconds each test-case lasts (default {CAMPAIGN_DURATION:g}: room for a "
+        "deep chain's ego to wait for the cars added and still leave its junction)",
+    )
     budget_per_level: float | None = Field(None, gt=0, description="seconds per level")
     budget: float | None = Field(None, gt=0, description="seconds per evaluation")
 

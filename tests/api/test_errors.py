@@ -170,6 +170,14 @@ def test_domain_errors_from_a_worker(client: TestClient) -> None:
     assert_problem(reply, 422, "unknown-lane", "'X'", "valid forks")
     reply = client.post("/extend", json={**base, "routes": ["W2C_1:C2N_1"]}, headers=AUTH)
     assert_problem(reply, 422, "no-more-complex-testcase", "crosses or merges")
+    short = new_testcase("4way-stop", "S2C_1:C2W_1", duration=10.0)
+    document = short.model_dump(mode="json", by_alias=True)
+    reply = client.post("/extend", json={"testcase": document, "routes": ["N2C_0:C2S_0"]},
+                        headers=AUTH)  # fmt: skip
+    body = assert_problem(reply, 422, "no-more-complex-testcase", "the duration is what limits")
+    assert body["detail"].split("\n")[1].startswith("  car route N2C_0:C2S_0: ")
+    assert body["detail"].split("\n")[2].startswith("  to try: a longer test-case")
+    assert "why" not in body and "longer" not in body  # said in the detail
     reply = client.post(
         "/testcases",
         json={"network": "4way-stop", "ego_route": EXAMPLE_EGO, "start_distance": 900},

@@ -225,7 +225,7 @@ def test_submit_gives_a_campaign_its_own_junit_and_report(server: Server, tmp_pa
     """A campaign job's JUnit names each case by chain and level; --out also holds the
     campaign's outcome and its self-contained report."""
     campaign = {"kind": "campaign", "network": "t-stop", "egos": ["S2C_0:C2E_0"], "depth": 1,
-                "chains": 1, "controllers": ["sumo"], "seed": 0}  # fmt: skip
+                "chains": 1, "controllers": ["sumo"], "seed": 0, "duration": 20.0}  # fmt: skip
     (tmp_path / "campaign.json").write_text(json.dumps({"items": [campaign]}))
     done = scengen("submit", "campaign.json", "--server", server.url, "--junit", "report.xml",
                    "--out", "results", cwd=tmp_path)  # fmt: skip

@@ -58,6 +58,7 @@ CAMPAIGN = {
     "depth": 2,
     "chains": 1,
     "controllers": ["sumo", "sumo-rolling-stop"],
+    "duration": 20.0,  # not the default 45 s: the suite's time
 }
 
 

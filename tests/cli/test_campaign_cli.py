@@ -23,7 +23,8 @@ import pytest
 pytestmark = pytest.mark.slow
 
 COMMAND = ["campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "1", "--chains", "2",
-           "--controller", "sumo", "--controller", "sumo-rolling-stop"]  # fmt: skip
+           "--duration", "20", "--controller", "sumo", "--controller",
+           "sumo-rolling-stop"]  # fmt: skip
 
 
 def scengen(*args: str) -> subprocess.CompletedProcess[str]:
@@ -137,7 +138,8 @@ def test_the_summary_prints_the_papers_table_and_criticality_by_level(
     monkeypatch.setattr(campaign_folder, "run_folder_campaign", lambda *_: outcome)
     monkeypatch.setattr(campaigns, "resolve_driver", lambda name: None)  # strong and weak
     command = ["campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "3", "--chains", "2",
-               "--controller", "strong", "--controller", "weak", "-o", str(tmp_path)]  # fmt: skip
+               "--controller", "strong", "--controller", "weak", "--duration", "20", "-o",
+               str(tmp_path)]  # fmt: skip
     assert main([*command, "--table", "paper"]) == 1
     out = capsys.readouterr().out
     assert "weak        pass     pass 2/2  2/2 FAIL 21800(a)  2/2 FAIL 21800(a)\n" in out
@@ -169,7 +171,7 @@ def test_a_campaign_holds_no_repeated_test_case_at_any_level(tmp_path: Path) -> 
 
     folder = tmp_path / "four"
     done = scengen("campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "2", "--chains",
-                   "4", "--controller", "sumo", "-o", str(folder))  # fmt: skip
+                   "4", "--controller", "sumo", "--duration", "20", "-o", str(folder))  # fmt: skip
     assert done.returncode in (0, 1), done.stderr
     outcome = json.loads((folder / "campaign.json").read_text())
     assert outcome["schema"] == "scengen/campaign/2"

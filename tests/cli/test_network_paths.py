@@ -85,7 +85,8 @@ def test_every_command_finds_the_network_without_being_told(project: Path) -> No
 
 def test_a_campaigns_testcases_find_the_copy_beside_them(project: Path) -> None:
     scengen(project, "campaign", "nets/skewed.net.xml", "--ego", EGO, "--depth", "1",
-            "--chains", "1", "--controller", "sumo", "-o", "campaign")  # fmt: skip
+            "--chains", "1", "--controller", "sumo", "--duration", "20",
+            "-o", "campaign")  # fmt: skip
     cases = project / "campaign" / "testcases"
     level1 = json.loads((cases / f"{EGO.replace(':', '-')}.chain1.level1.json").read_text())
     assert (cases / level1["network"]["path"]).is_file()

@@ -58,7 +58,7 @@ def test_the_fingerprint_ignores_formatting_not_content() -> None:
 def test_a_campaign_item_reads_its_defaults() -> None:
     item = parse_batch({"items": [CAMPAIGN]}).items[0]
     assert isinstance(item, CampaignItem)
-    assert (item.seed, item.duration, item.junction, item.all_egos) == (0, 20.0, None, False)
+    assert (item.seed, item.duration, item.junction, item.all_egos) == (0, 45.0, None, False)
     assert dependencies(item) == []
 
 

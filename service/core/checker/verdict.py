@@ -19,6 +19,7 @@ from xml.etree import ElementTree as ET
 from service.core.motion.criticality_records import Criticality
 
 VERDICT_SCHEMA = "scengen/verdict/1"
+NOT_REACHED = "did not reach its exit lane"  # a verdict's reason when the goal was not reached
 
 
 @dataclass(frozen=True)
@@ -143,9 +144,7 @@ class Verdict:
     def reasons(self) -> list[str]:
         found = list(self.errors)
         if not self.goal_reached:
-            found.append(
-                f"did not reach its exit lane, out of the junction, within {self.duration:g} s"
-            )
+            found.append(f"{NOT_REACHED}, out of the junction, within {self.duration:g} s")
         found += [c.describe() for c in self.collisions]
         found += [v.describe() for v in self.violations]
         return found

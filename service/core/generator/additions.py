@@ -79,6 +79,21 @@ def validate_routes(
     return chosen
 
 
+def candidate_routes(old: TestCase, intersection: Intersection) -> list[str]:
+    """Routes a new car may take: routes the junction offers (no parking lane or bay,
+    service.core.network.lanes.side_lane_reason) that conflict with the ego's or start on
+    its fork (a car ahead of the ego), sorted by id; a car on a fork in use joins the
+    queue there. Then the walks a new pedestrian may take: those that cross the ego's
+    route (docs/pedestrians.md), sorted by id."""
+    ego = old.ego.route
+    routes = sorted(
+        route
+        for route in intersection.offered_routes
+        if route in intersection.conflicts[ego.id] or intersection.routes[route].fork == ego.fork
+    )
+    return routes + sorted(w.id for w in intersection.walks.values() if ego.id in w.conflicts)
+
+
 def new_car_ids(old: TestCase, count: int) -> list[str]:
     taken = {n.id for n in old.road_users}
     ids: list[str] = []

@@ -19,29 +19,16 @@ from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 
 from service.core.checker.check import Judge
-from service.core.errors import InvalidInput, NoMoreComplexTestCase, NoneFound
+from service.core.errors import InvalidInput, NoMoreComplexTestCase, NoneFound, ScengenError
+from service.core.generator.additions import candidate_routes
 from service.core.generator.extension import MAX_ORDERS, Extension, extend_testcase
+from service.core.generator.failure import longer_duration, route_label
 from service.core.generator.search import Progress
 from service.core.generator.verification import checked_judge
 from service.core.network import Intersection
 from service.core.testcase import TestCase, load_testcase_intersection
 
 ROUTE_ORDERS = 20  # answer sets one route gets in the first round (a count)
-
-
-def candidate_routes(old: TestCase, intersection: Intersection) -> list[str]:
-    """Routes a new car may take: routes the junction offers (no parking lane or bay,
-    service.core.network.lanes.side_lane_reason) that conflict with the ego's or start on
-    its fork (a car ahead of the ego), sorted by id; a car on a fork in use joins the
-    queue there. Then the walks a new pedestrian may take: those that cross the ego's
-    route (docs/pedestrians.md), sorted by id."""
-    ego = old.ego.route
-    routes = sorted(
-        route
-        for route in intersection.offered_routes
-        if route in intersection.conflicts[ego.id] or intersection.routes[route].fork == ego.fork
-    )
-    return routes + sorted(w.id for w in intersection.walks.values() if ego.id in w.conflicts)
 
 
 def _by_free_fork(old: TestCase, intersection: Intersection, routes: list[str]) -> list[list[str]]:
@@ -85,18 +72,33 @@ def grow(
     held_back = set(last)
     candidates.sort(key=lambda route: route in held_back)  # stable: the seed's order stays
     end = time.monotonic() + budget
-    outcomes: list[str] = []
+    outcomes: list[str] = []  # a line per route: its name and why it gave nothing
+    needed: list[object] = []  # the durations with room, where the duration limits
     proven = True
     for group in _by_free_fork(old, junction, candidates):
         found, proven_here = _first_extension(old, group, seed, budget, end, (junction, judge),
-                                              progress, outcomes, avoid)  # fmt: skip
+                                              progress, (outcomes, needed), avoid)  # fmt: skip
         proven = proven and proven_here
         if found is not None:
             return found
-    tried = "; ".join(outcomes) or "no route conflicts with the ego's"
+    if not outcomes:
+        raise NoMoreComplexTestCase("no new car makes this test-case more complex: no route "
+                                    "conflicts with the ego's")  # fmt: skip
+    tried = "".join(f"\n  {line}" for line in outcomes)
+    longer = [n for n in needed if isinstance(n, float)]
+    to_try = ["another seed (draws the routes in another order)" if not proven else "",
+              longer_duration(old, max(longer)) if longer else ""]  # fmt: skip
+    to_try = [t for t in to_try if t]
+    advice = f"\n  to try: {'; '.join(to_try)}" if to_try else ""
     if proven:
-        raise NoMoreComplexTestCase(f"no new car makes this test-case more complex ({tried})")
-    raise NoneFound(f"no route gave a more complex test-case ({tried})", seed=seed)
+        raise NoMoreComplexTestCase(
+            f"no new car makes this test-case more complex ({len(outcomes)} routes tried):"
+            f"{tried}{advice}"
+        )
+    raise NoneFound(
+        f"no route gave a more complex test-case ({len(outcomes)} routes tried):{tried}{advice}",
+        seed=seed,
+    )
 
 
 def _first_extension(
@@ -107,14 +109,16 @@ def _first_extension(
     end: float,
     checker: tuple[Intersection, Judge],
     progress: Progress | None,
-    outcomes: list[str],
+    said: tuple[list[str], list[object]],
     avoid: Sequence[TestCase] = (),
 ) -> tuple[Growth | None, bool]:
     """The first of ``candidates`` with an extension: each first gets ROUTE_ORDERS answer
     sets, then those cut short get MAX_ORDERS. Also whether every other one is proven to
-    have none."""
+    have none. ``said``: a line per route without one (its name and why), and the
+    durations with room that their errors name."""
     proven = True
     junction, judge = checker
+    outcomes, needed = said
     for orders in (ROUTE_ORDERS, MAX_ORDERS):
         retry = []
         for route in candidates:
@@ -128,7 +132,8 @@ def _first_extension(
                     orders, judge, avoid, [route] if walking else [],
                 )  # fmt: skip
             except (NoMoreComplexTestCase, InvalidInput) as error:  # no room on its fork
-                outcomes.append(f"{route}: {error}")
+                outcomes.append(_route_said(route, walking, error))
+                needed.append(error.context.get("longer"))
                 continue
             except NoneFound as error:
                 if error.context.get("budget_exhausted"):
@@ -137,11 +142,18 @@ def _first_extension(
                     retry.append(route)  # a longer search may find one; a finished one not
                     continue
                 proven = False
-                outcomes.append(f"{route}: {error}")
+                outcomes.append(_route_said(route, walking, error))
                 continue
             return Growth(extension, route, tuple(outcomes)), proven
         candidates = retry
     return None, proven
+
+
+def _route_said(route: str, walking: bool, error: ScengenError) -> str:
+    """A route's line: its name and why it gave nothing (the error's ``why`` where it has
+    one: failure.not_found)."""
+    label = route_label([], [route]) if walking else route_label([route])
+    return f"{label}: {error.context.get('why', error.message)}"
 
 
 def _exhausted(budget: float, outcomes: Sequence[str], seed: int) -> NoneFound:

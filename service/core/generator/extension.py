@@ -249,7 +249,8 @@ def extend_testcases(
             search_exhausted=search.exhausted,
         )
     if not found:
-        raise not_found(old, junction, cars, queue.bounds, seed, routes, attempts, search.exhausted)
+        raise not_found(old, junction, cars, queue.bounds, seed, routes, attempts,
+                        search.exhausted, walks)  # fmt: skip
     return Extensions(
         found, len(search.tried), search.exhausted, len(search.variants), search.timings_limited
     )

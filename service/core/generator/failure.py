@@ -1,16 +1,27 @@
 """Why a search for a more complex test-case found none, in words a user can act on.
 
+The message has a headline, one line for the routes tried (their names and what their
+answer sets came to, counted: "car route N2C_0:C2S_0: 8 orders of events found, none could
+be timed within 85 % of the speed bounds") and a last line of what to try: another route
+(a few that exist and were not tried), another seed (when the search's count ran out), a
+longer test-case (when the duration is what limits).
+
 "No more complex test-case exists" is said only when, even without any safety margin, no
-order of events has consistent times (the search space is empty); "none found" says what
-the answer sets it drew came to, each outcome once, and what to try (another seed, another
-route, a longer test-case).
+order of events has consistent times (the search space is empty). Whether the duration is
+what limits then costs one more solve of the program already grounded (the horizon
+released: ``OrderingSearch.latest_past_the_end``); its answer set's latest event gives a
+duration with room. A search that drew orders says so from its own outcomes: a certificate
+that does not reach its exit before the end.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
+from service.core.checker.verdict import NOT_REACHED
 from service.core.errors import NoMoreComplexTestCase, NoneFound
+from service.core.generator.additions import candidate_routes
 from service.core.generator.candidate import safety_margin
 from service.core.generator.ordering import OrderingSearch
 from service.core.generator.ordering_facts import OrderingCar, QueueBounds
@@ -18,30 +29,108 @@ from service.core.generator.search import Attempt, order_limits
 from service.core.network import Intersection
 from service.core.testcase import TestCase
 
+OTHER_ROUTES = 3  # routes named in "what to try"
+VERIFICATION = "failed verification"  # outcomes of the checker and the curves, counted together
+KINDS_SAID = 4  # kinds of outcome said with their counts; the rest are counted together
+
+# Step 3's reasons (timing_solve.solve_timing) in words: (some of the orders, all of them).
+TIMING_WORDS = {
+    "no event times can realise this order": (
+        "have no event times that realise them",
+        "none has event times that realise it",
+    ),
+    "no curves within the bounds for the planned event times": (
+        "got event times but no speed curves within the bounds",
+        "none got speed curves within the bounds for its event times",
+    ),
+}
+
+
+def route_label(routes: Sequence[str], walks: Sequence[str] = ()) -> str:
+    """What was tried, by name: "car route A", "car routes A + B", "pedestrian walk W"."""
+    said = []
+    if routes:
+        said.append(("car route " if len(routes) == 1 else "car routes ") + " + ".join(routes))
+    if walks:
+        said.append(("pedestrian walk " if len(walks) == 1 else "pedestrian walks ")
+                    + " + ".join(walks))  # fmt: skip
+    return " with ".join(said) or "no route"
+
+
+def in_words(outcome: str) -> tuple[str, str]:
+    """An answer set's outcome as (what some orders did, what all of them did)."""
+    if outcome.startswith("timing: "):
+        reason = outcome.removeprefix("timing: ")
+        if reason in TIMING_WORDS:
+            return TIMING_WORDS[reason]
+        if reason.startswith("no speed profile within "):
+            share = reason.removeprefix("no speed profile within ").removesuffix(" of the bounds")
+            return (f"could not be timed within {share} of the speed bounds",
+                    f"none could be timed within {share} of the speed bounds")  # fmt: skip
+        return f"could not be timed ({reason})", f"none could be timed ({reason})"
+    if NOT_REACHED in outcome:
+        late = "a certificate does not reach its exit before the end"
+        return f"were timed, but {late}", f"each was timed, but {late}"
+    if outcome.startswith("the same test-case order as"):
+        return "repeated a test-case order already drawn", "each repeated an order already drawn"
+    if outcome.startswith("no window of entry times"):
+        return "left no window of entry times to aim in", "none left a window of entry times"
+    return VERIFICATION, "none passed verification"
+
 
 def outcomes_said(attempts: Sequence[Attempt]) -> str:
-    """What the attempts came to, each outcome once with the answer sets that had it
-    ("#1-#8: timing: no speed profile within 85 % of the bounds; #9: ...")."""
-    numbers: dict[str, list[int]] = {}
-    for attempt in attempts:
-        numbers.setdefault(attempt.outcome, []).append(attempt.index + 1)
-    said = []
-    for outcome, which in list(numbers.items())[:4]:
-        runs = ", ".join(f"#{a}" if a == b else f"#{a}-#{b}" for a, b in _runs(which))
-        said.append(f"{runs}: {outcome}")
-    more = len(numbers) - 4
-    return "; ".join(said) + (f"; {more} other outcome(s)" if more > 0 else "")
+    """What the answer sets came to, each kind of outcome once with its count ("8 orders
+    of events found, none could be timed within 85 % of the speed bounds"; "10 orders of
+    events found, none verified: 8 could not be timed ..., 2 failed verification ...")."""
+    orders = [a for a in attempts if not a.outcome.startswith("ordering: ")]
+    limit = next((a.outcome for a in attempts if a.outcome.startswith("ordering: ")), None)
+    counted: dict[str, int] = {}
+    every: dict[str, str] = {}
+    for attempt in orders:
+        some, all_of_them = in_words(attempt.outcome)
+        if some == VERIFICATION:  # outcomes told apart by their text: the first one's
+            example = attempt.outcome.removeprefix("verification: ")
+            some = next((k for k in counted if k.startswith(VERIFICATION)),
+                        f"{some} (first: {example})")  # fmt: skip
+            all_of_them += some.removeprefix(VERIFICATION)
+        counted[some] = counted.get(some, 0) + 1
+        every.setdefault(some, all_of_them)
+    found = f"{len(orders)} order{'s' if len(orders) != 1 else ''} of events found"
+    if len(counted) == 1:
+        said = f"{found}, {every[next(iter(counted))]}"
+    elif counted:
+        kinds = [f"{count} {some}" for some, count in list(counted.items())[:KINDS_SAID]]
+        rest = sum(list(counted.values())[KINDS_SAID:])
+        said = f"{found}, none verified: " + ", ".join(kinds) + (f", {rest} other" if rest else "")
+    else:
+        said = "no order of events found"
+    if limit is not None:  # SearchLimitReached: Step 2's work limit on one answer set
+        said += f"; then Step 2 stopped: {limit.removeprefix('ordering: ')}"
+    return said
 
 
-def _runs(numbers: Sequence[int]) -> list[tuple[int, int]]:
-    """Consecutive numbers as (first, last) runs: 1, 2, 3, 5 -> (1, 3), (5, 5)."""
-    runs: list[tuple[int, int]] = []
-    for number in numbers:
-        if runs and number == runs[-1][1] + 1:
-            runs[-1] = (runs[-1][0], number)
-        else:
-            runs.append((number, number))
-    return runs
+def _other_routes(old: TestCase, junction: Intersection, tried: Sequence[str]) -> str:
+    """A few routes (or walks) a new road user could take that were not tried."""
+    others = [r for r in candidate_routes(old, junction) if r not in tried]
+    if not others:
+        return ""
+    named = ", ".join(others[:OTHER_ROUTES]) + (", ..." if len(others) > OTHER_ROUTES else "")
+    return f"another route ({named}; scengen intersection lists them)"
+
+
+def longer_duration(old: TestCase, needed: float | None = None) -> str:
+    """What to try when the duration is what limits: a longer test-case, made anew (the
+    old cars' drives end with the old duration, and are driven anew in a longer one, so
+    ``needed``, from the first order found with events after the end, is no promise)."""
+    first = f"; the first order found needs {needed:g} s" if needed is not None else ""
+    return (f"a longer test-case (this one lasts {old.duration:g} s{first}; make it anew "
+            f"with a longer --duration)")  # fmt: skip
+
+
+def failure_message(headline: str, label: str, why: str, to_try: Sequence[str]) -> str:
+    """The message: the headline, the routes' line, what to try (each on its own line)."""
+    tried = [t for t in to_try if t]
+    return f"{headline}\n  {label}: {why}" + (f"\n  to try: {'; '.join(tried)}" if tried else "")
 
 
 def not_found(
@@ -53,39 +142,55 @@ def not_found(
     routes: Sequence[str],
     attempts: Sequence[Attempt],
     exhausted: bool,
+    walks: Sequence[str] = (),
 ) -> NoMoreComplexTestCase | NoneFound:
     """Why the search ended without a result. "No more complex test-case exists" only when
     even without any safety margin no order of events has consistent times: the whole
-    search space is then empty."""
-    tried = outcomes_said(attempts)
-    detail = f" ({tried})" if tried else ""
+    search space is then empty. The error's context keeps ``why`` (the routes' line
+    without their name) and ``longer`` (a duration with room, when the duration limits)
+    for a caller that tries many routes (service.core.generator.chain)."""
+    label = route_label(routes, walks)
+    another = _other_routes(old, junction, [*routes, *walks])
+    said = outcomes_said(attempts)
+    late = any(NOT_REACHED in a.outcome for a in attempts)
     if not exhausted:
+        why = f"the search's count ran out ({len(attempts)} answer sets): {said}"
         return NoneFound(
-            f"none found among the first {len(attempts)} answer sets{detail}; the search's "
-            "count of answer sets ran out: another seed draws others, another route or a "
-            f"longer test-case (this one lasts {old.duration:g} s) gives more room",
-            routes=list(routes),
-            seed=seed,
-            search_exhausted=False,
-        )
+            failure_message(
+                "none found", label, why,
+                ["another seed (draws other orders first)", another,
+                 longer_duration(old) if late else ""],
+            ),
+            routes=list(routes), seed=seed, search_exhausted=False, why=why,
+        )  # fmt: skip
     bare = OrderingSearch(junction, cars, old.params.m, seed, order_limits(old, margin=0.0), bounds)
     if not bare.satisfiable():
+        latest = bare.latest_past_the_end()
+        if latest is not None:
+            needed = float(math.ceil(latest + safety_margin(old)))
+            why = (f"the duration is what limits: no order of events fits within "
+                   f"{old.duration:g} s, and with events after the end orders exist (the "
+                   f"first found ends at {latest:.1f} s)")  # fmt: skip
+            to_try = [longer_duration(old, needed), another]
+        else:
+            why, to_try, needed = bare.explain_unsatisfiable(), [another], None
         return NoMoreComplexTestCase(
-            f"no more complex test-case exists for these routes: {bare.explain_unsatisfiable()}",
-            routes=list(routes),
-        )
+            failure_message("no more complex test-case exists for these routes", label, why,
+                            to_try),
+            routes=list(routes), why=why, longer=needed,
+        )  # fmt: skip
     if not attempts:
+        why = (f"orders of events exist only without the safety margin of "
+               f"{safety_margin(old):g} s on every relation, too close to call")  # fmt: skip
         return NoneFound(
-            "none found: orders of events exist only without the safety margin of "
-            f"{safety_margin(old):g} s on every relation, too close to call",
-            routes=list(routes),
-            seed=seed,
-            search_exhausted=True,
-        )
+            failure_message("none found", label, why, [another]),
+            routes=list(routes), seed=seed, search_exhausted=True, why=why,
+        )  # fmt: skip
+    why = f"every order of events tried: {said}"
     return NoneFound(
-        f"none found among all {len(attempts)} orders of events{detail}; another route or a "
-        f"longer test-case (this one lasts {old.duration:g} s) gives more room",
-        routes=list(routes),
-        seed=seed,
-        search_exhausted=True,
-    )
+        failure_message(
+            "none found", label, why,
+            [another, longer_duration(old) if late else ""],
+        ),
+        routes=list(routes), seed=seed, search_exhausted=True, why=why,
+    )  # fmt: skip

@@ -265,6 +265,22 @@ class OrderingSearch:
             ),
         )
 
+    def latest_past_the_end(self) -> float | None:
+        """Whether the duration is what limits: with the horizon released (events may fall
+        after the end), the latest symbolic time of the first answer set, in seconds; None
+        when there is none even so. One solve of the program as grounded (an external)."""
+        past = clingo.Function("pastTheEnd")
+        self.control.assign_external(past, True)
+        try:
+            found = self._solve()
+        finally:
+            self.control.assign_external(past, False)
+        if found is None:
+            return None
+        events = {str(symbol) for symbol, timed in self.symbols.items()
+                  if timed.car in self.symbolic}  # fmt: skip
+        return max((t for name, t in found[1].items() if name in events), default=None)
+
     def explain_unsatisfiable(self) -> str:
         """Which requirement could not be met: the first group whose release makes it SAT."""
         for group in GROUPS:

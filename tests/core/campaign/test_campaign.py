@@ -31,7 +31,8 @@ from service.core.campaign.outcome import (
     wilson_interval,
 )
 from service.core.errors import NoMoreComplexTestCase, ScengenError
-from service.core.generator.chain import candidate_routes, grow
+from service.core.generator.additions import candidate_routes
+from service.core.generator.chain import grow
 from service.core.network import Intersection
 from service.core.testcase import TestCase, new_testcase
 

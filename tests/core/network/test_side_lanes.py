@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from service.core.errors import UnknownRoute
-from service.core.generator.chain import candidate_routes
+from service.core.generator.additions import candidate_routes
 from service.core.network import Intersection, load_intersection
 from service.core.network.describe import describe_intersection
 from service.core.testcase import new_testcase

@@ -13,7 +13,7 @@ import pytest
 from service.core.checker.check import Judge
 from service.core.errors import BudgetExceeded, InvalidInput, InvalidTestCase
 from service.core.export.bundle import export_bundle
-from service.core.generator.chain import candidate_routes
+from service.core.generator.additions import candidate_routes
 from service.core.generator.extension import extend_testcase
 from service.core.motion.poses import centre_to_front, generate_poses, plan_drive, start_front
 from service.core.network import parsed_network
