@@ -19,6 +19,7 @@ beside run.py (``python run.py --cosim PORT``), and ``scengen cosim`` runs the s
 from __future__ import annotations
 
 import contextlib
+import os
 import socket
 import subprocess
 import sys
@@ -28,8 +29,6 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
-
-from service.core.budget import kill_and_reap
 
 CLIENT_ORDER = 2  # the driving stack's setOrder
 CMD_CLOSE = 0x7F  # TraCI's close command (traci.constants.CMD_CLOSE)
@@ -275,7 +274,14 @@ def cosimulate(
         if timer is not None:
             timer.cancel()
         if process is not None:
-            kill_and_reap(process)
+            # as service.core.budget.kill_and_reap (this module is standalone): a Ctrl-C
+            # inside Popen.poll() can leave Popen's lock held, and wait() would never return
+            process.kill()
+            try:
+                process.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                with contextlib.suppress(ChildProcessError):
+                    os.waitpid(process.pid, 0)
         if connection is not None:
             with contextlib.suppress(Exception):  # SUMO is gone: the goodbye cannot arrive
                 connection.close(wait=False)
