@@ -68,13 +68,14 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --quiet
 
 lint: $(STAMP)
-	$(BIN)/ruff check service tests bench
-	$(BIN)/ruff format --check service tests bench
+	$(BIN)/ruff check service tests bench docs/hooks
+	$(BIN)/ruff format --check service tests bench docs/hooks
 	$(BIN)/mypy
+	$(BIN)/mypy --strict docs/hooks
 
 format: $(STAMP)
-	$(BIN)/ruff check --fix service tests bench
-	$(BIN)/ruff format service tests bench
+	$(BIN)/ruff check --fix service tests bench docs/hooks
+	$(BIN)/ruff format service tests bench docs/hooks
 
 nets: $(STAMP)
 	cd sumo_nets && for net in $(NETS); do ../$(BIN)/netconvert -c $$net.netccfg || exit 1; done
