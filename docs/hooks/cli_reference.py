@@ -116,13 +116,12 @@ def _exclusive_groups(sub: argparse.ArgumentParser) -> dict[int, list[str]]:
 
 
 def _signature(argument: argparse.Action) -> str:
+    given = argument.metavar
+    metavar = given if isinstance(given, str) or given is None else " ".join(given)
     if not argument.option_strings:
-        metavar = argument.metavar or argument.dest
-        shown = metavar if isinstance(metavar, str) else " ".join(metavar)
-        return f"`{shown}{' ...' if argument.nargs in ('+', '*') else ''}`"
+        return f"`{metavar or argument.dest}{' ...' if argument.nargs in ('+', '*') else ''}`"
     value = ""
     if argument.nargs != 0:
-        metavar = argument.metavar
         if metavar is None and argument.choices:
             metavar = "{" + ",".join(str(c) for c in argument.choices) + "}"
         value = f" {metavar or argument.dest.upper()}"
