@@ -8,7 +8,7 @@ drives on to the end of its route's last lane, so that SUMO's device, which the 
 log a PET whose second car enters the conflict area after the ego's goal (ours measures
 it from the other car's trajectory; every other measure of ours ends at the goal).
 Run with ``python -m bench.ssm_compare`` (part of ``make bench``); tests/bench/
-test_ssm_compare.py checks the agreement within the README's tolerances.
+test_ssm_compare.py checks the agreement within the tolerances of docs/criticality.md.
 """
 
 from __future__ import annotations

@@ -137,7 +137,7 @@ def with_nonegos(
 
 @functools.cache
 def car_ahead_of_ego() -> TestCase:
-    """The README's queue: on the four-way stop the ego (E2C_0:C2N_0, 30 m out) turns
+    """The queue of docs/rules.md: on the four-way stop the ego (E2C_0:C2N_0, 30 m out) turns
     right, and the generator adds a car ahead of it on its fork that goes straight on."""
     from service.core.generator.extension import extend_testcase
     from service.core.testcase import new_testcase

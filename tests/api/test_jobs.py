@@ -102,9 +102,10 @@ def test_a_batch_naming_unknown_things_is_refused(api: httpx.Client) -> None:
     assert api.get("/jobs").json()["total"] == before
 
 
-def test_the_readme_batch_on_a_fresh_server_is_refused(tmp_path: Path) -> None:
-    """examples/regression.yaml names the README's first test-case: a server that has not
-    made it refuses the batch at once, naming the id (twice: two items name it)."""
+def test_the_docs_batch_on_a_fresh_server_is_refused(tmp_path: Path) -> None:
+    """examples/regression.yaml names the first test-case of the HTTP examples
+    (docs/http-api.md, docs/jobs.md): a server that has not made it refuses the batch at
+    once, naming the id (twice: two items name it)."""
     from fastapi.testclient import TestClient
 
     from service.api import create_app

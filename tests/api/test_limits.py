@@ -1,4 +1,4 @@
-"""The resource limits (README "Settings") at their edges: samples per test-case, request
+"""The resource limits (docs/http-api.md, "Settings") at their edges: samples per test-case, request
 body size, validation errors reported, worker memory; and large bodies validated in a worker
 process, off the event loop."""
 

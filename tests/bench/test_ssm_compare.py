@@ -1,5 +1,5 @@
 """Our criticality against SUMO's SSM device on the same replays (bench.ssm_compare):
-the same values within the README's tolerances where both define a measure alike."""
+the same values within the tolerances of docs/criticality.md where both define a measure alike."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""How a test-case finds its network: the README's workflow with the network in one folder
+"""How a test-case finds its network: the workflow of docs/cli.md with the network in one folder
 and the test-cases in another, no --network anywhere; moved folders; a changed network."""
 
 from __future__ import annotations

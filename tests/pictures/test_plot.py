@@ -86,7 +86,7 @@ def test_a_testcase_picture_marks_starts_times_and_stop_lines(tmp_path: Path) ->
 
 
 def test_the_car_behind_another_on_its_fork_is_marked() -> None:
-    """The README's queue: the ego starts behind car1 on their fork."""
+    """The queue of docs/rules.md: the ego starts behind car1 on their fork."""
     case = car_ahead_of_ego()
     queues = queue_leaders(case, load_testcase_intersection(case))
     assert queues == {"car1": None, "ego": "car1"}

@@ -88,8 +88,8 @@ BEYOND_JSON_SCHEMA = [
     ("*", "every state has one colour per link", "a signal program's states are equally long"),
     ("POST /jobs", "refers to item", "an item refers to an earlier item that makes test-cases"),
     # JSON Schema's integer is any number without a fraction, 8.0 too; the server's
-    # numbers are strict (README), so 8.0 for a count or a seed is refused: a difference in
-    # how the number is written, which no schema can state.
+    # numbers are strict (docs/http-api.md), so 8.0 for a count or a seed is refused: a
+    # difference in how the number is written, which no schema can state.
     ("*", "Input should be a valid integer", "an integer written as 8.0"),
 ]
 

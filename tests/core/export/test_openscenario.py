@@ -73,7 +73,7 @@ QC_CONFIG = """<?xml version="1.0" encoding="UTF-8"?>
 
 def _issues(kind: str, path: Path) -> list[str]:
     """The issues the ASAM Quality Checker bundle finds in ``path`` (run as a command, as
-    the README shows, from the venv `make test` installs it into), and every checker that
+    docs/export.md shows, from the venv `make test` installs it into), and every checker that
     ended in an error; the schema check must have run."""
     program, bundle = BUNDLES[kind]
     command = QC_BIN / program

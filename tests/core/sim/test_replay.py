@@ -279,7 +279,7 @@ def _check_sumo_gap(record: dict[str, Any]) -> None:
 def test_the_leader_is_the_car_ahead_on_the_fork(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """The README's queue: car1 starts ahead of the ego and goes straight on where the ego
+    """The queue of docs/rules.md: car1 starts ahead of the ego and goes straight on where the ego
     turns right. Its gap (rear bumper to the ego's front) agrees with the test-case's
     trajectory while its rear is on the fork; once its rear is on its own connecting lane,
     nobody is ahead of the ego."""
