@@ -60,3 +60,14 @@ def next_junction(tmp_path_factory: pytest.TempPathFactory) -> TestCase:
     from tests.helpers import next_junction_network, past_the_next_junction
 
     return past_the_next_junction(next_junction_network(tmp_path_factory.mktemp("next")))
+
+
+@pytest.fixture(scope="session")
+def exported_cases(tmp_path_factory: pytest.TempPathFactory, worker_id: str) -> list[TestCase]:
+    """Every level of every example, a queue and two real-map chains (tests.helpers'
+    every_exported_case): grown once per test run, shared by the export tests of every
+    worker."""
+    from tests.helpers import every_exported_case
+    from tests.shared import made_once
+
+    return made_once("exported-cases", every_exported_case, tmp_path_factory, worker_id)

@@ -156,12 +156,11 @@ def _real_map_chain(network: Path, junction: str, control: str, ego: str) -> lis
     return [start, extend_testcase(start, [new], seed=0, budget=120).testcase]
 
 
-@functools.cache
 def every_exported_case() -> list[TestCase]:
     """Every level of every example, a queue (a new car ahead of the ego at an all-way
     stop), and two real-map chains: Town05's four-arm junction 396 as an all-way stop, and
     Town07's Y 358, whose short fork lanes put the default start inside the junction
-    before it. Made once per test run (the export tests share them)."""
+    before it. The export tests share them (tests.conftest's exported_cases)."""
     from tests.conftest import TOWN05, TOWN07
 
     cases = [level for example in EXAMPLES.values() for level in run_example(example)]

@@ -222,6 +222,9 @@ class WarmWorker:
             except (OSError, EOFError):
                 self._stop()
                 raise ScengenError(f"{what} died without an answer") from None
+            except BaseException:  # Ctrl-C: an answer may still come; no later call may read it
+                self._stop()
+                raise
         return decode_outcome(reply, b"", what)  # type: ignore[no-any-return]
 
     def _child(self) -> subprocess.Popen[bytes]:
@@ -251,6 +254,51 @@ class WarmWorker:
         """End the child (it also ends when this process does)."""
         if self._process is not None and self._owner == os.getpid():
             self._stop()
+
+
+class WarmPool:
+    """Warm children lent out one call at a time, for calls whose imports cost more than
+    their work (a replay: a second of imports, a tenth of a second of SUMO). A caller
+    borrows an idle child or, when every child is busy, starts another, so calls run at
+    once as before; at most ``keep`` idle children are kept (each holds libsumo's memory).
+    Each call runs under its budget, and a call that overruns or dies takes its child
+    with it, as WarmWorker does."""
+
+    def __init__(self, keep: int) -> None:
+        self._keep = keep
+        self._idle: list[WarmWorker] = []
+        self._owner = os.getpid()
+        self._lock = threading.Lock()
+        atexit.register(self.close)
+
+    def call(self, function: Callable[..., T], args: tuple[Any, ...], budget: float,
+             what: str) -> T:  # fmt: skip
+        """``function(*args)`` in a warm child; BudgetExceeded after ``budget`` seconds."""
+        if INSIDE_CHILD:
+            return run_here(function, args, budget, what)
+        with self._lock:
+            if self._owner != os.getpid():  # a forked copy: the parent's children are not ours
+                self._idle, self._owner = [], os.getpid()
+            worker = self._idle.pop() if self._idle else WarmWorker()
+        try:
+            return worker.call(function, args, budget, what)
+        finally:
+            self._give_back(worker)
+
+    def _give_back(self, worker: WarmWorker) -> None:
+        with self._lock:
+            if len(self._idle) < self._keep and self._owner == os.getpid():
+                self._idle.append(worker)
+                return
+        worker.close()
+        atexit.unregister(worker.close)  # nothing left to end at exit
+
+    def close(self) -> None:
+        """End every idle child."""
+        with self._lock:
+            idle, self._idle = self._idle, []
+        for worker in idle:
+            worker.close()
 
 
 def read_frame(fd: int, deadline: float) -> bytes:

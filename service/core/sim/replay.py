@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from service.core.budget import run_with_budget
+from service.core.budget import WarmPool, run_with_budget
 from service.core.checker.check import check_testcase, testcase_label
 from service.core.checker.verdict import Verdict
 from service.core.errors import BudgetExceeded, InvalidInput
@@ -360,6 +361,12 @@ def write_run_files(
     return files
 
 
+# Replays with the built-in drivers run in warm children (a replay's imports, about a
+# second, paid once per child; SUMO starts afresh each time); as many idle ones are kept
+# as the machine has cores.
+REPLAYS = WarmPool(keep=os.cpu_count() or 2)
+
+
 def evaluate(
     testcase: TestCase,
     controller: str,
@@ -392,7 +399,10 @@ def evaluate(
         plan_file = str(prepare_replay(testcase, junction, Path(folder)))
         arguments = (plan_file, controller_spec(driver), driver.name, reference, rss_params)
         try:
-            rows, error, guard = run_with_budget(run_replay, arguments, budget, "the replay")
+            # a user's controller runs in a fresh child: state it keeps between calls
+            # (module globals, a changed module) must not carry from one replay to the next
+            run = REPLAYS.call if reference is None else run_with_budget
+            rows, error, guard = run(run_replay, arguments, budget, "the replay")
         except BudgetExceeded as exc:  # the server's limit: no verdict on the controller
             raise type(exc)(
                 f"{exc.message}; no verdict on {controller} (raise the evaluation's budget)",

@@ -25,7 +25,7 @@ from service.core.sim.controllers import BUILT_IN
 from service.core.sim.replay import Evaluation, evaluate
 from service.core.sumo.binaries import sumo_binary
 from service.core.testcase import TestCase, load_testcase_intersection, new_testcase, read_testcase
-from tests.helpers import every_exported_case, next_junction_network, retime, with_nonegos
+from tests.helpers import next_junction_network, retime, with_nonegos
 from tests.walkers import crosswalk_scene, in_path_times, on_crossing_times
 
 pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
@@ -91,11 +91,6 @@ def test_the_bundle_run_gets_the_in_service_verdict(bundle_run: Path, four_way: 
     assert from_bundle.goal_reached == in_service.goal_reached
 
 
-@pytest.fixture(scope="module")
-def every_case() -> list[TestCase]:
-    return every_exported_case()
-
-
 RUN_EVERY_CONTROLLER = """
 import sys
 import run
@@ -106,14 +101,14 @@ for controller in sys.argv[1:]:
 
 
 def test_the_bundle_runner_reproduces_the_evaluation(
-    every_case: list[TestCase], tmp_path: Path
+    exported_cases: list[TestCase], tmp_path: Path
 ) -> None:
     """For every built-in controller on every case, `python run.py` in the exported bundle
     drives the ego along the trajectory of `scengen evaluate` (to a micrometre), so the
     checker's verdict is the same: pass or fail, the rules broken against whom, the
     collisions, the goal time and the ego's event times."""
     jobs = []
-    for k, testcase in enumerate(every_case):
+    for k, testcase in enumerate(exported_cases):
         intersection = load_testcase_intersection(testcase)
         folder = tmp_path / f"case{k}"
         export_bundle(testcase, folder, intersection)
@@ -126,7 +121,7 @@ def test_the_bundle_runner_reproduces_the_evaluation(
             cwd=folder, check=True, capture_output=True, timeout=300,
         )  # fmt: skip
         jobs += [(testcase, intersection, folder, name) for name in controllers]
-    assert len(jobs) == 4 * len(every_case) + 2 * (len(every_case) - 8)  # 8 ego-only cases
+    assert len(jobs) == 4 * len(exported_cases) + 2 * (len(exported_cases) - 8)  # 8 ego-only cases
 
     def evaluated(job: tuple[TestCase, Intersection, Path, str]) -> Evaluation:
         testcase, intersection, _, controller = job

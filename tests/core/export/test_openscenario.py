@@ -21,7 +21,6 @@ from service.core.motion.poses import PoseSample, interpolate_heading
 from service.core.network import Intersection, load_intersection
 from service.core.sumo.binaries import sumo_binary
 from service.core.testcase import Sample, TestCase, load_testcase_intersection
-from tests.helpers import every_exported_case
 
 pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
 
@@ -46,11 +45,13 @@ def test_headings_turn_from_sumo_to_openscenario_and_back(angle: float, heading:
 
 
 @pytest.fixture(scope="module")
-def exported(tmp_path_factory: pytest.TempPathFactory) -> list[tuple[TestCase, Path, Path]]:
+def exported(
+    tmp_path_factory: pytest.TempPathFactory, exported_cases: list[TestCase]
+) -> list[tuple[TestCase, Path, Path]]:
     """Every example level, a queue, Town05 396 and Town07 358: each exported in the ASAM
     flavour and in the CARLA one."""
     out = []
-    for k, case in enumerate(every_exported_case()):
+    for k, case in enumerate(exported_cases):
         asam = tmp_path_factory.mktemp(f"osc{k}")
         carla = tmp_path_factory.mktemp(f"carla{k}")
         export_openscenario(case, asam)

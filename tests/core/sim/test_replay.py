@@ -10,6 +10,7 @@ from typing import Any
 
 import pytest
 
+from service.core.budget import run_with_budget
 from service.core.checker.check import Judge
 from service.core.errors import BudgetExceeded, InvalidInput, InvalidTestCase
 from service.core.export.bundle import export_bundle
@@ -66,6 +67,24 @@ def test_a_replayed_certificate_follows_it_exactly(y_new: TestCase) -> None:
             # the centre comes from SUMO's front bumper and heading; in curves SUMO's heading
             # differs from the interpolated one by tenths of a degree: a few centimetres
             assert math.dist((replayed.x, replayed.y), (original.x, original.y)) < 0.05
+
+
+def test_a_warm_child_replays_as_a_fresh_one(y_new: TestCase) -> None:
+    """Built-in drivers replay in warm children (service.core.sim.replay.REPLAYS), one
+    after another in the same process: each replay is the one a fresh child gives."""
+    from service.core.sim import replay
+
+    intersection = load_testcase_intersection(y_new)
+    controllers = ["sumo", "sumo-rolling-stop", "sumo+rss", "certificate:complexity"]
+    warm = [evaluate(y_new, name, intersection) for name in controllers * 2]
+    original = replay.REPLAYS.call
+    try:
+        replay.REPLAYS.call = run_with_budget  # type: ignore[method-assign]
+        fresh = [evaluate(y_new, name, intersection) for name in controllers]
+    finally:
+        replay.REPLAYS.call = original  # type: ignore[method-assign]
+    for k, evaluation in enumerate(warm):
+        assert evaluation == fresh[k % len(controllers)], controllers[k % len(controllers)]
 
 
 def test_certificates_pass_and_fail_as_defined(y_start: TestCase, y_new: TestCase) -> None:
