@@ -4,6 +4,12 @@
 (networks, testcases, judging, exports, servers, campaigns) with its commands' arguments
 beside their handlers; the arguments they share are defined once (service.cli.arguments).
 ``submit``, ``campaign_folder`` and ``examples`` do the work behind some of them.
+
+Building the parser imports no heavy library (SUMO's, numpy, shapely, the solvers, pydantic,
+the web stack): each handler imports what its work needs, so ``--version``, ``--help`` and
+usage errors answer at once and a command pays only for what it uses (issue 49; the check is
+tests/cli/test_startup.py). Help texts that need the core name it from light modules
+(service.core.names) or are written when shown (service.cli.table.Later).
 """
 
 from __future__ import annotations
@@ -16,8 +22,8 @@ __all__ = ["main"]
 
 def main(argv: Sequence[str] | None = None) -> int:
     """The ``scengen`` command. Its table of commands is imported here, not when this
-    package is, so that Ctrl-C while it loads (a second of imports) stops it as quietly as
-    Ctrl-C later does (service.cli.commands)."""
+    package is, so that Ctrl-C while it loads stops it as quietly as Ctrl-C later does
+    (service.cli.commands, which also catches it while a handler imports its libraries)."""
     try:
         from service.cli.commands import main as run
     except KeyboardInterrupt:

@@ -13,26 +13,15 @@ import math
 import os
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from service.cli.table import Argument, Writes, arg
 from service.core.errors import UnknownNetwork
-from service.core.network import (
-    ControlType,
-    Intersection,
-    SignalProgram,
-    bundled_networks,
-    load_intersection,
-    with_signals,
-)
-from service.core.network.signals import read_signals_file
-from service.core.testcase import (
-    TestCase,
-    find_network_file,
-    implausible_trajectories,
-    read_testcase,
-    under_testcase_signals,
-)
+from service.core.names import ControlType, bundled_networks
+
+if TYPE_CHECKING:  # the network and the test-case load sumolib, numpy and pydantic: on use
+    from service.core.network import Intersection, SignalProgram
+    from service.core.testcase import TestCase
 
 CONTROLS = [c.value for c in ControlType]
 
@@ -93,6 +82,9 @@ def signals_program(args: argparse.Namespace) -> SignalProgram | None:
     the problem). None without --signals."""
     if args.signals is None:
         return None
+    from service.core.network import load_intersection, with_signals
+    from service.core.network.signals import read_signals_file
+
     intersection = load_intersection(
         args.network,
         args.junction,
@@ -137,6 +129,8 @@ def output(metavar: str, help: str | None = None, **options: Any) -> Argument:
 def read_input(path: Path) -> TestCase:
     """A test-case file a command works on; a warning on stderr for each stored trajectory
     that no car can drive (the command goes on: the document is valid)."""
+    from service.core.testcase import implausible_trajectories, read_testcase
+
     testcase = read_testcase(path)
     for problem in implausible_trajectories(testcase):
         print(f"scengen: warning: {path}: {problem}", file=sys.stderr)
@@ -156,6 +150,8 @@ def locate_network(
     folder of the file it was read from (``read_from``, default the command's TESTCASE),
     with --network and SCENGEN_NETWORK_PATH. Says on stderr which file it used when it is
     not the bundled network."""
+    from service.core.testcase import find_network_file
+
     source = read_from or getattr(args, "testcase", None)
     near = source.parent if isinstance(source, Path) else None
     try:
@@ -176,6 +172,9 @@ def testcase_intersection(
     testcase: TestCase, args: argparse.Namespace, read_from: Path | None = None
 ) -> Intersection:
     """The test-case's intersection, its network found by ``locate_network``."""
+    from service.core.network import load_intersection
+    from service.core.testcase import under_testcase_signals
+
     path = locate_network(testcase, args, read_from)
     intersection = load_intersection(  # the hash was checked above
         path,
@@ -185,6 +184,15 @@ def testcase_intersection(
         guess_crossings=testcase.crossings_guessed,
     )
     return under_testcase_signals(intersection, testcase)
+
+
+def controllers_named() -> str:
+    """Every controller a NAME can be (built-in, registered, guarded), for a help text that
+    is written when it is shown (service.cli.table.Later): finding the registered ones reads
+    the installed packages' entry points."""
+    from service.core.sim.controllers import controller_names
+
+    return ", ".join(controller_names())
 
 
 def distance_or_auto(text: str) -> float | None:

@@ -10,11 +10,17 @@ import time
 from pathlib import Path
 from urllib.parse import quote
 
-from service.cli.arguments import NETWORK, SIGNALS, TOKEN, output, signals_program
+from service.cli.arguments import (
+    NETWORK,
+    SIGNALS,
+    TOKEN,
+    controllers_named,
+    output,
+    signals_program,
+)
 from service.cli.output import EXIT_FAILED_CHECK, EXIT_OK, print_table, write_output
 from service.cli.table import OneOf, arg, command
 from service.core.campaign import CAMPAIGN_DURATION
-from service.core.sim.controllers import controller_names, resolve_driver
 
 
 @command(
@@ -45,9 +51,7 @@ from service.core.sim.controllers import controller_names, resolve_driver
         action="append",
         required=True,
         metavar="NAME",
-        help="who drives the ego (repeatable): "
-        + ", ".join(controller_names())
-        + ", or module:attribute",
+        help=lambda: f"who drives the ego (repeatable): {controllers_named()}, or module:attribute",
     ),
     arg("--seed", type=int, default=0, help="chain c has seed SEED + c"),
     arg(
@@ -105,6 +109,7 @@ def campaign(args: argparse.Namespace) -> int:
         diversity_table,
         failure_table,
     )
+    from service.core.sim.controllers import resolve_driver
 
     if args.major is not None:
         args.usage.error(

@@ -11,6 +11,7 @@ import argparse
 import os
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from service.cli import campaigns, cosim, exports, judging, networks, servers, testcases
 from service.cli.output import (
@@ -49,8 +50,29 @@ def parser() -> argparse.ArgumentParser:
         prog="scengen",
         description="Intersection test-cases of increasing complexity for autonomous vehicles.",
     )
-    table.add_argument("--version", action="version", version=f"%(prog)s {version()}")
+    table.add_argument(
+        "--version", action=ShowVersion, help="show program's version number and exit"
+    )
     return table
+
+
+class ShowVersion(argparse.Action):
+    """``--version``, as argparse's own action prints it, but looked up (the package's
+    metadata) only when asked for: not on every command's start."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **options: Any) -> None:
+        super().__init__(option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                         nargs=0, **options)  # fmt: skip
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: Any,
+        option_string: str | None = None,
+    ) -> None:
+        print(f"{parser.prog} {version()}")
+        parser.exit()
 
 
 def version() -> str:

@@ -9,7 +9,7 @@ import sys
 from service.cli.arguments import JUNIT, NETWORK_FILE, TESTCASE, read_input, testcase_intersection
 from service.cli.output import report_verdict
 from service.cli.table import arg, command
-from service.core.sim.cosim import COSIM_BUDGET, COSIM_WAIT, cosimulate_testcase
+from service.core.names import COSIM_BUDGET, COSIM_WAIT
 
 
 @command(
@@ -37,6 +37,8 @@ from service.core.sim.cosim import COSIM_BUDGET, COSIM_WAIT, cosimulate_testcase
     "left before the end or took the ego off its route (docs/cosim.md).",
 )  # fmt: skip
 def cosim(args: argparse.Namespace) -> int:
+    from service.core.sim.cosim import cosimulate_testcase
+
     testcase = read_input(args.testcase)
     intersection = testcase_intersection(testcase, args)
 

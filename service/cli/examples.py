@@ -11,24 +11,14 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from service.cli.output import write_output
-from service.core.budget import WarmWorker
 from service.core.campaign.paper_table import PAPER_CONTROLLERS, PaperTable, paper_table
 from service.core.errors import ScengenError
-from service.core.generator.extension import extend_testcase
-from service.core.sim.controllers import CertificateDriver, resolve_driver
-from service.core.sim.replay import REPLAY_BUDGET, evaluate
-from service.core.testcase import (
-    TestCase,
-    dump_testcase,
-    name_stem,
-    new_testcase,
-    readable_name,
-    renamed,
-    testcase_level,
-)
+
+if TYPE_CHECKING:  # the generator, the replay and the test-case's models load when one runs
+    from service.core.testcase import TestCase
 
 WORKER_SLACK = 30.0  # seconds the worker may take beyond a replay's own budget (its start)
 
@@ -119,6 +109,9 @@ def run_example(
     """The chain of test-cases: the ego-only start, then one per step, named after the
     example and the level (``four-way level 2``). ``on_level`` hears of each level as soon
     as it is verified; a level that fails names itself in its error."""
+    from service.core.generator.extension import extend_testcase
+    from service.core.testcase import new_testcase, readable_name, renamed
+
     start = new_testcase(example.network, example.ego, duration=example.duration)
     chain = [renamed(start, readable_name(start, example.name))]
     if on_level is not None:
@@ -143,6 +136,8 @@ def run_example(
 def write_testcase(testcase: TestCase, folder: Path) -> Path:
     """``folder/EXAMPLE-LEVEL.json`` (``four-way-2.json`` for ``four-way level 2``), the
     folder made when missing."""
+    from service.core.testcase import dump_testcase, name_stem, testcase_level
+
     path = folder / f"{name_stem(testcase.name)}-{testcase_level(testcase)}.json"
     write_output(path, dump_testcase(testcase))
     return path
@@ -151,15 +146,21 @@ def write_testcase(testcase: TestCase, folder: Path) -> Path:
 def evaluate_levels(
     chain: Sequence[TestCase],
     controllers: Sequence[str],
-    budget: float = REPLAY_BUDGET,
+    budget: float | None = None,
     on_verdict: Callable[[str], None] | None = None,
 ) -> PaperTable:
     """Every level of ``chain`` replayed with each controller, as the paper's table. The
     replays run one after another in one warm child process (its imports paid once), each
-    under ``budget``. A certificate controller on the ego-only level (which has no
-    certificates) leaves its cell empty; ``on_verdict`` hears ``NAME / CONTROLLER: pass``
-    (``FAIL``, ``(none)``) after each."""
+    under ``budget`` (None: the replay's own, REPLAY_BUDGET). A certificate controller on
+    the ego-only level (which has no certificates) leaves its cell empty; ``on_verdict``
+    hears ``NAME / CONTROLLER: pass`` (``FAIL``, ``(none)``) after each."""
+    from service.core.budget import WarmWorker
+    from service.core.sim.controllers import CertificateDriver, resolve_driver
+    from service.core.sim.replay import REPLAY_BUDGET
+    from service.core.testcase import testcase_level
+
     drivers = [resolve_driver(name) for name in controllers]  # bad names fail first
+    budget = REPLAY_BUDGET if budget is None else budget
     levels: dict[int, dict[str, list[dict[str, Any]]]] = {}
     worker = WarmWorker()
     try:
@@ -186,4 +187,6 @@ def evaluate_levels(
 
 def replay_verdict(testcase: TestCase, controller: str, budget: float) -> dict[str, Any]:
     """The controller's verdict on ``testcase`` (``Verdict.to_dict``), in the worker."""
+    from service.core.sim.replay import evaluate
+
     return evaluate(testcase, controller, budget=budget).verdict.to_dict()

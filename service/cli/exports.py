@@ -6,15 +6,16 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from typing import TYPE_CHECKING
 
 from service.cli.arguments import NETWORK_FILE, TESTCASE, output, read_input, testcase_intersection
 from service.cli.output import EXIT_OK, StepProgress, make_folder, output_file, progress
 from service.cli.table import arg, command
 from service.core.errors import InvalidInput
 from service.core.export import FLAVOURS
-from service.core.export.bundle import export_bundle
-from service.core.motion.poses import PoseSample
-from service.core.sim.replay import evaluate as evaluate_controller
+
+if TYPE_CHECKING:  # Step 1's samples (libsumo's module) load when a picture is drawn
+    from service.core.motion.poses import PoseSample
 
 
 @command(
@@ -42,6 +43,8 @@ from service.core.sim.replay import evaluate as evaluate_controller
     "and verdict-rules.md; --flavour carla for CARLA's ScenarioRunner.",
 )
 def export(args: argparse.Namespace) -> int:
+    from service.core.export.bundle import export_bundle
+
     testcase = read_input(args.testcase)
     make_folder(args.output)
     if args.format == "openscenario":
@@ -93,6 +96,7 @@ def plot(args: argparse.Namespace) -> int:
             f"{hint.get(args.output.suffix.lower(), '')}"
         )
     say = progress(time.monotonic())
+    from service.core.sim.replay import evaluate as evaluate_controller
     from service.pictures.animation import animate_testcase  # matplotlib: on use
     from service.pictures.junction import save
     from service.pictures.plot import draw_testcase

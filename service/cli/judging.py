@@ -9,9 +9,16 @@ import json
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from service.cli.arguments import JUNIT, NETWORK_FILE, TESTCASE, read_input, testcase_intersection
+from service.cli.arguments import (
+    JUNIT,
+    NETWORK_FILE,
+    TESTCASE,
+    controllers_named,
+    read_input,
+    testcase_intersection,
+)
 from service.cli.output import (
     EXIT_BAD_INPUT,
     EXIT_FAILED,
@@ -28,13 +35,10 @@ from service.cli.output import (
     write_output,
 )
 from service.cli.table import arg, command
-from service.core.checker.check import check_testcase, testcase_label
-from service.core.checker.verdict import Verdict, junit_report
 from service.core.errors import InvalidInput, ScengenError
-from service.core.motion.trajectory import read_trajectory
-from service.core.sim.controllers import CertificateDriver, controller_names, resolve_driver
-from service.core.sim.replay import evaluate as evaluate_controller
-from service.core.sumo.rss_guard import GuardError, load_params
+
+if TYPE_CHECKING:
+    from service.core.checker.verdict import Verdict
 
 
 @command(
@@ -55,6 +59,9 @@ from service.core.sumo.rss_guard import GuardError, load_params
     NETWORK_FILE,
 )
 def check(args: argparse.Namespace) -> int:
+    from service.core.checker.check import check_testcase
+    from service.core.motion.trajectory import read_trajectory
+
     testcase = read_input(args.testcase)
     ego = read_trajectory(args.ego, args.vehicle, testcase.ego.length)
     verdict = check_testcase(
@@ -96,12 +103,18 @@ def check(args: argparse.Namespace) -> int:
         "(docs/controllers.md)",
     ),
     NETWORK_FILE,
-    description="Replays each test-case in SUMO (non-egos exactly as recorded) with each "
-    "controller driving the ego, and judges the ego with the checker. Controllers: "
-    + ", ".join(controller_names())
-    + ", or a user controller as module:attribute (NAME+rss: under the RSS guard).",
+    description=lambda: (
+        "Replays each test-case in SUMO (non-egos exactly as recorded) with "
+        "each controller driving the ego, and judges the ego with the checker. Controllers: "
+        f"{controllers_named()}, or a user controller as module:attribute (NAME+rss: under the "
+        "RSS guard)."
+    ),
 )
 def evaluate(args: argparse.Namespace) -> int:
+    from service.core.checker.check import testcase_label
+    from service.core.sim.controllers import CertificateDriver, resolve_driver
+    from service.core.sim.replay import evaluate as evaluate_controller
+
     controllers = args.controller or ["sumo"]
     drivers = [resolve_driver(name) for name in controllers]  # bad names fail before any replay
     rss_params = _rss_params(args.rss_params)
@@ -190,6 +203,8 @@ def _rss_params(path: Path | None) -> dict[str, Any] | None:
     """``--rss-params``: the RSS dynamics file, checked (InvalidInput names the problem)."""
     if path is None:
         return None
+    from service.core.sumo.rss_guard import GuardError, load_params
+
     try:
         return load_params(path)
     except GuardError as exc:
@@ -232,6 +247,8 @@ def _report_evaluations(
     ``not_run``: the evaluations an interruption left out (JUnit: skipped, saying so)."""
     verdicts = [verdict for verdict, _ in judged]
     if args.junit:
+        from service.core.checker.verdict import junit_report
+
         labelled = [dataclasses.replace(v, testcase=_label(v.testcase, path))
                     for v, path in judged]  # fmt: skip
         errors = [(f"{t} / {c}" if c else t, str(e)) for t, c, e in problems]

@@ -11,9 +11,7 @@ from typing import Any
 from service.cli.arguments import NETWORK, SIGNALS, signals_program
 from service.cli.output import EXIT_OK, output_file, print_table
 from service.cli.table import arg, command
-from service.core.network import bundled_networks, load_intersection, with_signals
-from service.core.network.describe import describe_intersection
-from service.core.network.signals import COLOUR_WORDS
+from service.core.names import bundled_networks
 
 WALK_WORDS = "G or g walk, y flashing don't walk (nobody starts), r don't walk"  # 21456
 
@@ -48,6 +46,9 @@ def networks(args: argparse.Namespace) -> int:
     ),
 )
 def intersection(args: argparse.Namespace) -> int:
+    from service.core.network import load_intersection, with_signals
+    from service.core.network.describe import describe_intersection
+
     junction = load_intersection(
         args.network,
         args.junction,
@@ -154,6 +155,8 @@ def _print_walk_signals(walks: list[dict[str, Any]]) -> None:
 
 
 def _print_signals(signals: dict[str, Any], routes: dict[str, dict[str, Any]]) -> None:
+    from service.core.network.signals import COLOUR_WORDS  # loaded with the junction
+
     print()
     print(
         f"traffic light {signals['tls']}  program {signals['program']}  offset "

@@ -14,14 +14,15 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from service.cli.table import Writes
-from service.core.checker.verdict import Verdict
 from service.core.errors import ClientFault, InvalidInput, ScengenError, UnsupportedIntersection
-from service.core.files import replacing, write_atomically
-from service.core.motion.criticality_records import Criticality
-from service.core.sumo.run import guard_text
-from service.core.testcase import TestCase, dump_testcase, with_network_path
+
+if TYPE_CHECKING:  # loaded by the commands that use them, not by every command's start
+    from service.core.checker.verdict import Verdict
+    from service.core.motion.criticality_records import Criticality
+    from service.core.testcase import TestCase
 
 EXIT_OK, EXIT_FAILED_CHECK, EXIT_BAD_INPUT, EXIT_FAILED = 0, 1, 2, 3
 EXIT_CLIENT = 4  # the co-simulated driving stack's fault (scengen cosim): no verdict
@@ -48,6 +49,8 @@ def print_table(rows: Sequence[Sequence[str]]) -> None:
 def emit(testcase: TestCase, output: Path | None, network_file: Path | None = None) -> int:
     """Write a test-case to ``output`` (with its network's path from there), or to stdout
     without one."""
+    from service.core.testcase import dump_testcase, with_network_path
+
     if output:
         placed = with_network_path(testcase, network_file, output.parent)
         write_output(output, dump_testcase(placed))
@@ -95,6 +98,8 @@ def make_folder(folder: Path) -> None:
 
 def write_output(path: Path, data: str | bytes) -> None:
     """Write a result to ``path`` whole or not at all, its folder made when missing."""
+    from service.core.files import write_atomically
+
     make_folder(path.parent)
     try:
         write_atomically(path, data)
@@ -106,6 +111,8 @@ def write_output(path: Path, data: str | bytes) -> None:
 def output_file(path: Path) -> Iterator[Path]:
     """A temporary path for a writer that takes a path (a picture), renamed to ``path``
     when the writer is done; its folder made when missing."""
+    from service.core.files import replacing
+
     make_folder(path.parent)
     with replacing(path) as temporary:
         yield temporary
@@ -136,6 +143,8 @@ def report_verdict(verdict: Verdict, as_json: bool, junit: Path | None) -> int:
 
 
 def print_verdict(verdict: Verdict) -> None:
+    from service.core.sumo.run import guard_text
+
     status = "PASS" if verdict.passed else "FAIL"
     print(f"{status}  {verdict.testcase} / {verdict.controller}")
     if verdict.goal_time is not None:

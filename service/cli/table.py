@@ -3,6 +3,10 @@
 Each command module declares its commands with ``@command``: the name, the help line, and
 the arguments right above the handler, so a command reads as one piece. Arguments that
 several commands share are tuples of ``Argument`` defined once (service.cli.arguments).
+
+A help text or a description may be a function that writes it (``Later``): it is called
+only when that help is shown, so that what it names (the controllers, which are found
+among the installed packages' entry points) costs nothing to a command that only runs.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any, Literal, NoReturn, Protocol
 
 Handler = Callable[[argparse.Namespace], int]  # a command's work: its exit code
+Later = Callable[[], str]  # a help text or description, written when the help is shown
 
 
 class _Target(Protocol):
@@ -34,7 +39,12 @@ class Argument:
 
     def add_to(self, parser: _Target) -> list[tuple[str, Writes]]:
         """Add it; the written paths it declares, as (destination, what) pairs."""
-        action = parser.add_argument(*self.flags, **self.options)
+        later = self.options.get("help")
+        if not callable(later):
+            action = parser.add_argument(*self.flags, **self.options)
+        else:  # argparse gets a text: Parser.format_help writes it when it is shown
+            action = parser.add_argument(*self.flags, **{**self.options, "help": "..."})
+            action.later_help = later
         return [(action.dest, self.writes)] if self.writes else []
 
 
@@ -62,14 +72,14 @@ class Command:
     help: str
     run: Handler
     arguments: tuple[Argument | OneOf, ...]
-    description: str | None = None
+    description: str | Later | None = None
 
 
 def command(
     name: str,
     help: str,
     *arguments: Argument | OneOf | Sequence[Argument],
-    description: str | None = None,
+    description: str | Later | None = None,
 ) -> Callable[[Handler], Command]:
     """Declare the handler below as the command ``name``; a tuple of arguments (a shared
     group) stands for its members, in order."""
@@ -91,7 +101,11 @@ def build_parser(commands: Sequence[Command], **options: Any) -> argparse.Argume
     parser = Parser(**options)
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for entry in commands:
-        sub = subparsers.add_parser(entry.name, help=entry.help, description=entry.description)
+        given = entry.description
+        sub = subparsers.add_parser(
+            entry.name, help=entry.help, description=None if callable(given) else given
+        )
+        sub.later_description = given if callable(given) else None
         writes = [written for argument in entry.arguments for written in argument.add_to(sub)]
         sub.set_defaults(run=entry.run, usage=sub, writes=tuple(writes))
     return parser
@@ -101,6 +115,17 @@ class Parser(argparse.ArgumentParser):
     """argparse's parser, with a hint where its error does not say how to go on."""
 
     given: Sequence[str] = ()  # the words being parsed: main() sets them for every parser
+    later_description: Later | None = None
+
+    def format_help(self) -> str:
+        """The help, its texts given as functions (``Later``) written first."""
+        if self.later_description is not None:
+            self.description = self.later_description()
+        for action in self._actions:
+            later = getattr(action, "later_help", None)
+            if later is not None:
+                action.help = later()
+        return super().format_help()
 
     def error(self, message: str) -> NoReturn:
         if "expected one argument" in message:

@@ -8,7 +8,7 @@ import json
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from service.cli.arguments import (
     NETWORK,
@@ -26,23 +26,18 @@ from service.cli.examples import EXAMPLES, evaluate_levels, run_example, write_t
 from service.cli.output import EXIT_OK, StepProgress, emit, output_file, print_table, progress
 from service.cli.table import arg, command
 from service.core.campaign.paper_table import PAPER_CONTROLLERS
-from service.core.generator.additions import StartDistances
-from service.core.generator.extension import Extension, extend_testcase, extend_testcases
-from service.core.generator.variety import MAX_COUNT, describe_variants, variant_name
-from service.core.motion.events import compute_events
-from service.core.motion.poses import generate_poses
-from service.core.network import Intersection, bundled_networks, load_intersection
-from service.core.sim.controllers import resolve_driver
-from service.core.testcase import (
+from service.core.names import (
     DEFAULT_START_DISTANCE,
     DEFAULT_START_SPEED,
-    TestCase,
-    name_stem,
-    new_testcase,
-    readable_name,
-    renamed,
-    under_testcase_signals,
+    MAX_COUNT,
+    bundled_networks,
 )
+
+if TYPE_CHECKING:  # the generator, Step 1 and the test-case's models load in the handlers
+    from service.core.generator.additions import StartDistances
+    from service.core.generator.extension import Extension
+    from service.core.network import Intersection
+    from service.core.testcase import TestCase
 
 
 @command(
@@ -76,6 +71,8 @@ from service.core.testcase import (
     output("FILE", "write here, not stdout"),
 )
 def new(args: argparse.Namespace) -> int:
+    from service.core.testcase import new_testcase, readable_name, renamed
+
     testcase = new_testcase(
         args.network,
         args.ego,
@@ -122,6 +119,9 @@ def new(args: argparse.Namespace) -> int:
     NETWORK_FILE,
 )
 def drive(args: argparse.Namespace) -> int:
+    from service.core.motion.events import compute_events
+    from service.core.motion.poses import generate_poses
+
     testcase = read_input(args.testcase)
     intersection = testcase_intersection(testcase, args)
     route = intersection.route(args.route or testcase.ego.route.id)
@@ -242,6 +242,10 @@ def extension_count(text: str) -> int:
     NETWORK_FILE,
 )
 def extend(args: argparse.Namespace) -> int:
+    from service.core.generator.extension import extend_testcase
+    from service.core.network import load_intersection
+    from service.core.testcase import name_stem, readable_name, renamed, under_testcase_signals
+
     if not args.add and not args.add_pedestrian:
         args.usage.error(
             "name what to add: --add FORK_LANE:EXIT_LANE (a car) or --add-pedestrian WALK "
@@ -297,6 +301,9 @@ def _extend_variants(
     """``extend --count N`` (N > 1): up to N distinct extensions, each written to
     ``FILE-K.json`` and named as variant K, with a line on stderr saying what tells it from
     the others, and why fewer came back when they did."""
+    from service.core.generator.extension import extend_testcases
+    from service.core.generator.variety import describe_variants
+
     extensions = extend_testcases(
         old, args.add, args.count, args.seed, args.budget, start_distance, progress(started),
         intersection, walks=args.add_pedestrian,
@@ -326,6 +333,9 @@ def _variant_path(output: Path, number: int) -> Path:
 def _variant(extension: Extension, old: TestCase, name: str | None, number: int) -> TestCase:
     """Variant ``number`` of the extensions, named as ``variety.variant_name`` says after
     ``--name`` or the default (the old name with the new level)."""
+    from service.core.generator.variety import variant_name
+    from service.core.testcase import name_stem, readable_name, renamed
+
     chosen = name or readable_name(extension.testcase, name_stem(old.name))
     return renamed(extension.testcase, variant_name(chosen, number))
 
@@ -400,6 +410,8 @@ def controller_list(text: str) -> tuple[str, ...]:
     "findings.",
 )
 def example(args: argparse.Namespace) -> int:
+    from service.core.sim.controllers import resolve_driver
+
     chosen = EXAMPLES[args.name]
     controllers = () if args.no_evaluate else (args.controllers or chosen.controllers)
     for name in controllers:

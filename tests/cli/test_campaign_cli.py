@@ -129,14 +129,15 @@ def test_the_summary_prints_the_papers_table_and_criticality_by_level(
 ) -> None:
     """The command's printing over a campaign of hand-made verdicts (the loop and the
     measures are tested in the core)."""
-    from service.cli import campaign_folder, campaigns
+    from service.cli import campaign_folder
     from service.cli.commands import main
     from service.core.campaign.growing import run_campaign
+    from service.core.sim import controllers
     from tests.core.campaign.test_campaign import RULES, FakeSteps, plan
 
     outcome = run_campaign(plan(), FakeSteps(measured=True), RULES)
     monkeypatch.setattr(campaign_folder, "run_folder_campaign", lambda *_: outcome)
-    monkeypatch.setattr(campaigns, "resolve_driver", lambda name: None)  # strong and weak
+    monkeypatch.setattr(controllers, "resolve_driver", lambda name: None)  # strong and weak
     command = ["campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "3", "--chains", "2",
                "--controller", "strong", "--controller", "weak", "--duration", "20", "-o",
                str(tmp_path)]  # fmt: skip

@@ -29,11 +29,11 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from service.core.names import MAX_COUNT as MAX_COUNT  # the CLI's, API's and batches' limit
 from service.core.testcase import MAX_NAME_LENGTH, Pedestrian, TestCase, testcase_level
 
 DISTINCT_GAP = 1.0  # seconds: new cars entering the junction this far apart make a new test-case
 AIMS = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875)  # shares of the entry window
-MAX_COUNT = 50  # distinct extensions one call (CLI, API, batch item) asks for at most
 AIM_POINTS = 256  # points of the timings --count looks at, at most (a count)
 LATTICE = 1.02  # entries aimed this many DISTINCT_GAPs apart are distinct test-cases
 AimPoint = tuple[float, float | None]  # (share of the entry window, of the arrival window)

@@ -18,6 +18,7 @@ from service.core.errors import (
     UnsupportedIntersection,
     choices,
 )
+from service.core.names import bundled_networks as bundled_networks
 from service.core.network.convert import convert_network, source_format
 from service.core.network.crossings import build_crossings, build_walks
 from service.core.network.forks import Limit, build_exit, build_fork, fork_limit
@@ -51,23 +52,6 @@ SUPPORTED = tuple(c.value for c in ControlType)
 # zipper, rail_crossing, rail_signal, left_before_right, unregulated, ...)
 RULE_SETS = ", ".join(f"{c.value} -> {c.rule_set}" for c in ControlType)
 TURNS = {"s": Turn.STRAIGHT, "l": Turn.LEFT, "L": Turn.LEFT, "r": Turn.RIGHT, "R": Turn.RIGHT}
-
-
-def bundled_networks_dir() -> Path:
-    """``sumo_nets/``: inside the installed package, or beside it in a source checkout."""
-    package = Path(__file__).resolve().parents[2]
-    for candidate in (package / "sumo_nets", package.parent / "sumo_nets"):
-        if candidate.is_dir():
-            return candidate
-    raise UnknownNetwork("the bundled networks (sumo_nets/) are missing from this installation")
-
-
-def bundled_networks() -> dict[str, Path]:
-    """Short name -> path of every bundled network."""
-    return {
-        path.name.removesuffix(".net.xml"): path
-        for path in sorted(bundled_networks_dir().glob("*.net.xml"))
-    }
 
 
 def resolve_network(ref: str | Path) -> Path:

@@ -13,31 +13,10 @@ from pathlib import Path
 from shapely.geometry import LineString, MultiPolygon, Polygon
 
 from service.core.errors import UnknownLane, UnknownRoute, UnknownWalk, choices
+from service.core.names import ControlType as ControlType  # light, for the command line
 from service.core.network.signals import SignalProgram
 
 Point = tuple[float, float]
-
-
-class ControlType(StrEnum):
-    """Junction control types that have a traffic-rule set (SUMO junction types)."""
-
-    ALLWAY_STOP = "allway_stop"
-    PRIORITY = "priority"
-    PRIORITY_STOP = "priority_stop"
-    RIGHT_BEFORE_LEFT = "right_before_left"
-    TRAFFIC_LIGHT = "traffic_light"
-    TRAFFIC_LIGHT_RIGHT_ON_RED = "traffic_light_right_on_red"
-
-    @property
-    def signalized(self) -> bool:
-        """Traffic lights control the junction (its program is part of the test-case)."""
-        return self in (ControlType.TRAFFIC_LIGHT, ControlType.TRAFFIC_LIGHT_RIGHT_ON_RED)
-
-    @property
-    def rule_set(self) -> str:
-        """The name of the rule set (asp/rules/NAME.lp): both signal types share one, the
-        program's colours (``s``: right on red) say what each lane may do."""
-        return "traffic_light" if self.signalized else self.value
 
 
 class Turn(StrEnum):

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from service.core import names
 from service.core.errors import InvalidInput, InvalidTestCase
 from service.core.motion.kinematics import fastest
 from service.core.motion.poses import (
@@ -27,8 +28,8 @@ from service.core.testcase.document import parse_testcase
 from service.core.testcase.model import SCHEMA, Params, TestCase
 from service.core.testcase.network_path import find_network_file, network_ref
 
-DEFAULT_START_DISTANCE = 30.0  # m: the ego's automatic start, where the road is that long
-DEFAULT_START_SPEED = 8.0  # m/s: the ego's automatic start speed, where its lane allows it
+DEFAULT_START_DISTANCE = names.DEFAULT_START_DISTANCE  # m: the ego's automatic start
+DEFAULT_START_SPEED = names.DEFAULT_START_SPEED  # m/s: its speed (both in service.core.names)
 
 
 def new_testcase(
