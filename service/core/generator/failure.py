@@ -8,9 +8,10 @@ longer test-case (when the duration is what limits).
 
 "No more complex test-case exists" is said only when, even without any safety margin, no
 order of events has consistent times (the search space is empty). Whether the duration is
-what limits then costs one more solve of the program already grounded (the horizon
-released: ``OrderingSearch.latest_past_the_end``); its answer set's latest event gives a
-duration with room. A search that drew orders says so from its own outcomes: a certificate
+what limits then costs one more search, on the same facts with a horizon of
+``PAST_THE_END`` times the duration (the search itself is left as it was: its answer sets,
+and so every test-case it gives, stay the same); its first answer set's latest event gives
+a duration with room. A search that drew orders says so from its own outcomes: a certificate
 that does not reach its exit before the end.
 """
 
@@ -18,6 +19,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 from service.core.checker.verdict import NOT_REACHED
 from service.core.errors import NoMoreComplexTestCase, NoneFound
@@ -28,6 +30,9 @@ from service.core.generator.ordering_facts import OrderingCar, QueueBounds
 from service.core.generator.search import Attempt, order_limits
 from service.core.network import Intersection
 from service.core.testcase import TestCase
+
+PAST_THE_END = 3.0  # how far past the end the events may fall when it is asked whether
+# the duration is what limits (times the duration)
 
 OTHER_ROUTES = 3  # routes named in "what to try"
 VERIFICATION = "failed verification"  # outcomes of the checker and the curves, counted together
@@ -163,9 +168,11 @@ def not_found(
             ),
             routes=list(routes), seed=seed, search_exhausted=False, why=why,
         )  # fmt: skip
-    bare = OrderingSearch(junction, cars, old.params.m, seed, order_limits(old, margin=0.0), bounds)
+    bare_limits = order_limits(old, margin=0.0)
+    bare = OrderingSearch(junction, cars, old.params.m, seed, bare_limits, bounds)
     if not bare.satisfiable():
-        latest = bare.latest_past_the_end()
+        released = replace(bare_limits, duration=PAST_THE_END * old.duration)
+        latest = OrderingSearch(junction, cars, old.params.m, seed, released, bounds).latest_event()
         if latest is not None:
             needed = float(math.ceil(latest + safety_margin(old)))
             why = (f"the duration is what limits: no order of events fits within "

@@ -265,16 +265,10 @@ class OrderingSearch:
             ),
         )
 
-    def latest_past_the_end(self) -> float | None:
-        """Whether the duration is what limits: with the horizon released (events may fall
-        after the end), the latest symbolic time of the first answer set, in seconds; None
-        when there is none even so. One solve of the program as grounded (an external)."""
-        past = clingo.Function("pastTheEnd")
-        self.control.assign_external(past, True)
-        try:
-            found = self._solve()
-        finally:
-            self.control.assign_external(past, False)
+    def latest_event(self) -> float | None:
+        """The latest symbolic time of the first answer set, in seconds; None when there
+        is none."""
+        found = self._solve()
         if found is None:
             return None
         events = {str(symbol) for symbol, timed in self.symbols.items()

@@ -43,7 +43,7 @@ def test_past_four_kinds_of_outcome_the_rest_are_counted_together() -> None:
 
 def test_a_duration_too_short_for_the_new_car_says_the_duration_limits() -> None:
     """10 s: the ego turning left cannot wait for the oncoming car and still leave in
-    time (13 s has room: test_a_longer_test_case_has_the_room_it_named)."""
+    time (14 s has room: test_a_longer_test_case_has_the_room_it_named)."""
     old = new_testcase("4way-stop", EGO, duration=10.0)
     with pytest.raises(NoMoreComplexTestCase) as error:
         extend_testcase(old, [ONCOMING], budget=60)
@@ -51,16 +51,16 @@ def test_a_duration_too_short_for_the_new_car_says_the_duration_limits() -> None
     assert headline == "no more complex test-case exists for these routes"
     assert route.startswith(f"  car route {ONCOMING}: the duration is what limits: no order of "
                             "events fits within 10 s")  # fmt: skip
-    assert "(the first found ends at 12.8 s)" in route
+    assert "(the first found ends at 13.0 s)" in route
     assert to_try.startswith("  to try: a longer test-case (this one lasts 10 s; the first "
-                             "order found needs 13 s; make it anew with a longer --duration); "
+                             "order found needs 14 s; make it anew with a longer --duration); "
                              "another route (E2C_1:C2S_1, ")  # fmt: skip
     assert ONCOMING not in to_try
-    assert error.value.context["longer"] == 13.0
+    assert error.value.context["longer"] == 14.0
 
 
 def test_a_longer_test_case_has_the_room_it_named() -> None:
-    old = new_testcase("4way-stop", EGO, duration=13.0)
+    old = new_testcase("4way-stop", EGO, duration=14.0)
     assert extend_testcase(old, [ONCOMING], budget=60).testcase.nonegos
 
 
