@@ -13,6 +13,7 @@ test_ssm_compare.py checks the agreement within the tolerances of docs/criticali
 
 from __future__ import annotations
 
+import functools
 import math
 import tempfile
 from collections.abc import Callable
@@ -26,7 +27,7 @@ from bench.ssm_child import replay_with_ssm
 from service.core.budget import run_with_budget
 from service.core.checker.check import check_testcase
 from service.core.checker.verdict import Verdict
-from service.core.generator.extension import extend_testcase
+from service.core.generator.extension import extend_testcase, extend_testcases
 from service.core.motion.criticality import Mover, measure_series
 from service.core.motion.poses import PoseSample
 from service.core.sim.controllers import resolve_driver
@@ -38,6 +39,7 @@ SSM_FILE = "ssm.xml"
 
 
 FOLLOWING = (2, 3)  # SUMO's encounter types: the ego follows, the ego leads
+MERGING = (6, 7)  # SUMO's encounter types before the merge point: the ego leads, follows
 NA = math.nan
 
 
@@ -153,11 +155,34 @@ def following_case() -> TestCase:
     return extend_testcase(old, ["E2C_0:C2W_0"], seed=0, budget=60).testcase
 
 
+@functools.cache
+def _merges() -> tuple[TestCase, ...]:
+    """At the T's stop sign the ego turns left into C2W_0 and a new car on the major road
+    goes straight into it (E2C_0:C2W_0): the first four extensions (generated, seed 0)."""
+    old = new_testcase("t-stop", "S2C_0:C2W_0", duration=30.0, name="merge")
+    found = extend_testcases(old, ["E2C_0:C2W_0"], count=4, seed=0, budget=120).found
+    return tuple(extension.testcase for extension in found)
+
+
+def merge_conflict_case() -> TestCase:
+    """The ego, braking for its stop line, and the new car approach the merge point at
+    once: the first extension (the new car at the line at 4.3 s)."""
+    return _merges()[0]
+
+
+def merge_following_case() -> TestCase:
+    """The new car crawls through the junction first (at its line at 13.4 s) and the ego,
+    after its stop, follows it through the merge and closes in on it: the fourth."""
+    return _merges()[3]
+
+
 CASES: dict[str, tuple[Callable[[], TestCase], str]] = {
     "crossing, complexity certificate": (crossing_case, "certificate:complexity"),
     "crossing, sumo": (crossing_case, "sumo"),
     "following, sumo": (following_case, "sumo"),
     "following, complexity certificate": (following_case, "certificate:complexity"),
+    "merge conflict, sumo": (merge_conflict_case, "sumo"),
+    "merge, following after it, sumo": (merge_following_case, "sumo"),
 }
 
 

@@ -12,24 +12,32 @@ MSDevice_SSM.cpp), so that the values can be checked against it:
   where the strips they sweep along their connecting lanes' centrelines overlap, each strip
   as wide as its car (SUMO: the foe's width around the crossing point). A car is in it from
   the moment its rectangle, placed along its path, first overlaps the area until it no
-  longer does (its back has left it). The area is named ``EGO_LANE|OTHER_LANE``.
+  longer does (its back has left it). The area is named ``EGO_LANE|OTHER_LANE``. At a
+  merge the conflict is the *merge point*, the end of the connecting lanes where the two
+  lanes have become one (SUMO's merge point, the start of the common lane): a car is in it
+  from its front reaching that point until its back has passed it. The overlap of the
+  strips runs along the lanes as they converge, and two cars one behind the other are in
+  it at once without coming close to a crash (measured as the area, a pair 3.9 m apart
+  going the same way had a PET of 0 and a TTC predicted where SUMO predicts none).
 - TTC (time-to-collision) at a sample time, with both cars holding their current speeds
-  along their paths: at a conflict area, the time until the second car to arrive enters
-  it, if it arrives before the first has left (SUMO's crossing and merging TTC; at a merge
-  only while neither has reached the area: once one has passed the merge point the pair
-  is following, as in SUMO); a car
-  behind another on its path (the other's back within half their widths of its path,
-  heading within 45 degrees of it: one fork, one exit lane, a merge): gap / (v_behind -
-  v_ahead) while it is faster (SUMO's following TTC). The smallest over the drive, at the
-  sample where it occurred.
+  along their paths: at a conflict area (a merge point), the time until the second car
+  to arrive enters it, if it arrives before the first has left (SUMO's crossing and
+  merging TTC; at a merge only while neither has reached the merge point: once one has,
+  the pair is following, as in SUMO); a car behind another on its path (the other's back
+  within half their widths of its path, heading within 45 degrees of it: one fork, one
+  exit lane, a merge): gap / (v_behind - v_ahead) while it is faster (SUMO's following
+  TTC). The smallest over the drive, at the sample where it occurred.
 - DRAC (deceleration rate to avoid a crash): behind another car, (v_behind - v_ahead)^2 /
-  (2 gap); at a conflict area where a crash is predicted, the smaller of the two
-  decelerations that let one car reach the area just as the other leaves it, 2 (v - d / T) /
-  T (d its distance to the area, T the other's time to leave it), or v^2 / (2 d) when the
-  other stands in the area (SUMO's ``computeDRAC``). The largest over the drive.
-- PET (post-encroachment time) at each conflict area both cars went through: the time from
-  the first car leaving it to the second entering it (0 when both were in it at once), at
-  the time the second entered; entries and exits interpolated between samples.
+  (2 gap); at a conflict area (a merge point) where a crash is predicted, the smaller of
+  the two decelerations that let one car reach the area just as the other leaves it,
+  2 (v - d / T) / T (d its distance to the area, T the other's time to leave it), or
+  v^2 / (2 d) when the other stands in the area (SUMO's ``computeDRAC`` at crossings; at a
+  merge SUMO takes the follower's v^2 / (2 d), a stop at the merge point). The largest
+  over the drive.
+- PET (post-encroachment time) at each conflict area (merge point) both cars went
+  through: the time from the first car leaving it to the second entering it (0 when both
+  were in it at once), at the time the second entered; entries and exits interpolated
+  between samples.
 - Distance: the smallest gap between the two rectangles (0 when they overlap) at the ego's
   samples.
 
@@ -37,8 +45,12 @@ Where this differs from SUMO: SUMO orders two cars at a crossing by entry times 
 with their current deceleration and the lane's speed limit; here both hold their speeds.
 SUMO finds conflict areas from the junction's foe links and approximates an oblique
 crossing with the crossing point plus the foe's width; here the strips' overlap is used,
-so oblique crossings and merges get their exact area, and PET is computed at merges too
-(SUMO only at crossings). SUMO logs a value only below its thresholds, within its range;
+so oblique crossings get their exact area. At a merge both take the merge point; SUMO
+also predicts a rear-end collision after it (the first car's exit time plus the gap left
+over the closing speed), here only a car already behind another is measured as following;
+two cars that would touch side by side where the lanes converge are predicted to meet at
+the merge point, up to that stretch's length over the speed later. PET is computed at
+merges too (SUMO only at crossings). SUMO logs a value only below its thresholds, within its range;
 here the extreme of each measure is kept whatever its size.
 
 The records are in service.core.motion.criticality_records; the measures against people on
@@ -177,6 +189,44 @@ def area_bounds(
 _BOUNDS: dict[tuple[Any, ...], tuple[float, float] | None] = {}
 
 
+def merging(first: Mover, second: Mover) -> bool:
+    """Whether the two cars' routes merge: they leave the junction by one lane."""
+    return first.route.exit == second.route.exit
+
+
+def merge_bounds(junction: Intersection, car: Mover) -> tuple[float, float]:
+    """The places of the car's front (m along its path) where it reaches the merge point,
+    the end of its connecting lane, where the two merging lanes have become one, and where
+    its back has passed it (SUMO's merge point: the start of the common lane)."""
+    key = (str(junction.network_file), junction.junction, car.route.id, car.length)
+    if key not in _MERGES:
+        path = route_path(junction, car.route)
+        end = junction.connecting_lanes[car.route.connecting_lane].centreline.coords[-1]
+        place = float(path.line.project(shapely.Point(end)))
+        _MERGES[key] = (place, place + car.length)
+    return _MERGES[key]
+
+
+_MERGES: dict[tuple[str, str, str, float], tuple[float, float]] = {}
+
+
+def conflict_bounds(
+    junction: Intersection, first: Mover, second: Mover, area: BaseGeometry
+) -> tuple[tuple[float, float], tuple[float, float]] | None:
+    """Where each car's front enters the conflict and where it has left it (m along its
+    path): at a crossing the area's bounds (``area_bounds``); at a merge the merge point's
+    (``merge_bounds``): the strips overlap all along where the lanes converge, and two cars
+    one behind the other are in that overlap at once without coming close to a crash, so
+    only the place where the lanes have become one is one neither may hold while the other
+    does (None: a car never enters the area)."""
+    if merging(first, second):
+        return merge_bounds(junction, first), merge_bounds(junction, second)
+    bounds = area_bounds(junction, first, area), area_bounds(junction, second, area)
+    if bounds[0] is None or bounds[1] is None:
+        return None
+    return bounds[0], bounds[1]
+
+
 def _heading(start: np.ndarray, end: np.ndarray) -> np.ndarray:
     """Headings (degrees clockwise from north) from ``start`` to ``end`` points."""
     dx = shapely.get_x(end) - shapely.get_x(start)
@@ -268,10 +318,9 @@ def _ttc_drac(
     drac = np.zeros(mine.x.shape)
     area = conflict_area(junction, ego.car, other.car)
     if area is not None:
-        bounds = area_bounds(junction, ego.car, area), area_bounds(junction, other.car, area)
-        if bounds[0] is not None and bounds[1] is not None:
-            merging = ego.car.route.exit == other.car.route.exit
-            ttc, drac = _crossing(mine, theirs, bounds[0], bounds[1], merging)
+        bounds = conflict_bounds(junction, ego.car, other.car, area)
+        if bounds is not None:
+            ttc, drac = _crossing(mine, theirs, *bounds, merging(ego.car, other.car))
     apart = np.hypot(mine.x - theirs.x, mine.y - theirs.y)
     for behind, ahead, view, car in (
         (mine, theirs, ego, other.car),
@@ -332,18 +381,19 @@ def _time_to(distance: np.ndarray, speed: np.ndarray) -> np.ndarray:
 
 def _crossing(
     mine: Poses, theirs: Poses, my_bounds: tuple[float, float],
-    their_bounds: tuple[float, float], merging: bool,
+    their_bounds: tuple[float, float], at_merge: bool,
 ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """(TTC, DRAC) at each time at one conflict area (inf and 0 where none applies). At a
-    merge (both routes leave by one lane) only while neither car has reached the area: once
-    one has passed the merge point, the other follows it (SUMO's SSM device: a merging
-    conflict becomes a following one), measured behind it on its path (``_following``)."""
+    """(TTC, DRAC) at each time at one conflict (inf and 0 where none applies), entered and
+    left at the bounds given (``conflict_bounds``). At a merge (both routes leave by one
+    lane) only while neither car has reached the merge point: once one has, the other
+    follows it (SUMO's SSM device: a merging conflict becomes a following one), measured
+    behind it on its path (``_following``)."""
     to_in = (my_bounds[0] - mine.place, their_bounds[0] - theirs.place)
     to_out = (my_bounds[1] - mine.place, their_bounds[1] - theirs.place)
     speeds = (mine.speed, theirs.speed)
     # both still to leave the area, not both in it already (SUMO: a collision, no measure)
     active = (to_out[0] > 0) & (to_out[1] > 0) & ((to_in[0] > 0) | (to_in[1] > 0))
-    if merging:
+    if at_merge:
         active &= (to_in[0] > 0) & (to_in[1] > 0)
     entry = [_time_to(np.maximum(d, 0.0), v) for d, v in zip(to_in, speeds, strict=True)]
     leave = [_time_to(d, v) for d, v in zip(to_out, speeds, strict=True)]
@@ -407,11 +457,11 @@ def _pet(
     junction: Intersection, ego: CarView, other: CarView, area: BaseGeometry
 ) -> AreaPet | None:
     """The PET at ``area``, when both cars went into it."""
+    both = conflict_bounds(junction, ego.car, other.car, area)
+    if both is None:
+        return None
     passes = []
-    for view in (ego, other):
-        bounds = area_bounds(junction, view.car, area)
-        if bounds is None:
-            return None
+    for view, bounds in zip((ego, other), both, strict=True):
         entered = _first_time(view, bounds[0])
         if entered is None:
             return None

@@ -12,6 +12,7 @@ from service.core.motion.criticality import (
     area_bounds,
     conflict_area,
     measure_criticality,
+    merge_bounds,
     route_path,
 )
 from service.core.motion.criticality_records import Criticality
@@ -160,3 +161,55 @@ def test_at_a_merge_a_car_past_the_merge_point_is_followed_not_crossed(
     assert found.ttc.value == pytest.approx(4.28, abs=0.05)  # following, not 0.058
     assert found.ttc.value >= found.distance.value / (6.0 - 5.0)
     assert found.drac.value == pytest.approx(1.0 / (2 * 4.28), abs=0.01)
+
+
+MERGE = ("N2C_0:C2W_0", "E2C_0:C2W_0")  # a right turn and a straight on, both into C2W_0
+
+
+def test_at_a_merge_cars_one_behind_the_other_are_not_in_the_conflict_at_once(
+    four_way: Intersection,
+) -> None:
+    """car1 (straight on) passes the merge point first at 6 m/s, the ego (turning right)
+    reaches it 0.5 s after car1's back has passed it, at the same speed: 3 m apart, never
+    closing. The strips' overlap runs 4.3 m along the lanes before the merge point, so
+    measured as an area the ego entered it while car1's back was still in it: a PET of 0
+    and a TTC predicted as for a crash. At the merge point (SUMO's) the PET is 0.5 s and
+    no crash is predicted."""
+    probe = drive(four_way, "ego", MERGE[0], 0.0, 1.0), drive(four_way, "car1", MERGE[1], 0.0, 1.0)
+    area = conflict_area(four_way, *probe)
+    assert area is not None
+    ego_merge, _ = merge_bounds(four_way, probe[0])
+    lead_merge, lead_out = merge_bounds(four_way, probe[1])
+    assert lead_out - lead_merge == pytest.approx(5.0)  # its back has passed the merge point
+    ego_area, _ = area_bounds(four_way, probe[0], area) or (0.0, 0.0)
+    _, lead_area_out = area_bounds(four_way, probe[1], area) or (0.0, 0.0)
+    assert lead_area_out == pytest.approx(lead_out, abs=0.1)  # the area ends at the merge
+    lead = drive(four_way, "car1", MERGE[1], lead_merge - 10.0, 6.0, end=5.0)  # out at 2.5 s
+    ego = drive(four_way, "ego", MERGE[0], ego_merge - 18.0, 6.0, end=5.0)  # in at 3 s
+    # measured as the area: the ego in it from (18 - (ego_merge - ego_area)) / 6 s, before 2.5 s
+    assert (18.0 - (ego_merge - ego_area)) / 6.0 < 2.5
+    found = measure_criticality(four_way, ego, [lead]).others[0]
+    assert len(found.pet) == 1
+    assert found.pet[0].value == pytest.approx(0.5, abs=0.02)
+    assert found.pet[0].t == pytest.approx(3.0, abs=0.02)
+    assert found.ttc is None and found.drac is None
+
+
+def test_at_a_merge_a_crash_is_predicted_at_the_merge_point(four_way: Intersection) -> None:
+    """car1 10 m before the merge point at 6 m/s (its back past it at 2.5 s), the ego 15 m
+    before it at 8 m/s (there at 1.875 s): SUMO's merging TTC, the second car's time to the
+    merge point, 0.875 s at the last sample (1 s); DRAC the smaller of car1's and the ego's
+    deceleration to reach the merge point just as the other has passed it."""
+    probe = drive(four_way, "ego", MERGE[0], 0.0, 1.0), drive(four_way, "car1", MERGE[1], 0.0, 1.0)
+    ego_merge, _ = merge_bounds(four_way, probe[0])
+    lead_merge, _ = merge_bounds(four_way, probe[1])
+    lead = drive(four_way, "car1", MERGE[1], lead_merge - 10.0, 6.0)
+    ego = drive(four_way, "ego", MERGE[0], ego_merge - 15.0, 8.0)
+    found = measure_criticality(four_way, ego, [lead]).others[0]
+    assert found.ttc is not None and found.drac is not None
+    assert found.ttc.value == pytest.approx(0.875, abs=2e-3)
+    assert found.ttc.t == pytest.approx(1.0)
+    # at 1 s: the ego 7 m before the merge point, car1 4 m; car1 out in 9 / 6 s, the ego in 12 / 8
+    ego_waits = 2 * (8.0 - 7.0 / 1.5) / 1.5
+    lead_waits = 2 * (6.0 - 4.0 / 1.5) / 1.5
+    assert found.drac.value == pytest.approx(min(ego_waits, lead_waits), abs=2e-3)
