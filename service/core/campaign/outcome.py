@@ -130,7 +130,9 @@ def distinct_levels(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """The records of distinct test-cases among ``records`` (of one level), the first of
     each in the order given: one test-case id once, and of the others only those whose
     signature differs from every one kept (``variety.Signature``: a campaign stored before
-    levels kept their signature tells its test-cases apart by id alone)."""
+    levels kept their signature tells its test-cases apart by id alone). A signature
+    tells apart what levels added to a parent: roots (the ego-only level 0 of each ego
+    route, no parent) are told apart by id alone, as their signatures are all empty."""
     kept: list[dict[str, Any]] = []
     marks: list[Signature] = []
     ids: set[str] = set()
@@ -138,7 +140,7 @@ def distinct_levels(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         if record["testcase"] in ids:
             continue
         ids.add(record["testcase"])
-        if record.get("signature") is not None:
+        if record.get("signature") is not None and record["signature"].get("parent"):
             mark = Signature.from_dict(record["signature"])
             if not is_new(mark, marks):
                 continue

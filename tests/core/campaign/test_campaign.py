@@ -364,6 +364,15 @@ def test_distinct_test_cases_and_their_diversity() -> None:
                              "entry": None}  # fmt: skip
 
 
+def test_the_roots_of_several_ego_routes_are_distinct_test_cases() -> None:
+    """Level 0 holds one ego-only test-case per ego route: no parent, no new car, the same
+    empty signature; each is a test-case of its own (a campaign over three egos once
+    counted one)."""
+    root = {"parent": None, "level": 0, "cars": [], "order": []}
+    roots = [{"testcase": ident, "breaks": [], "signature": root} for ident in "xyzx"]
+    assert [r["testcase"] for r in distinct_levels(roots)] == ["x", "y", "z"]
+
+
 def test_shares_count_distinct_test_cases_with_their_interval() -> None:
     steps = FakeSteps()
     outcome = run_campaign(plan(), steps, RULES)
