@@ -60,11 +60,20 @@ COLOUR_WORDS = {
 }
 VALID_COLOURS = "".join(RULE_COLOURS)
 GO_COLOURS = "GgyYsOo"  # a car may enter (s: after a full stop); the rules' goColour, redTurn
-MAX_PHASES = 1000
+# The bounds of a program, at every entry (the API's schema, --signals, a test-case
+# document, a network's program): every phase lasts at least one of SUMO's default steps
+# (the test-case's default timestep; a shorter phase is no signal a car can obey, and
+# thousands of them per second ran plots out of memory and made SUMO refuse the replay),
+# the cycle at least a second, and a program has at most MAX_PHASES phases (real maps:
+# 12 at most). So a 600 s test-case has at most 6,000 phase instances.
+MIN_PHASE_DURATION = 0.1  # s
+MIN_CYCLE = 1.0  # s
+MAX_PHASES = 64
 # A phase may outlast any test-case (a road green until a pedestrian asks: 10,000 s in
 # real maps). The bound keeps every phase instance's end, in ms, within clingo's 32-bit
 # integers (signals.lp's phaseSpan): 1e6 s of a phase before t = 0 or after the horizon.
 MAX_PHASE_DURATION = 1e6  # s
+MAX_OFFSET = 1e6  # s, either way
 STATIC = "static"
 READ_AS_FIXED_TIME = ("actuated", "delay_based")  # phases with durations, run in order
 PROGRAM_TYPES = (STATIC, *READ_AS_FIXED_TIME)
@@ -212,10 +221,10 @@ def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases")
     if len(listed) > MAX_PHASES:
         problems.append(f"{where}: {len(listed)} phases, at most {MAX_PHASES}")
     for k, (duration, state) in enumerate(listed):
-        if not (math.isfinite(duration) and 0 < duration <= MAX_PHASE_DURATION):
+        if not (math.isfinite(duration) and MIN_PHASE_DURATION <= duration <= MAX_PHASE_DURATION):
             problems.append(
-                f"{where}.{k}.duration is {duration:g} s; a phase lasts more than 0 and at "
-                f"most {MAX_PHASE_DURATION:g} s"
+                f"{where}.{k}.duration is {duration:g} s; a phase lasts from "
+                f"{MIN_PHASE_DURATION:g} s (SUMO's step) to {MAX_PHASE_DURATION:g} s"
             )
         bad = sorted({c for c in state if c not in VALID_COLOURS})
         if bad:
@@ -225,6 +234,12 @@ def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases")
             )
         if not state:
             problems.append(f"{where}.{k}.state is empty")
+    cycle = math.fsum(duration for duration, _ in listed)
+    if math.isfinite(cycle) and cycle < MIN_CYCLE:
+        problems.append(
+            f"{where}: the cycle (the phases' durations added) is {cycle:g} s; a cycle lasts "
+            f"at least {MIN_CYCLE:g} s"
+        )
     return problems + _unequal_states(listed, where)
 
 
@@ -253,8 +268,10 @@ def make_program(
 ) -> SignalProgram:
     """A checked program; InvalidInput naming every problem."""
     problems = program_problems(phases)
-    if not math.isfinite(offset) or abs(offset) > 1e6:
-        problems.append(f"offset {offset:g} s is not a finite number of at most 1e6 s")
+    if not math.isfinite(offset) or abs(offset) > MAX_OFFSET:
+        problems.append(
+            f"offset is {offset:g} s; an offset is from {-MAX_OFFSET:g} to {MAX_OFFSET:g} s"
+        )
     if problems:
         raise InvalidInput(f"traffic-light program of {tls!r}: " + "; ".join(problems))
     return SignalProgram(
