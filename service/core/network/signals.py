@@ -22,7 +22,6 @@ the test-case's time line, from its start (inclusive) to its end (exclusive).
 
 from __future__ import annotations
 
-import json
 import math
 from collections import Counter
 from collections.abc import Iterable, Sequence
@@ -34,6 +33,7 @@ from defusedxml import ElementTree as SafeElementTree
 from defusedxml.common import DefusedXmlException
 
 from service.core.errors import InvalidInput
+from service.core.files import MAX_PARAMETER_FILE_BYTES, parse_json, read_bounded
 
 # SUMO colour -> the colour the signal rules reason with (asp/signals.lp)
 RULE_COLOURS = {
@@ -74,6 +74,9 @@ MAX_PHASES = 64
 # integers (signals.lp's phaseSpan): 1e6 s of a phase before t = 0 or after the horizon.
 MAX_PHASE_DURATION = 1e6  # s
 MAX_OFFSET = 1e6  # s, either way
+# --signals FILE: scengen's JSON up to MAX_PARAMETER_FILE_BYTES, SUMO XML (an additional
+# file, or a whole network with many lights) up to this
+MAX_SIGNALS_FILE_BYTES = 64_000_000
 STATIC = "static"
 READ_AS_FIXED_TIME = ("actuated", "delay_based")  # phases with durations, run in order
 PROGRAM_TYPES = (STATIC, *READ_AS_FIXED_TIME)
@@ -345,16 +348,18 @@ def read_signals_file(path: Path, tls: str | None = None) -> SignalProgram:
     """A fixed-time program from a file: scengen's JSON (the test-case's ``signals``
     field) or SUMO XML with a ``<tlLogic>`` (the one of ``tls`` where there are several).
     InvalidInput naming the problem."""
+    data = read_bounded(path, "the signals file", MAX_SIGNALS_FILE_BYTES)
+    if data.lstrip().startswith(b"{"):
+        if len(data) > MAX_PARAMETER_FILE_BYTES:
+            raise InvalidInput(
+                f"the signals file {path} is larger than {MAX_PARAMETER_FILE_BYTES:,} bytes, "
+                "the limit of a JSON program"
+            )
+        return program_from_document(parse_json(data, f"signals file {path}"), str(path))
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"cannot read the signals file {path}: {exc}") from None
-    if text.lstrip().startswith("{"):
-        try:
-            document = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InvalidInput(f"signals file {path} is not JSON: {exc}") from None
-        return program_from_document(document, str(path))
+        text = data.decode()
+    except UnicodeDecodeError as exc:
+        raise InvalidInput(f"signals file {path} is not UTF-8 ({exc.reason})") from None
     return program_from_xml(text, str(path), tls)
 
 

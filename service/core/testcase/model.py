@@ -263,8 +263,7 @@ class SignalPhaseDoc(_Model):
     duration: float = Field(
         ge=MIN_PHASE_DURATION,
         le=MAX_PHASE_DURATION,
-        description=f"seconds, from {MIN_PHASE_DURATION:g} (SUMO's step) to "
-        f"{MAX_PHASE_DURATION:g}",
+        description=f"seconds, from {MIN_PHASE_DURATION:g} (SUMO's step) to {MAX_PHASE_DURATION:g}",
     )
     state: str = Field(
         min_length=1,
