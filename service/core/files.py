@@ -14,7 +14,7 @@ import contextlib
 import json
 import os
 import secrets
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -52,12 +52,19 @@ def write_atomically(path: Path, data: str | bytes) -> None:
         os.fsync(stream.fileno())
 
 
-def read_bounded(path: Path, what: str, max_bytes: int) -> bytes:
+def read_bounded(
+    path: Path, what: str, max_bytes: int, check_start: Callable[[bytes], None] | None = None
+) -> bytes:
     """The bytes of ``path`` (a file, a pipe: read, never more than ``max_bytes`` + 1);
-    InvalidInput naming ``what`` when it cannot be read or is larger."""
+    InvalidInput naming ``what`` when it cannot be read or is larger. ``check_start`` sees
+    the first 64 kB before the rest is read (and may refuse them)."""
     try:
         with Path(path).open("rb") as stream:
-            data = stream.read(max_bytes + 1)
+            data = stream.read(min(max_bytes + 1, 65_536))
+            if check_start is not None:
+                check_start(data)
+            if len(data) == 65_536:
+                data += stream.read(max_bytes + 1 - len(data))
     except OSError as exc:
         raise InvalidInput(f"cannot read {what} {path}: {exc.strerror or exc}") from None
     if len(data) > max_bytes:

@@ -94,12 +94,22 @@ def test_a_hostile_rss_parameter_file_is_one_line_and_exit_2(
     assert message in line and str(params) in line, line
 
 
-@pytest.mark.parametrize("make", [_zero, _deep], ids=["dev-zero", "deep"])
-def test_a_hostile_signals_file_is_one_line_and_exit_2(make: object, tmp_path: Path) -> None:
+SIGNALS = [
+    (_zero, "zero.json is neither JSON ({...}) nor SUMO XML (<...>)"),
+    (_object_deep, "deep-object.json is nested more than 32 levels deep, the limit"),
+    (_written("big.json", {"tls": "C", "phases": [], "note": "x" * 1_000_000}),
+     "big.json is larger than 1,000,000 bytes, the limit of a JSON program"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("make", "message"), SIGNALS, ids=range(len(SIGNALS)))
+def test_a_hostile_signals_file_is_one_line_and_exit_2(
+    make: object, message: str, tmp_path: Path
+) -> None:
     signals = make(tmp_path)  # type: ignore[operator]
     for command in (["intersection", "4way-signal"], ["new", "4way-signal", *EGO]):
         line = one_line(scengen(*command, "--signals", str(signals), cwd=tmp_path))
-        assert "signals file" in line and str(signals) in line, line
+        assert message in line, line
 
 
 def test_sub_millisecond_signals_make_intersection_refuse_at_once(tmp_path: Path) -> None:

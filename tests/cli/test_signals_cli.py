@@ -106,7 +106,7 @@ BAD = [  # (how the program is given, what the one line says)
     (lambda d: ["--signals", str(sumo_file(d, "u.xml", phases=[(0.000001, "G" * 16)]))],
      "phases.0.duration is 1e-06 s; a phase lasts from 0.1 s (SUMO's step)"),
     (lambda d: ["--signals", str(json_file(d, "s.json", phases=TINY * 1000))],
-     "phases: 1000 phases, at most 64"),
+     "traffic-light program of 'C': phases: 1000 phases, at most 64"),
     (lambda d: ["--signals", str(sumo_file(d, "k.xml", phases=[(0.2, "G" * 16)] * 3))],
      "the cycle (the phases' durations added) is 0.6 s; a cycle lasts at least 1 s"),
     (lambda d: ["--signals", str(json_file(d, "f.json", offset=1e300))],

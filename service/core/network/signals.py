@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -221,8 +221,8 @@ def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases")
     problems = []
     if not listed:
         return [f"{where}: a program needs at least one phase"]
-    if len(listed) > MAX_PHASES:
-        problems.append(f"{where}: {len(listed)} phases, at most {MAX_PHASES}")
+    if len(listed) > MAX_PHASES:  # the phases themselves are not looked at: one line
+        return [f"{where}: {len(listed)} phases, at most {MAX_PHASES}"]
     for k, (duration, state) in enumerate(listed):
         if not (math.isfinite(duration) and MIN_PHASE_DURATION <= duration <= MAX_PHASE_DURATION):
             problems.append(
@@ -348,8 +348,8 @@ def read_signals_file(path: Path, tls: str | None = None) -> SignalProgram:
     """A fixed-time program from a file: scengen's JSON (the test-case's ``signals``
     field) or SUMO XML with a ``<tlLogic>`` (the one of ``tls`` where there are several).
     InvalidInput naming the problem."""
-    data = read_bounded(path, "the signals file", MAX_SIGNALS_FILE_BYTES)
-    if data.lstrip().startswith(b"{"):
+    data = read_bounded(path, "the signals file", MAX_SIGNALS_FILE_BYTES, _json_or_xml(path))
+    if data.lstrip(BLANK).startswith(b"{"):
         if len(data) > MAX_PARAMETER_FILE_BYTES:
             raise InvalidInput(
                 f"the signals file {path} is larger than {MAX_PARAMETER_FILE_BYTES:,} bytes, "
@@ -361,6 +361,23 @@ def read_signals_file(path: Path, tls: str | None = None) -> SignalProgram:
     except UnicodeDecodeError as exc:
         raise InvalidInput(f"signals file {path} is not UTF-8 ({exc.reason})") from None
     return program_from_xml(text, str(path), tls)
+
+
+BLANK = b"\xef\xbb\xbf \t\r\n"  # a byte-order mark and white space before the first character
+
+
+def _json_or_xml(path: Path) -> Callable[[bytes], None]:
+    """A check of a signals file's first bytes: JSON or XML (a link to /dev/zero is refused
+    after 64 kB, not read to the limit)."""
+
+    def check(start: bytes) -> None:
+        first = start.lstrip(BLANK)[:1]
+        if first not in (b"{", b"<") and (first or len(start) < 65_536):
+            raise InvalidInput(
+                f"signals file {path} is neither JSON ({{...}}) nor SUMO XML (<...>)"
+            )
+
+    return check
 
 
 def program_from_document(document: Any, where: str = "signals") -> SignalProgram:
