@@ -203,7 +203,7 @@ def _rss_params(path: Path | None) -> dict[str, Any] | None:
     """``--rss-params``: the RSS dynamics file, checked (InvalidInput names the problem)."""
     if path is None:
         return None
-    from service.core.files import read_json_file
+    from service.core.inputs import read_json_file
     from service.core.sumo.rss_guard import GuardError, dynamics_from
 
     params = read_json_file(path, "RSS parameters")  # at most 1 MB, 32 levels deep

@@ -33,7 +33,7 @@ from defusedxml import ElementTree as SafeElementTree
 from defusedxml.common import DefusedXmlException
 
 from service.core.errors import InvalidInput
-from service.core.files import MAX_PARAMETER_FILE_BYTES, parse_json, read_bounded
+from service.core.inputs import MAX_PARAMETER_FILE_BYTES, parse_json, read_bounded
 
 # SUMO colour -> the colour the signal rules reason with (asp/signals.lp)
 RULE_COLOURS = {

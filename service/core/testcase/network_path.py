@@ -90,7 +90,7 @@ def find_network_file(
     refused = [
         (path, how, why)
         for path, how, why in reasons
-        if why is not None and (how, why) != ("as named", NO_NETWORK_NAME)
+        if why is not None and (how, why) != ("as named", _NO_NETWORK_NAME)
     ]
     present = [(path, how) for path, how in candidates if path.is_file()]
     found = [(path, how, file_sha256(resolve_network(path))) for path, how in present]
@@ -116,18 +116,18 @@ def find_network_file(
 # What the document names (its network's path, its reference as a path) is read only when
 # it is a network's file: by its name (and the name a link points to) and a regular file,
 # checked without opening it. /etc/shadow or a FIFO is never read, nor its digest printed.
-FROM_THE_DOCUMENT = ("its path from the test-case", "as named")
-NETWORK_SUFFIXES = (".net.xml", *FORMATS)
-NO_NETWORK_NAME = f"a network's file name ends in {', '.join(NETWORK_SUFFIXES)}"
+_FROM_THE_DOCUMENT = ("its path from the test-case", "as named")
+_NETWORK_SUFFIXES = (".net.xml", *FORMATS)
+_NO_NETWORK_NAME = f"a network's file name ends in {', '.join(_NETWORK_SUFFIXES)}"
 
 
 def _not_read(path: Path, how: str) -> str | None:
     """Why a place the document names is not read (None: it may be)."""
-    if how not in FROM_THE_DOCUMENT:
+    if how not in _FROM_THE_DOCUMENT:
         return None
     names = (path.name, path.resolve().name)
-    if not all(name.lower().endswith(NETWORK_SUFFIXES) for name in names):
-        return NO_NETWORK_NAME
+    if not all(name.lower().endswith(_NETWORK_SUFFIXES) for name in names):
+        return _NO_NETWORK_NAME
     try:
         mode = path.stat().st_mode
     except OSError:

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from service.core.files import MAX_PARAMETER_FILE_BYTES
+from service.core.inputs import MAX_PARAMETER_FILE_BYTES
 from service.core.sumo.rss_guard import (
     CARLA_DYNAMICS,
     CARLA_PEDESTRIAN_DYNAMICS,

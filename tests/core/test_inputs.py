@@ -1,5 +1,5 @@
 """Small files a command is given are read within a size and a depth limit
-(service.core.files): what is too large is refused without being read whole, what nests
+(service.core.inputs): what is too large is refused without being read whole, what nests
 too deeply without a traceback; a pipe is read like a file."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from service.core.errors import InvalidInput
-from service.core.files import MAX_JSON_DEPTH, json_depth, read_json_file
+from service.core.inputs import MAX_JSON_DEPTH, json_depth, read_json_file
 
 
 def test_a_small_file_within_the_limits_is_read(tmp_path: Path) -> None:
