@@ -203,12 +203,17 @@ def _rss_params(path: Path | None) -> dict[str, Any] | None:
     """``--rss-params``: the RSS dynamics file, checked (InvalidInput names the problem)."""
     if path is None:
         return None
-    from service.core.sumo.rss_guard import GuardError, load_params
+    from service.core.inputs import read_json_file
+    from service.core.sumo.rss_guard import GuardError, dynamics_from
 
+    params = read_json_file(path, "RSS parameters")  # at most 1 MB, 32 levels deep
+    if not isinstance(params, dict):
+        raise InvalidInput(f"RSS parameters {path}: expected a JSON object")
     try:
-        return load_params(path)
+        dynamics_from(params)
     except GuardError as exc:
-        raise InvalidInput(str(exc)) from exc
+        raise InvalidInput(f"RSS parameters {path}: {exc}") from None
+    return params
 
 
 def _label(name: str, path: Path) -> str:

@@ -104,6 +104,15 @@ BAD = [  # (network, signals, problem type, what the detail says)
      "invalid-request", "unknown colours 'z'; valid colours: G protected green"),
     ("4way-signal", {**PROGRAM, "tls": "J7"}, "invalid-input",
      "the signal program is for traffic light 'J7', but junction 'C' is controlled by"),
+    ("4way-signal", {**PROGRAM, "phases": _phases(6, duration=1e-6)}, "invalid-request",
+     "phases.0.duration: Input should be greater than or equal to 0.1"),
+    ("4way-signal", {**PROGRAM, "phases": _phases(6, duration=5e-324)}, "invalid-request",
+     "phases.0.duration: Input should be greater than or equal to 0.1"),
+    ("4way-signal", {**PROGRAM, "phases": [{"duration": 0.001, "state": "G" * 16}] * 1000},
+     "invalid-request", "phases: List should have at most 64 items"),
+    ("4way-signal", {**PROGRAM, "phases": [{"duration": 0.3, "state": "G" * 16}] * 3},
+     "invalid-request", "the cycle (the phases' durations added) is 0.9 s; a cycle lasts at "
+     "least 1 s"),
     ("4way-stop", PROGRAM, "invalid-input",
      "without traffic lights: a signal program applies to a junction of type traffic_light"),
     ("nema", None, "invalid-input", "program '0' is of type 'NEMA', which scengen cannot read "

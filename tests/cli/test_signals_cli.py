@@ -82,6 +82,7 @@ def _nema_network(folder: Path) -> Path:
 
 ONE_PHASE = [{"duration": 9, "state": "GGGG"}]
 NO_TIME = [{"duration": 0, "state": "G" * 16}]
+TINY = [{"duration": 1e-6, "state": "G" * 16}]
 BAD = [  # (how the program is given, what the one line says)
     (lambda d: ["--signals", str(sumo_file(d, "a.xml", kind="NEMA"))],
      "program 'alt' is of type 'NEMA', which scengen cannot read as a time line of phases; "
@@ -97,7 +98,19 @@ BAD = [  # (how the program is given, what the one line says)
     (lambda d: ["--signals", str(json_file(d, "o.json", tls="J7"))],
      "the signal program is for traffic light 'J7', but junction 'C' is controlled by"),
     (lambda d: ["--signals", str(json_file(d, "z.json", phases=NO_TIME))],
-     "phases.0.duration is 0 s; a phase lasts more than 0"),
+     "phases.0.duration is 0 s; a phase lasts from 0.1 s (SUMO's step) to 1e+06 s"),
+    (lambda d: ["--signals", str(json_file(d, "u.json", phases=TINY))],
+     "phases.0.duration is 1e-06 s; a phase lasts from 0.1 s (SUMO's step) to 1e+06 s"),
+    (lambda d: ["--signals", str(json_file(d, "d.json", phases=[{**TINY[0], "duration": 5e-324}]))],
+     "phases.0.duration is 4.94066e-324 s; a phase lasts from 0.1 s"),
+    (lambda d: ["--signals", str(sumo_file(d, "u.xml", phases=[(0.000001, "G" * 16)]))],
+     "phases.0.duration is 1e-06 s; a phase lasts from 0.1 s (SUMO's step)"),
+    (lambda d: ["--signals", str(json_file(d, "s.json", phases=TINY * 1000))],
+     "traffic-light program of 'C': phases: 1000 phases, at most 64"),
+    (lambda d: ["--signals", str(sumo_file(d, "k.xml", phases=[(0.2, "G" * 16)] * 3))],
+     "the cycle (the phases' durations added) is 0.6 s; a cycle lasts at least 1 s"),
+    (lambda d: ["--signals", str(json_file(d, "f.json", offset=1e300))],
+     "offset is 1e+300 s; an offset is from -1e+06 to 1e+06 s"),
     (lambda d: ["--signals", str(d / "missing.json")], "cannot read the signals file"),
 ]  # fmt: skip
 
@@ -142,3 +155,24 @@ def test_intersection_notes_a_program_it_cannot_use(
     assert cli.main(["intersection", str(_nema_network(tmp_path)),
                      "--signals", str(json_file(tmp_path, "s.json"))]) == 0  # fmt: skip
     assert "traffic light C  program mine" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("duration", [1e-6, 5e-324])
+def test_a_document_with_a_sub_millisecond_phase_is_one_line_and_exit_2(
+    duration: float, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A test-case file edited to a phase shorter than SUMO's step is refused by every
+    command that reads it, before any work (it made SUMO refuse the replay: exit 3)."""
+    made = tmp_path / "t0.json"
+    assert new("--signals", str(sumo_file(tmp_path, "p.xml")), "-o", str(made)) == 0
+    document = json.loads(made.read_text())
+    document["signals"]["phases"][0]["duration"] = duration
+    edited = tmp_path / "tiny.json"
+    edited.write_text(json.dumps(document))
+    capsys.readouterr()
+    for command in (["evaluate", str(edited)], ["extend", str(edited), "--add", "N2C_0:C2S_0"]):
+        assert cli.main(command) == 2, command
+        captured = capsys.readouterr()
+        lines = captured.err.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("scengen: error: "), captured.err
+        assert "signals.phases.0.duration" in lines[0] and "0.1" in lines[0], lines[0]

@@ -22,10 +22,9 @@ the test-case's time line, from its start (inclusive) to its end (exclusive).
 
 from __future__ import annotations
 
-import json
 import math
 from collections import Counter
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,6 +33,7 @@ from defusedxml import ElementTree as SafeElementTree
 from defusedxml.common import DefusedXmlException
 
 from service.core.errors import InvalidInput
+from service.core.inputs import MAX_PARAMETER_FILE_BYTES, parse_json, read_bounded
 
 # SUMO colour -> the colour the signal rules reason with (asp/signals.lp)
 RULE_COLOURS = {
@@ -60,11 +60,23 @@ COLOUR_WORDS = {
 }
 VALID_COLOURS = "".join(RULE_COLOURS)
 GO_COLOURS = "GgyYsOo"  # a car may enter (s: after a full stop); the rules' goColour, redTurn
-MAX_PHASES = 1000
+# The bounds of a program, at every entry (the API's schema, --signals, a test-case
+# document, a network's program): every phase lasts at least one of SUMO's default steps
+# (the test-case's default timestep; a shorter phase is no signal a car can obey, and
+# thousands of them per second ran plots out of memory and made SUMO refuse the replay),
+# the cycle at least a second, and a program has at most MAX_PHASES phases (real maps:
+# 12 at most). So a 600 s test-case has at most 6,000 phase instances.
+MIN_PHASE_DURATION = 0.1  # s
+MIN_CYCLE = 1.0  # s
+MAX_PHASES = 64
 # A phase may outlast any test-case (a road green until a pedestrian asks: 10,000 s in
 # real maps). The bound keeps every phase instance's end, in ms, within clingo's 32-bit
 # integers (signals.lp's phaseSpan): 1e6 s of a phase before t = 0 or after the horizon.
 MAX_PHASE_DURATION = 1e6  # s
+MAX_OFFSET = 1e6  # s, either way
+# --signals FILE: scengen's JSON up to MAX_PARAMETER_FILE_BYTES, SUMO XML (an additional
+# file, or a whole network with many lights) up to this
+MAX_SIGNALS_FILE_BYTES = 64_000_000
 STATIC = "static"
 READ_AS_FIXED_TIME = ("actuated", "delay_based")  # phases with durations, run in order
 PROGRAM_TYPES = (STATIC, *READ_AS_FIXED_TIME)
@@ -209,13 +221,13 @@ def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases")
     problems = []
     if not listed:
         return [f"{where}: a program needs at least one phase"]
-    if len(listed) > MAX_PHASES:
-        problems.append(f"{where}: {len(listed)} phases, at most {MAX_PHASES}")
+    if len(listed) > MAX_PHASES:  # the phases themselves are not looked at: one line
+        return [f"{where}: {len(listed)} phases, at most {MAX_PHASES}"]
     for k, (duration, state) in enumerate(listed):
-        if not (math.isfinite(duration) and 0 < duration <= MAX_PHASE_DURATION):
+        if not (math.isfinite(duration) and MIN_PHASE_DURATION <= duration <= MAX_PHASE_DURATION):
             problems.append(
-                f"{where}.{k}.duration is {duration:g} s; a phase lasts more than 0 and at "
-                f"most {MAX_PHASE_DURATION:g} s"
+                f"{where}.{k}.duration is {duration:g} s; a phase lasts from "
+                f"{MIN_PHASE_DURATION:g} s (SUMO's step) to {MAX_PHASE_DURATION:g} s"
             )
         bad = sorted({c for c in state if c not in VALID_COLOURS})
         if bad:
@@ -225,6 +237,12 @@ def program_problems(phases: Iterable[tuple[float, str]], where: str = "phases")
             )
         if not state:
             problems.append(f"{where}.{k}.state is empty")
+    cycle = math.fsum(duration for duration, _ in listed)
+    if math.isfinite(cycle) and cycle < MIN_CYCLE:
+        problems.append(
+            f"{where}: the cycle (the phases' durations added) is {cycle:g} s; a cycle lasts "
+            f"at least {MIN_CYCLE:g} s"
+        )
     return problems + _unequal_states(listed, where)
 
 
@@ -253,8 +271,10 @@ def make_program(
 ) -> SignalProgram:
     """A checked program; InvalidInput naming every problem."""
     problems = program_problems(phases)
-    if not math.isfinite(offset) or abs(offset) > 1e6:
-        problems.append(f"offset {offset:g} s is not a finite number of at most 1e6 s")
+    if not math.isfinite(offset) or abs(offset) > MAX_OFFSET:
+        problems.append(
+            f"offset is {offset:g} s; an offset is from {-MAX_OFFSET:g} to {MAX_OFFSET:g} s"
+        )
     if problems:
         raise InvalidInput(f"traffic-light program of {tls!r}: " + "; ".join(problems))
     return SignalProgram(
@@ -328,17 +348,36 @@ def read_signals_file(path: Path, tls: str | None = None) -> SignalProgram:
     """A fixed-time program from a file: scengen's JSON (the test-case's ``signals``
     field) or SUMO XML with a ``<tlLogic>`` (the one of ``tls`` where there are several).
     InvalidInput naming the problem."""
+    data = read_bounded(path, "the signals file", MAX_SIGNALS_FILE_BYTES, _json_or_xml(path))
+    if data.lstrip(BLANK).startswith(b"{"):
+        if len(data) > MAX_PARAMETER_FILE_BYTES:
+            raise InvalidInput(
+                f"the signals file {path} is larger than {MAX_PARAMETER_FILE_BYTES:,} bytes, "
+                "the limit of a JSON program"
+            )
+        return program_from_document(parse_json(data, f"signals file {path}"), str(path))
     try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"cannot read the signals file {path}: {exc}") from None
-    if text.lstrip().startswith("{"):
-        try:
-            document = json.loads(text)
-        except json.JSONDecodeError as exc:
-            raise InvalidInput(f"signals file {path} is not JSON: {exc}") from None
-        return program_from_document(document, str(path))
+        text = data.decode()
+    except UnicodeDecodeError as exc:
+        raise InvalidInput(f"signals file {path} is not UTF-8 ({exc.reason})") from None
     return program_from_xml(text, str(path), tls)
+
+
+BLANK = b"\xef\xbb\xbf \t\r\n"  # a byte-order mark and white space before the first character
+
+
+def _json_or_xml(path: Path) -> Callable[[bytes], None]:
+    """A check of a signals file's first bytes: JSON or XML (a link to /dev/zero is refused
+    after 64 kB, not read to the limit)."""
+
+    def check(start: bytes) -> None:
+        first = start.lstrip(BLANK)[:1]
+        if first not in (b"{", b"<") and (first or len(start) < 65_536):
+            raise InvalidInput(
+                f"signals file {path} is neither JSON ({{...}}) nor SUMO XML (<...>)"
+            )
+
+    return check
 
 
 def program_from_document(document: Any, where: str = "signals") -> SignalProgram:

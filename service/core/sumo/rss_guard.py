@@ -73,6 +73,23 @@ CARLA_PEDESTRIAN_DYNAMICS: dict[str, float] = {
     "response_time": 0.5,
     "max_speed_on_acceleration": 10.0,
 }
+# Every value the guard takes: a number (not a boolean), within a physical range, both ends
+# included (m/s^2, m, s, m/s). Beyond them ad-rss's world model is out of its own ranges or
+# the replay's arithmetic overflows (accel_max 1e308 killed the replay).
+DYNAMICS_RANGES: dict[str, tuple[float, float, str]] = {
+    "accel_max": (0.01, 20.0, "m/s^2"),
+    "brake_max": (-20.0, -0.01, "m/s^2"),
+    "brake_min": (-20.0, -0.01, "m/s^2"),
+    "brake_min_correct": (-20.0, -0.01, "m/s^2"),
+    "lat_accel_max": (0.001, 10.0, "m/s^2"),
+    "lat_brake_min": (-10.0, -0.001, "m/s^2"),
+    "lateral_fluctuation_margin": (0.0, 5.0, "m"),
+    "response_time": (0.01, 10.0, "s"),
+    "max_speed_on_acceleration": (0.0, 150.0, "m/s"),
+}
+# An RSS parameter file (--rss-params) is read up to this many bytes; JSON nested deeper
+# than ``ego`` / ``others`` / ``pedestrians`` objects of numbers is refused by its shape.
+MAX_PARAMS_BYTES = 1_000_000
 HOLD_GAP = 2.0  # s: the time-gap rule forbids acceleration below this gap
 BRAKE_GAP = 1.0  # s: and brakes at brake_min below this one
 PRIORITIES = ("ego", "other", "same", "signal")
@@ -123,8 +140,16 @@ def _checked(side: str, defaults: dict[str, float], changes: dict[str, Any]) -> 
                 f"unknown RSS parameter {key!r}; valid: {', '.join(CARLA_DYNAMICS)}, "
                 "and 'ego' / 'others' / 'pedestrians' objects of them"
             )
-        if not isinstance(value, int | float) or not math.isfinite(value):
-            raise GuardError(f"RSS parameter {key!r} must be a number, got {value!r}")
+        low, high, unit = DYNAMICS_RANGES[key]
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise GuardError(
+                f"RSS parameter {key!r} ({side}) must be a number from {low:g} to {high:g} "
+                f"{unit}, got {_shown(value)}"
+            )
+        if not (math.isfinite(value) and low <= value <= high):
+            raise GuardError(
+                f"RSS parameter {key!r} ({side}) is {value:g}; valid: {low:g} to {high:g} {unit}"
+            )
         values[key] = float(value)
     if not (values["brake_max"] <= values["brake_min"] <= values["brake_min_correct"] < 0):
         raise GuardError(
@@ -132,17 +157,32 @@ def _checked(side: str, defaults: dict[str, float], changes: dict[str, Any]) -> 
             f"{values['brake_max']:g}, {values['brake_min']:g}, "
             f"{values['brake_min_correct']:g}"
         )
-    if values["accel_max"] <= 0 or values["response_time"] <= 0:
-        raise GuardError(f"RSS {side}: accel_max and response_time must be > 0")
     return values
 
 
+def _shown(value: Any) -> str:
+    """A value as an error shows it: short (an object of a million keys is not printed)."""
+    text = json.dumps(value) if isinstance(value, bool) or value is None else repr(value)
+    return text if len(text) <= 40 else f"{type(value).__name__} {text[:30]}..."
+
+
 def load_params(path: Path) -> dict[str, Any]:
-    """RSS dynamics from a JSON file (``--rss-params``), checked."""
+    """RSS dynamics from a JSON file (``--rss-params``), checked: at most MAX_PARAMS_BYTES
+    (a link to /dev/zero is refused, not read whole), nested no deeper than json.loads
+    can (RecursionError is refused too)."""
     try:
-        params = json.loads(Path(path).read_text())
-    except (OSError, ValueError) as exc:
-        raise GuardError(f"cannot read RSS parameters {path}: {exc}") from exc
+        with Path(path).open("rb") as stream:
+            data = stream.read(MAX_PARAMS_BYTES + 1)
+    except OSError as exc:
+        raise GuardError(f"cannot read RSS parameters {path}: {exc.strerror or exc}") from None
+    if len(data) > MAX_PARAMS_BYTES:
+        raise GuardError(f"RSS parameters {path}: larger than {MAX_PARAMS_BYTES:,} bytes")
+    try:
+        params = json.loads(data)
+    except RecursionError:
+        raise GuardError(f"RSS parameters {path}: nested too deeply") from None
+    except ValueError as exc:  # not UTF-8, not JSON
+        raise GuardError(f"RSS parameters {path} are not JSON: {exc}") from None
     if not isinstance(params, dict):
         raise GuardError(f"RSS parameters {path}: expected a JSON object")
     dynamics_from(params)

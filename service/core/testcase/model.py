@@ -25,8 +25,11 @@ from service.core.errors import InvalidTestCase
 from service.core.motion.events import EventKind
 from service.core.network import ControlType, SignalProgram
 from service.core.network.signals import (
+    MAX_OFFSET,
     MAX_PHASE_DURATION,
     MAX_PHASES,
+    MIN_CYCLE,
+    MIN_PHASE_DURATION,
     VALID_COLOURS,
     make_program,
     program_problems,
@@ -257,7 +260,11 @@ class Pedestrian(_Model):
 
 
 class SignalPhaseDoc(_Model):
-    duration: float = Field(gt=0, le=MAX_PHASE_DURATION, description="seconds")
+    duration: float = Field(
+        ge=MIN_PHASE_DURATION,
+        le=MAX_PHASE_DURATION,
+        description=f"seconds, from {MIN_PHASE_DURATION:g} (SUMO's step) to {MAX_PHASE_DURATION:g}",
+    )
     state: str = Field(
         min_length=1,
         max_length=1000,
@@ -275,12 +282,15 @@ class Signals(_Model):
 
     tls: str = Field(min_length=1, description="the traffic light's id in the network")
     program: str = Field("0", min_length=1, description="the program's id (programID)")
-    offset: float = Field(0.0, ge=-1e6, le=1e6, description="s: phase 0 starts at offset")
+    offset: float = Field(
+        0.0, ge=-MAX_OFFSET, le=MAX_OFFSET, description="s: phase 0 starts at offset"
+    )
     phases: list[SignalPhaseDoc] = Field(
         min_length=1,
         max_length=MAX_PHASES,
-        description="the cycle in order; every state has one colour per link of the traffic "
-        "light, so all states are equally long",
+        description=f"the cycle in order, {MAX_PHASES} phases at most, lasting at least "
+        f"{MIN_CYCLE:g} s in all; every state has one colour per link of the traffic light, "
+        "so all states are equally long",
     )
     note: str | None = Field(
         None,

@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import hashlib
 import os
+import stat
 from collections.abc import Sequence
 from pathlib import Path, PurePosixPath
 
 from service.core.errors import InvalidTestCase, UnknownNetwork
 from service.core.network import bundled_networks, file_sha256, resolve_network
-from service.core.network.convert import source_format
+from service.core.network.convert import FORMATS, source_format
 from service.core.testcase.document import dump_testcase
 from service.core.testcase.model import NetworkRef, TestCase
 
@@ -83,6 +84,14 @@ def find_network_file(
     files are found but none has it, InvalidTestCase names each file and both hashes."""
     candidates = _network_candidates(testcase, network_file, near, search_path)
     ref, digest = testcase.network.ref, testcase.network.sha256
+    reasons = [(path, how, _not_read(path, how)) for path, how in candidates]
+    candidates = [(path, how) for path, how, why in reasons if why is None]
+    # a reference that is no file name (a server's network id) was only a guess: not named
+    refused = [
+        (path, how, why)
+        for path, how, why in reasons
+        if why is not None and (how, why) != ("as named", _NO_NETWORK_NAME)
+    ]
     present = [(path, how) for path, how in candidates if path.is_file()]
     found = [(path, how, file_sha256(resolve_network(path))) for path, how in present]
     for path, how, sha256 in found:
@@ -96,11 +105,34 @@ def find_network_file(
             "with --network FILE"
         )
     looked = ", ".join(f"{path.resolve()} ({how})" for path, how in candidates)
+    skipped = "".join(f"; {path} ({how}) was not read: {why}" for path, how, why in refused)
     raise UnknownNetwork(
-        f"network {ref!r} (sha256 {digest[:12]}...) is not at {looked}: pass its file with "
-        "--network FILE, or name its folder in SCENGEN_NETWORK_PATH",
+        f"network {ref!r} (sha256 {digest[:12]}...) is not at {looked}{skipped}: pass its "
+        "file with --network FILE, or name its folder in SCENGEN_NETWORK_PATH",
         network=ref,
     )
+
+
+# What the document names (its network's path, its reference as a path) is read only when
+# it is a network's file: by its name (and the name a link points to) and a regular file,
+# checked without opening it. /etc/shadow or a FIFO is never read, nor its digest printed.
+_FROM_THE_DOCUMENT = ("its path from the test-case", "as named")
+_NETWORK_SUFFIXES = (".net.xml", *FORMATS)
+_NO_NETWORK_NAME = f"a network's file name ends in {', '.join(_NETWORK_SUFFIXES)}"
+
+
+def _not_read(path: Path, how: str) -> str | None:
+    """Why a place the document names is not read (None: it may be)."""
+    if how not in _FROM_THE_DOCUMENT:
+        return None
+    names = (path.name, path.resolve().name)
+    if not all(name.lower().endswith(_NETWORK_SUFFIXES) for name in names):
+        return _NO_NETWORK_NAME
+    try:
+        mode = path.stat().st_mode
+    except OSError:
+        return None  # nothing there: looked for, not found
+    return None if stat.S_ISREG(mode) else "not a regular file"
 
 
 def _network_candidates(

@@ -16,6 +16,9 @@ from service.core.network import load_intersection
 from service.core.network.signals import (
     GO_COLOURS,
     MAX_PHASE_DURATION,
+    MAX_PHASES,
+    MIN_CYCLE,
+    MIN_PHASE_DURATION,
     RULE_COLOURS,
     make_program,
     program_from_document,
@@ -166,3 +169,22 @@ def test_the_longest_phase_keeps_phase_spans_within_clingos_integers(tmp_path: P
         assert spans and all(abs(a.number) <= INT32 for f in spans for a in f.arguments[1:])
     with pytest.raises(InvalidInput, match=r"phases.0.duration is 1e\+06"):
         make_program("J", "0", 0.0, [(MAX_PHASE_DURATION + 1, "G")])
+
+
+def test_a_program_at_its_bounds_is_read_and_one_past_them_is_not() -> None:
+    """The shortest phase is SUMO's step, the shortest cycle a second, MAX_PHASES phases at
+    most; each bound is valid, anything past it is refused naming the phase and the bound,
+    and too many phases are one problem, not one per phase."""
+    shortest = [(MIN_PHASE_DURATION, "G")] * round(MIN_CYCLE / MIN_PHASE_DURATION)
+    assert make_program("J", "0", 0.0, shortest).cycle == pytest.approx(MIN_CYCLE)
+    assert len(make_program("J", "0", 0.0, [(1.0, "G")] * MAX_PHASES).phases) == MAX_PHASES
+    Signals.model_validate(make_program("J", "0", -1e6, shortest).to_document())
+    with pytest.raises(InvalidInput, match=r"phases.3.duration is 0.099 s; a phase lasts from 0.1"):
+        make_program("J", "0", 0.0, [(1.0, "G")] * 3 + [(0.099, "G")])
+    with pytest.raises(InvalidInput, match=r"the cycle .* is 0.9 s; a cycle lasts at least 1 s"):
+        make_program("J", "0", 0.0, [(0.3, "G")] * 3)
+    with pytest.raises(InvalidInput) as many:
+        make_program("J", "0", 0.0, [(0.001, "G")] * 1000)
+    assert str(many.value) == "traffic-light program of 'J': phases: 1000 phases, at most 64"
+    with pytest.raises(InvalidInput, match=r"offset is 1e\+300 s; an offset is from -1e\+06"):
+        make_program("J", "0", 1e300, [(1.0, "G")])

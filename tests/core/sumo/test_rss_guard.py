@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from service.core.inputs import MAX_PARAMETER_FILE_BYTES
 from service.core.sumo.rss_guard import (
     CARLA_DYNAMICS,
     CARLA_PEDESTRIAN_DYNAMICS,
+    DYNAMICS_RANGES,
+    MAX_PARAMS_BYTES,
     CarState,
     GuardError,
     RssGuard,
@@ -121,6 +125,46 @@ def test_rss_parameters_override_carla_defaults_and_bad_ones_are_named(tmp_path:
     path.write_text(json.dumps({"brake_min": "hard"}))
     with pytest.raises(GuardError, match="must be a number"):
         load_params(path)
+
+
+@pytest.mark.parametrize("key", list(DYNAMICS_RANGES))
+def test_every_rss_parameter_has_a_type_and_a_range(key: str) -> None:
+    """Booleans are not numbers; a value out of its range is named with the range; both
+    ends are valid, and CARLA's defaults lie within."""
+    low, high, unit = DYNAMICS_RANGES[key]
+    assert low <= CARLA_DYNAMICS[key] <= high and low <= CARLA_PEDESTRIAN_DYNAMICS[key] <= high
+    for value in (True, False, None, "1", [1.0]):
+        with pytest.raises(GuardError, match=rf"'{key}' \(ego\) must be a number from"):
+            dynamics_from({"ego": {key: value}})
+    span = high - low
+    for value in (low - span, high + span, 1e308, -1e308):
+        out = rf"'{key}' \(others\) is .*; valid: .* {re.escape(unit)}"
+        with pytest.raises(GuardError, match=out):
+            dynamics_from({"others": {key: value}})
+    for value in (low, high):
+        if not key.startswith("brake"):  # the brakes are ordered: checked below
+            assert dynamics_from({key: value})[0][key] == value
+    assert set(DYNAMICS_RANGES) == set(CARLA_DYNAMICS)
+
+
+def test_a_parameter_file_is_read_within_its_limits(tmp_path: Path) -> None:
+    """The bundle's run.py reads --rss-params with this standalone module: /dev/zero and
+    JSON nested 100,000 deep are GuardErrors, not a machine out of memory or a traceback."""
+    assert MAX_PARAMS_BYTES == MAX_PARAMETER_FILE_BYTES
+    zero = tmp_path / "zero.json"
+    zero.symlink_to("/dev/zero")
+    with pytest.raises(GuardError, match="larger than 1,000,000 bytes"):
+        load_params(zero)
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(GuardError, match="nested too deeply"):
+        load_params(deep)
+    deep.write_text('{"ego": {"accel_max": {"x": 1}}}')
+    with pytest.raises(GuardError, match="'accel_max' \\(ego\\) must be a number"):
+        load_params(deep)
+    deep.write_bytes(b"\xff{}")
+    with pytest.raises(GuardError, match="are not JSON"):
+        load_params(deep)
 
 
 def _walker_section(**walker: Any) -> dict[str, Any]:
