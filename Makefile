@@ -98,6 +98,7 @@ bench: $(STAMP)
 	$(BIN)/pip install --quiet -e '.[test,bench]'
 	$(BIN)/python -m bench.bench_check
 	$(BIN)/python -m bench.bench_rss
+	$(BIN)/python -m bench.bench_replays
 	$(BIN)/python -m bench.bench_cosim
 	$(BIN)/python -m bench.bench_generate
 	$(BIN)/python -m bench.bench_variety
