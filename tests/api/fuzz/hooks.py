@@ -86,6 +86,7 @@ BEYOND_JSON_SCHEMA = [
     ("*", "name at least one new car (routes) or pedestrian", "routes or pedestrians not empty"),
     ("POST /jobs", "give exactly one of", "an item's base: an id, a document or an item"),
     ("*", "every state has one colour per link", "a signal program's states are equally long"),
+    ("*", "a cycle lasts at least", "a signal program's phases add up to a cycle of 1 s or more"),
     ("POST /jobs", "refers to item", "an item refers to an earlier item that makes test-cases"),
     # JSON Schema's integer is any number without a fraction, 8.0 too; the server's
     # numbers are strict (docs/http-api.md), so 8.0 for a count or a seed is refused: a

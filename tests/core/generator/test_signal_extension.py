@@ -90,7 +90,10 @@ def test_a_new_car_never_runs_its_red() -> None:
     """Town05 1126 (42 s green, 3 s yellow each way), ego turning left on its green: a new
     car from 47 faces red until 45 s, so in a 45 s test-case it could only take part by
     entering on red; no such order exists (asp/extension.lp's lawful-entry constraint),
-    which is a proof, not a search that gave up."""
+    which is a proof, not a search that gave up. With events after the end it would enter
+    on its next green: the refusal says the duration is what limits."""
     old = new_testcase(TOWN05, "-6_1:-47_1", junction="1126", duration=45)
-    with pytest.raises(NoMoreComplexTestCase, match="even one at a time"):
+    with pytest.raises(NoMoreComplexTestCase, match="the duration is what limits: no order "
+                       "of events fits within 45 s") as refused:  # fmt: skip
         extend_testcase(old, ["47_1:46_1"], seed=0, budget=120)
+    assert refused.value.context["longer"] > 45  # a duration past its red
