@@ -15,6 +15,7 @@ from service.core.budget import DEFAULT_MEMORY_MB
 from service.core.testcase import MAX_SAMPLES
 
 MIN_WORKER_MEMORY_MB = 512
+MAX_JOB_STEPS = 2000  # at 2 to 5 s a step on two workers: one to three hours
 
 
 class Settings(BaseSettings):
@@ -68,6 +69,12 @@ class Settings(BaseSettings):
         ge=0,
         description=f"data segment each worker process may use (MB): 0 (no cap) or at least "
         f"{MIN_WORKER_MEMORY_MB}",
+    )
+    max_job_steps: int = Field(
+        MAX_JOB_STEPS,
+        ge=1,
+        description="steps (extensions, levels, evaluations) one job may run at most, "
+        "counted when it is submitted: a bigger one is refused (422)",
     )
     executor: Literal["local", "celery"] = Field(
         "local", description="where batch jobs run: local worker processes, or Celery workers"

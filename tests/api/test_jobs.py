@@ -123,6 +123,31 @@ def test_the_docs_batch_on_a_fresh_server_is_refused(tmp_path: Path) -> None:
     ]
 
 
+def test_a_campaign_job_over_the_cap_is_refused_with_its_count(tmp_path: Path) -> None:
+    """Issue 50: one campaign over every route of the signalized four-way (16), 100 chains
+    of 10 levels, 8 controllers was accepted as 144,128 steps (days of work). It is 422
+    naming the count and the cap (SCENGEN_MAX_JOB_STEPS), and no job is made; a smaller
+    cap refuses a small campaign, counted over its junction's routes too."""
+    from fastapi.testclient import TestClient
+
+    from service.api import create_app
+    from service.settings import Settings
+
+    big = {"kind": "campaign", "network": "4way-signal", "all_egos": True, "depth": 10,
+           "chains": 100, "controllers": ["sumo"] * 8}  # fmt: skip
+    small = {**big, "depth": 1, "chains": 1, "controllers": ["sumo"]}  # 16 * (1 + 2)
+    with TestClient(create_app(Settings(data_dir=tmp_path, workers=1))) as fresh:
+        reply = fresh.post("/jobs", json={"items": [big]})
+        assert reply.status_code == 422, reply.text
+        assert reply.json()["type"] == "/problems/invalid-input"
+        assert "144,128 steps" in reply.json()["detail"]
+        assert "limit of 2,000 (SCENGEN_MAX_JOB_STEPS)" in reply.json()["detail"]
+        assert fresh.get("/jobs").json()["total"] == 0
+    with TestClient(create_app(Settings(data_dir=tmp_path, workers=1, max_job_steps=47))) as low:
+        reply = low.post("/jobs", json={"items": [small]})
+        assert reply.status_code == 422 and "up to 48 steps" in reply.json()["detail"]
+
+
 def test_a_failing_item_is_an_error_in_the_junit(server: Server) -> None:
     """The second car, on the ego's fork, would start behind the ego: the item's error says
     so in plain words, naming that car (so the list reached the generator in the order of

@@ -23,6 +23,7 @@ from service.jobs.batch import Batch, CampaignItem
 from service.jobs.campaign_steps import outcome_of
 from service.jobs.junit import job_junit
 from service.jobs.references import check_references
+from service.jobs.size import check_job_size
 from service.jobs.store import IdempotencyConflict, JobRecord, JobStore
 from service.pictures.report import campaign_paths, campaign_title, report_html
 
@@ -79,6 +80,8 @@ async def create_job(
                     f"{limit:g} s",
                 )
 
+    await _check_size(state, batch)
+
     def create() -> Response:
         jobs = _jobs(state)
         if idempotency_key is None or jobs.by_key(idempotency_key) is None:
@@ -95,6 +98,26 @@ async def create_job(
     answer = await asyncio.to_thread(create)
     state.dispatcher.nudge()
     return answer
+
+
+async def _check_size(state: AppState, batch: Batch) -> None:
+    """InvalidInput (422) when ``batch`` runs more than ``SCENGEN_MAX_JOB_STEPS`` steps
+    (service.jobs.size). An ``all_egos`` campaign counts the routes of its junction, read in
+    a worker as the campaign reads them: an upper bound of the routes its egos take."""
+    routes: dict[int, int] = {}  # id() of an all_egos item -> its junction's routes
+    for item in batch.items:
+        if isinstance(item, CampaignItem) and item.all_egos:
+            record = await asyncio.to_thread(state.store.network, item.network)
+            if record is None:
+                continue  # check_references names it
+            junction, control = record.junction_and_control(item.junction, item.control)
+            path = await asyncio.to_thread(state.store.network_file, record.id)
+            description = await state.run(
+                "junction", tasks.describe_junction, (path, junction, control, state.cache_dir),
+                state.settings.work_budget, time.monotonic(),
+            )  # fmt: skip
+            routes[id(item)] = len(description["routes"])
+    check_job_size(batch, lambda item: routes.get(id(item), 1), state.settings.max_job_steps)
 
 
 @router.get("", operation_id="list_jobs")
