@@ -10,6 +10,7 @@ at the speed of a copy.
 
 from __future__ import annotations
 
+import io
 import json
 from collections.abc import Callable
 from pathlib import Path
@@ -19,6 +20,7 @@ from defusedxml import ElementTree as SafeElementTree
 from defusedxml.common import DefusedXmlException
 
 from service.core.errors import InvalidInput
+from service.core.network.xml_depth import depth_refusal, too_deep
 from service.core.testcase import parse_testcase
 
 
@@ -123,7 +125,10 @@ ROOTS = {  # the root element of each kind of upload, and what it is
 def xml_refusal(content: bytes, kind: str | None = None) -> str | None:
     """Why the upload is refused as XML (entities and DTDs are forbidden), or None; the
     root must be a SUMO <net> (or, for a map to convert, <OpenDRIVE> or <osm>), else
-    InvalidInput."""
+    InvalidInput. Its depth is read first, as a stream: a small file of deeply nested
+    elements is refused at once, before a parser or netconvert works on it."""
+    if too_deep(io.BytesIO(content)):
+        return depth_refusal("the network")
     try:
         root = SafeElementTree.fromstring(content, forbid_dtd=True)
     except DefusedXmlException as error:

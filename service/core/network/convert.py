@@ -22,6 +22,7 @@ from pathlib import Path
 
 from service.core.errors import InvalidInput
 from service.core.network.override import default_cache_dir, file_sha256, run_netconvert
+from service.core.network.xml_depth import check_depth
 
 FORMATS = {".xodr": "opendrive", ".osm": "openstreetmap"}
 OPTIONS = {
@@ -70,6 +71,7 @@ def convert_network(source: Path, cache_dir: Path | None = None) -> Path:
     target = cache / f"{source.name}-{key[:16]}.net.xml"
     if target.exists():
         return target
+    check_depth(source)  # netconvert would work on 200,000 nested elements for minutes
     with tempfile.TemporaryDirectory(dir=cache) as work:
         output = Path(work) / "converted.net.xml"
         failed = run_netconvert(
