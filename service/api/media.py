@@ -4,13 +4,25 @@ Artifacts derive from immutable things (a content-addressed test-case, an upload
 so a file cached under the data directory never goes stale; it is written atomically. An
 artifact is produced once however many ask for it at the same time (a page reloaded while
 its first load waits for the workers, two tabs): the later requests wait for the first's.
+
+A failure is remembered too, beside where the artifact would be (``NAME.failed.json``: its
+error class and message): the same request within ``FAILURE_SECONDS`` answers the same
+problem at once instead of holding a worker for the whole budget again (issue 50: a
+picture of a test-case whose signal program cannot be drawn was 504 after 88 s on every
+read). Only failures of the work itself are remembered: the input refused, SUMO or
+netconvert refusing it, the time or memory budget run out; a worker that crashed or died is
+the server's fault, and the next request tries again. A budget that ran out is remembered
+for a while only (``FAILURE_SECONDS``), not for good: the wait for a free worker counts
+against it, so on a busy server it may be bad luck.
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import secrets
+import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -19,6 +31,7 @@ from fastapi import Query
 from pydantic import WithJsonSchema
 
 from service.api.problems import Problem
+from service.core import errors
 
 if TYPE_CHECKING:
     from service.api.state import AppState
@@ -102,6 +115,9 @@ async def cached_file(
         raise Problem(404, "no such artifact")  # never a path outside the cache
     if await asyncio.to_thread(path.is_file):
         return path
+    remembered = await asyncio.to_thread(_remembered_failure, path)
+    if remembered is not None:
+        raise remembered
     making = _MAKING.get(path)
     if making is None or making.get_loop() is not asyncio.get_running_loop():
         making = asyncio.ensure_future(_produce(path, produce, json_cache))
@@ -115,10 +131,54 @@ async def cached_file(
 _MAKING: dict[Path, asyncio.Future[Path]] = {}  # artifacts being produced, by their file
 
 
+FAILURE_SECONDS = 600.0  # how long a failed artifact's problem is answered without new work
+REMEMBERED = (  # failures of the work itself (MemoryExceeded is a BudgetExceeded)
+    errors.InvalidInput, errors.UnsupportedIntersection, errors.NetworkBuildFailed,
+    errors.SimulationFailed, errors.BudgetExceeded,
+)  # fmt: skip
+
+
+def failure_file(path: Path) -> Path:
+    """Where the failure of the artifact at ``path`` is remembered."""
+    return path.with_name(f"{path.name}.failed.json")
+
+
+def _remembered_failure(path: Path) -> errors.ScengenError | None:
+    """The error the artifact at ``path`` failed with less than ``FAILURE_SECONDS`` ago,
+    raised again with what it was (None: not remembered, or forgotten)."""
+    try:
+        failure = json.loads(failure_file(path).read_bytes())
+        kind = getattr(errors, failure["error"])
+        ago = time.time() - float(failure["at"])
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+    if not (isinstance(kind, type) and issubclass(kind, REMEMBERED)) or ago >= FAILURE_SECONDS:
+        return None
+    return kind(
+        f"{failure['message']} (remembered: this request failed {ago:.0f} s ago, and is "
+        f"answered so without new work until {FAILURE_SECONDS:g} s have passed)"
+    )
+
+
+def _remember_failure(path: Path, error: errors.ScengenError) -> None:
+    with contextlib.suppress(OSError):  # a cache that cannot be written is no cache
+        write_atomically(
+            failure_file(path),
+            json.dumps(
+                {"error": type(error).__name__, "message": str(error), "at": time.time()}
+            ).encode(),
+        )
+
+
 async def _produce(path: Path, produce: Callable[[], Awaitable[Any]], json_cache: bool) -> Path:
-    value = await produce()
+    try:
+        value = await produce()
+    except REMEMBERED as error:
+        await asyncio.to_thread(_remember_failure, path, error)
+        raise
     content = json.dumps(value).encode() if json_cache else value
     await asyncio.to_thread(write_atomically, path, content)
+    await asyncio.to_thread(failure_file(path).unlink, missing_ok=True)  # forgotten, now made
     return path
 
 
