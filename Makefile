@@ -54,13 +54,17 @@ system-tools:
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing \
 		>/dev/null; } || echo "make: missing:$$missing (install Debian's packages)"
 
+# three test processes on two cores: many tests wait (servers starting, workers killed and
+# restarted, leases running out), and a third process computes meanwhile
+TEST_PROCESSES ?= 3
+
 test: $(STAMP) $(QC_STAMP) system-tools docs
-	$(BIN)/pytest -n 2
+	$(BIN)/pytest -n $(TEST_PROCESSES)
 
 # the edit loop: every module but the slow ones (pytest -m slow: servers, browsers, SUMO on
 # real maps, campaigns), in about 2 minutes; `make test` before you push
 test-fast: $(STAMP) $(QC_STAMP) system-tools
-	$(BIN)/pytest -n 2 -m "not slow"
+	$(BIN)/pytest -n $(TEST_PROCESSES) -m "not slow"
 
 # the documentation site (mkdocs.yml, docs/) into site/; strict: a warning, such as a broken
 # link or anchor, fails the build. `$(BIN)/mkdocs serve` serves it while you edit.
