@@ -1,11 +1,16 @@
-"""Benchmark: ten concurrent POST /extend against a real server while /healthz is polled.
+"""Benchmark: ten concurrent POST /extend against a real server while /healthz is polled,
+and small requests one after another.
 
 Run with `make bench-api` (part of `make bench`). For each pool size it starts
 `scengen serve` on a free port with a fresh data directory, sends ten /extend requests at
 once (the four-way example, seeds 0-9, each with the same budget) and polls /healthz every
 20 ms until all have answered. It prints, per pool size: each request's status and wall
-time against its budget, and the /healthz latency (p50, p95, max). The figures go into
-docs/benchmarks.md with the machine and the date.
+time against its budget, and the /healthz latency (p50, p95, max). Then, on a server of
+two workers, the latency of small requests that each still need a worker (a new test-case,
+one naming a junction the network lacks, a junction's description), one at a time: what
+a worker call costs beyond its work. `--checkout PATH` serves another checkout of the
+project for the small requests as well (the same run, to compare two versions). The
+figures go into docs/benchmarks.md with the machine and the date.
 """
 
 from __future__ import annotations
@@ -124,6 +129,53 @@ def measure(url: str) -> dict[str, object]:
     }
 
 
+SMALL = 20  # small requests of each kind, one after another
+
+
+def small_requests(url: str) -> dict[str, float]:
+    """Median wall time of each kind of small request (after one unmeasured request of
+    each, which starts the workers)."""
+    new = {"network": "4way-stop", "ego_route": "E2C_1:C2S_1"}
+    kinds: dict[str, tuple[str, str, dict[str, Any] | None, int]] = {
+        "POST /testcases (201)": ("POST", "/testcases", new, 201),
+        "POST /testcases, unknown junction (422)": (
+            "POST", "/testcases", {**new, "junction": "nowhere"}, 422),
+        "GET a junction (200)": ("GET", "/networks/4way-stop/junctions/C", None, 200),
+    }  # fmt: skip
+    medians = {}
+    with httpx.Client(base_url=url, timeout=60) as client:
+        for kind, (method, path, body, expected) in kinds.items():
+            seconds = []
+            for attempt in range(SMALL + 1):
+                clock = time.monotonic()
+                reply = client.request(method, path, json=body)
+                if reply.status_code != expected:
+                    raise RuntimeError(f"{kind}: {reply.status_code} {reply.text[:300]}")
+                if attempt:
+                    seconds.append(time.monotonic() - clock)
+            medians[kind] = statistics.median(seconds)
+    return medians
+
+
+def print_small_requests(checkouts: list[Path | None]) -> None:
+    print(f"\n# small requests, one at a time, 2 workers: median of {SMALL} each")
+    rows: dict[str, list[str]] = {}
+    for checkout in checkouts:
+        with tempfile.TemporaryDirectory(prefix="scengen-bench-") as folder:
+            process, url = serve(Path(folder), 2, cwd=checkout)
+            try:
+                for kind, median in small_requests(url).items():
+                    rows.setdefault(kind, []).append(f"{1000 * median:.0f} ms")
+            finally:
+                process.terminate()
+                process.wait(10)
+    names = ["this checkout" if c is None else str(c) for c in checkouts]
+    print(f"| request | {' | '.join(names)} |")
+    print(f"|---|{'---|' * len(names)}")
+    for kind, cells in rows.items():
+        print(f"| {kind} | {' | '.join(cells)} |")
+
+
 def main() -> None:
     print(f"# bench_api {date.today()} on {platform.node()} ({os.cpu_count()} cores), "
           f"{REQUESTS} concurrent /extend, budget {BUDGET:g} s each")  # fmt: skip
@@ -138,6 +190,9 @@ def main() -> None:
             f"{r['p95_ms']:.1f} ms | {r['max_ms']:.1f} ms |"
         )
         print("  server side:", "; ".join(r["lag"]))  # type: ignore[arg-type]
+    others = [Path(a) for a in sys.argv[sys.argv.index("--checkout") + 1 :][:1]] if (
+        "--checkout" in sys.argv) else []  # fmt: skip
+    print_small_requests([None, *others])
 
 
 if __name__ == "__main__":

@@ -69,7 +69,7 @@ def run_with_budget(
                 capture_output=True,
                 timeout=budget,
                 check=False,
-                env=_child_environment(scratch),
+                env=child_environment(scratch),
             )
     except subprocess.TimeoutExpired:
         raise BudgetExceeded(
@@ -81,7 +81,7 @@ def run_with_budget(
 CHILD_COMMAND = [sys.executable, "-m", "service.core.budget"]
 
 
-def _child_environment(scratch: str) -> dict[str, str]:
+def child_environment(scratch: str) -> dict[str, str]:
     """The child's environment: its temporary files go into ``scratch``, a folder the
     parent removes once the child is gone, so that a child killed at its budget (or by
     Ctrl-C) leaves no files behind."""
@@ -152,6 +152,14 @@ def encode_call(function: Callable[..., Any], args: tuple[Any, ...]) -> bytes:
 
 def decode_outcome(stdout: bytes, stderr: bytes, what: str) -> Any:
     """The child's answer: its result, or the domain error it raised, re-raised here."""
+    return outcome_of(read_answer(stdout, stderr, what), what)
+
+
+def read_answer(stdout: bytes, stderr: bytes, what: str) -> tuple[str, Any]:
+    """The child's answer as (status, payload): "ok" and the result, "error" and the domain
+    error it raised, or "crash" and the traceback of anything else. A child that died
+    without one is MemoryExceeded when its native libraries said they could not allocate
+    (on ``stderr``), else ScengenError."""
     try:
         status, payload = pickle.loads(stdout)
     except Exception:
@@ -164,6 +172,21 @@ def decode_outcome(stdout: bytes, stderr: bytes, what: str) -> Any:
                 f"{MEMORY_VARIABLE}): {detail[0]}"
             ) from None
         raise ScengenError(f"{what} died without an answer: {detail[0]}") from None
+    return status, payload
+
+
+def leaves_child_sound(answer: tuple[str, Any]) -> bool:
+    """Whether a warm child that gave ``answer`` may serve another call. A result or a
+    domain error leaves it as it was. A crash may not, nor a budget that ran out inside it:
+    a nested call's alarm interrupts whatever Python code runs (an import half done leaves a
+    module without its names), and a failed allocation can leave a library's state torn."""
+    status, payload = answer
+    return status == "ok" or (status == "error" and not isinstance(payload, BudgetExceeded))
+
+
+def outcome_of(answer: tuple[str, Any], what: str) -> Any:
+    """The result of ``read_answer``'s answer, or its error raised here."""
+    status, payload = answer
     if status == "error":
         raise payload
     if status == "crash":
@@ -225,7 +248,10 @@ class WarmWorker:
             except BaseException:  # Ctrl-C: an answer may still come; no later call may read it
                 self._stop()
                 raise
-        return decode_outcome(reply, b"", what)  # type: ignore[no-any-return]
+            answer = read_answer(reply, b"", what)
+            if not leaves_child_sound(answer):
+                self._stop()
+        return outcome_of(answer, what)  # type: ignore[no-any-return]
 
     def _child(self) -> subprocess.Popen[bytes]:
         if self._owner != os.getpid():  # a forked copy of a parent's worker is not ours
@@ -238,7 +264,7 @@ class WarmWorker:
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.DEVNULL,
-                env=_child_environment(self._scratch),
+                env=child_environment(self._scratch),
             )
         return self._process
 

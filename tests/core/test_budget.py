@@ -116,6 +116,29 @@ def leave_a_file_and_hang(marker: str) -> None:
     time.sleep(60)
 
 
+def overrun_inside() -> None:
+    """In a budget child: a nested call whose alarm interrupts it (BudgetExceeded)."""
+    run_with_budget(time.sleep, (30,), 0.2, "the nested call")
+
+
+def test_a_warm_child_goes_with_a_crash_or_a_budget_run_out_inside_it() -> None:
+    """A domain error keeps the warm child; a crash, or a nested call's alarm (which may
+    have interrupted an import half way), retires it: the next call gets a fresh one."""
+    worker = WarmWorker()
+    first = worker.call(os.getpid, (), 30.0, "pid")
+    with pytest.raises(UnknownNetwork):
+        worker.call(resolve_network, ("nowhere",), 30.0, "lookup")
+    assert worker.call(os.getpid, (), 30.0, "pid") == first
+    with pytest.raises(BudgetExceeded, match="the nested call did not finish"):
+        worker.call(overrun_inside, (), 30.0, "outer")
+    second = worker.call(os.getpid, (), 30.0, "pid")
+    with pytest.raises(ScengenError, match="crashed: ValueError"):
+        worker.call(math.sqrt, (-1.0,), 30.0, "sqrt")
+    third = worker.call(os.getpid, (), 30.0, "pid")
+    worker.close()
+    assert len({first, second, third}) == 3
+
+
 @pytest.mark.parametrize("warm", [False, True], ids=["one-call child", "warm child"])
 def test_a_child_killed_at_its_budget_leaves_no_temporary_files(warm: bool, tmp_path: Path) -> None:
     marker = tmp_path / "folder.txt"
