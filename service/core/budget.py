@@ -33,7 +33,8 @@ import tempfile
 import threading
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any, TypeVar
 
 from service.core.errors import BudgetExceeded, MemoryExceeded, ScengenError
@@ -213,65 +214,97 @@ def _die_with_parent() -> None:
 FRAME = struct.Struct(">Q")  # a length, then that many bytes of pickle
 
 
-class WarmWorker:
-    """One child interpreter that serves calls one after another, each under its budget."""
+CALLS_PER_CHILD = 200  # then a warm child retires: caches and fragmentation do not pile up
+STDERR_KEPT = 16384  # bytes of a warm child's last output: why it died, should it die
 
-    def __init__(self) -> None:
+
+class CallStopped(Exception):
+    """A warm call's ``stop`` event was set: the child was killed without an answer."""
+
+
+class WarmWorker:
+    """One child interpreter that serves calls one after another, each under its budget;
+    ``command`` starts it (``CHILD_COMMAND`` behind a ``nice``, say), in a process group of
+    its own when ``group`` (killed with its grandchildren)."""
+
+    def __init__(self, command: Sequence[str] = (), group: bool = False) -> None:
+        self._command = [*(command or CHILD_COMMAND), "--many"]
+        self._group = group
         self._process: subprocess.Popen[bytes] | None = None
         self._scratch: str | None = None  # the child's TMPDIR, removed with the child
+        self._stderr: Any = None  # where the child writes its stderr, in the scratch folder
+        self._calls = 0
         self._owner = 0
         self._lock = threading.Lock()
         atexit.register(self.close)
 
     def call(self, function: Callable[..., T], args: tuple[Any, ...], budget: float,
-             what: str) -> T:  # fmt: skip
-        """``function(*args)`` in the warm child; BudgetExceeded after ``budget`` seconds.
-        Inside a budget child, in this process (``run_here``)."""
+             what: str, stop: threading.Event | None = None) -> T:  # fmt: skip
+        """``function(*args)`` in the warm child; BudgetExceeded after ``budget`` seconds,
+        CallStopped as soon as ``stop`` is set. Inside a budget child, in this process
+        (``run_here``)."""
         if INSIDE_CHILD:
             return run_here(function, args, budget, what)
         with self._lock:
             process = self._child()
             assert process.stdin is not None and process.stdout is not None
             request = encode_call(function, args)
+            self._stderr.truncate(0)  # the child appends: this call's output only
+            self._calls += 1
             try:
                 process.stdin.write(FRAME.pack(len(request)) + request)
                 process.stdin.flush()
-                reply = read_frame(process.stdout.fileno(), time.monotonic() + budget)
+                reply = read_frame(process.stdout.fileno(), time.monotonic() + budget, stop)
             except TimeoutError:
                 self._stop()
                 raise BudgetExceeded(
                     f"{what} did not finish within its budget of {budget:g} s and was stopped"
                 ) from None
             except (OSError, EOFError):
+                with contextlib.suppress(subprocess.TimeoutExpired):
+                    process.wait(REAP_SECONDS)  # its last words are all written
+                self._stderr.seek(0)
+                said = self._stderr.read()[-STDERR_KEPT:]
                 self._stop()
-                raise ScengenError(f"{what} died without an answer") from None
-            except BaseException:  # Ctrl-C: an answer may still come; no later call may read it
+                read_answer(b"", said, what)  # raises: out of memory, or died
+                raise  # (not reached)
+            except BaseException:  # Ctrl-C, a stop: an answer may still come, unread
                 self._stop()
                 raise
             answer = read_answer(reply, b"", what)
-            if not leaves_child_sound(answer):
+            if not leaves_child_sound(answer) or self._calls >= CALLS_PER_CHILD:
                 self._stop()
         return outcome_of(answer, what)  # type: ignore[no-any-return]
 
     def _child(self) -> subprocess.Popen[bytes]:
         if self._owner != os.getpid():  # a forked copy of a parent's worker is not ours
             self._process, self._scratch, self._owner = None, None, os.getpid()
+            self._stderr = None
         if self._process is None or self._process.poll() is not None:
             self._stop()
             self._scratch = tempfile.mkdtemp(prefix="scengen-worker-")
+            self._stderr = Path(self._scratch, ".stderr").open("a+b")  # noqa: SIM115
+            self._calls = 0
             self._process = subprocess.Popen(
-                [*CHILD_COMMAND, "--many"],
+                self._command,
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
-                stderr=subprocess.DEVNULL,
+                stderr=self._stderr,
                 env=child_environment(self._scratch),
+                start_new_session=self._group,
             )
         return self._process
 
     def _stop(self) -> None:
         if self._process is not None:
+            if self._group:
+                with contextlib.suppress(ProcessLookupError, PermissionError):
+                    os.killpg(self._process.pid, signal.SIGKILL)
             kill_and_reap(self._process)
             self._process = None
+        if self._stderr is not None:
+            self._stderr.close()
+            self._stderr = None
         if self._scratch is not None:
             shutil.rmtree(self._scratch, ignore_errors=True)
             self._scratch = None
@@ -290,24 +323,26 @@ class WarmPool:
     Each call runs under its budget, and a call that overruns or dies takes its child
     with it, as WarmWorker does."""
 
-    def __init__(self, keep: int) -> None:
+    def __init__(self, keep: int, command: Sequence[str] = (), group: bool = False) -> None:
         self._keep = keep
+        self._command, self._group = command, group
         self._idle: list[WarmWorker] = []
         self._owner = os.getpid()
         self._lock = threading.Lock()
         atexit.register(self.close)
 
     def call(self, function: Callable[..., T], args: tuple[Any, ...], budget: float,
-             what: str) -> T:  # fmt: skip
-        """``function(*args)`` in a warm child; BudgetExceeded after ``budget`` seconds."""
+             what: str, stop: threading.Event | None = None) -> T:  # fmt: skip
+        """``function(*args)`` in a warm child; BudgetExceeded after ``budget`` seconds,
+        CallStopped as soon as ``stop`` is set."""
         if INSIDE_CHILD:
             return run_here(function, args, budget, what)
         with self._lock:
             if self._owner != os.getpid():  # a forked copy: the parent's children are not ours
                 self._idle, self._owner = [], os.getpid()
-            worker = self._idle.pop() if self._idle else WarmWorker()
+            worker = self._idle.pop() if self._idle else WarmWorker(self._command, self._group)
         try:
-            return worker.call(function, args, budget, what)
+            return worker.call(function, args, budget, what, stop)
         finally:
             self._give_back(worker)
 
@@ -327,14 +362,23 @@ class WarmPool:
             worker.close()
 
 
-def read_frame(fd: int, deadline: float) -> bytes:
-    """One frame from ``fd``; TimeoutError at the deadline, EOFError when the child is gone."""
+STOP_POLL = 0.2  # seconds between looks at a call's stop event
+
+
+def read_frame(fd: int, deadline: float, stop: threading.Event | None = None) -> bytes:
+    """One frame from ``fd``; TimeoutError at the deadline, EOFError when the child is gone,
+    CallStopped soon after ``stop`` is set."""
     data = b""
     size: int | None = None
     while size is None or len(data) < FRAME.size + size:
         left = deadline - time.monotonic()
-        if left <= 0 or not select.select([fd], [], [], left)[0]:
+        if left <= 0:
             raise TimeoutError
+        if stop is not None and stop.is_set():
+            raise CallStopped
+        wait = left if stop is None else min(left, STOP_POLL)
+        if not select.select([fd], [], [], wait)[0]:
+            continue
         chunk = os.read(fd, 1 << 20)
         if not chunk:
             raise EOFError

@@ -26,8 +26,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from service.core.budget import (
+    CALLS_PER_CHILD,
     CHILD_COMMAND,
     FRAME,
+    STDERR_KEPT,
     child_environment,
     encode_call,
     leaves_child_sound,
@@ -40,9 +42,7 @@ NICENESS = 19  # worker children yield the CPU to the server's event loop
 # Every worker call, here and in a job item (service.jobs.runner): a child at the lowest
 # CPU priority.
 WORKER_COMMAND = ["nice", "-n", str(NICENESS), *CHILD_COMMAND]
-CALLS_PER_CHILD = 200  # then the child retires: caches and fragmentation do not pile up
 CLOSE_SECONDS = 5.0  # for a killed child to be collected
-STDERR_KEPT = 16384  # bytes of a child's last output: why it died, should it die
 
 
 @dataclass
@@ -117,6 +117,10 @@ class LocalExecutor:
         budget: float,
         what: str,
     ) -> Any:
+        if deadline <= time.monotonic():  # spent waiting for a worker: no child is asked
+            raise BudgetExceeded(
+                f"{what} did not finish within its budget of {budget:g} s and was stopped"
+            )
         child = self._idle_child() or await _WarmChild.start()
         self._busy.add(child)
         keep = False
@@ -192,7 +196,7 @@ class _WarmChild:
             return await stdout.readexactly(size)
 
         try:
-            reply = await asyncio.wait_for(exchange(), max(0.1, deadline - time.monotonic()))
+            reply = await asyncio.wait_for(exchange(), deadline - time.monotonic())
         except TimeoutError:
             raise BudgetExceeded(
                 f"{what} did not finish within its budget of {budget:g} s and was stopped"
