@@ -25,6 +25,7 @@ pytestmark = pytest.mark.slow
 COMMAND = ["campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "1", "--chains", "2",
            "--duration", "20", "--controller", "sumo", "--controller",
            "sumo-rolling-stop"]  # fmt: skip
+LONGER = [*COMMAND[:4], "--depth", "3", *COMMAND[6:]]  # 20 steps: time to kill it halfway
 
 
 def scengen(*args: str) -> subprocess.CompletedProcess[str]:
@@ -45,36 +46,41 @@ def without_evaluation_ids(folder: Path) -> dict[str, Any]:
 def test_a_killed_campaign_resumes_and_ends_as_an_uninterrupted_one(tmp_path: Path) -> None:
     resumed = tmp_path / "resumed"
     child = subprocess.Popen(
-        [sys.executable, "-m", "service", *COMMAND, "--workers", "1", "-o", str(resumed)],
+        [sys.executable, "-m", "service", *LONGER, "--workers", "1", "-o", str(resumed)],
         stderr=subprocess.PIPE, text=True, start_new_session=True,
     )  # fmt: skip
     assert child.stderr is not None
-    # kill -9 mid-campaign, once a chain's level is grown and stored (the progress shows
-    # the last step when the command looks, so either chain's may be the one it shows):
-    # four replays (seconds of work, one at a time) are still to come, so a parent that
-    # reads the line late on a loaded machine still kills a campaign that has not ended
+    # kill -9 mid-campaign, once it reports a step past the root (the progress shows the
+    # last step when it looks): levels 2 and 3 of both chains are still to come (seconds
+    # of work, one at a time), so a parent that reads the line late on a loaded machine
+    # still kills a campaign that has not ended
     for line in child.stderr:
-        if re.search(r"chain \d: level 1 grown", line):
+        if "level 1" in line:
             break
     os.killpg(child.pid, signal.SIGKILL)
     child.wait()
     assert not (resumed / "campaign.json").exists()
-    again = scengen(*COMMAND, "--workers", "2", "-o", str(resumed))
+    again = scengen(*LONGER, "--workers", "2", "-o", str(resumed))
     assert again.returncode == 1, again.stderr  # rolling through the stop sign fails
     assert "resuming the campaign" in again.stderr
-    # what was made before the kill is remembered, not made again: the root and chain 1's
-    # level (at least; more if the kill came late) and the root's evaluations
+    # what was made before the kill is remembered, not made again: the root and its two
+    # evaluations (at least; more if the kill came late)
     made = re.search(r"resuming after (\d+) test-case\(s\) and (\d+) evaluation", again.stderr)
-    assert made and int(made[1]) >= 2 and int(made[2]) >= 2, again.stderr
-    assert "1/8:" not in again.stderr and "2/8:" not in again.stderr
-    assert again.stderr.count("chain 1: level 1 grown") <= 1  # the progress it stopped at
-    fresh = tmp_path / "fresh"
-    uninterrupted = scengen(*COMMAND, "--workers", "1", "-o", str(fresh))
-    assert uninterrupted.returncode == 1, uninterrupted.stderr
-    assert not (fresh / ".campaign.lock").exists() and not (resumed / ".campaign.lock").exists()
-    assert without_evaluation_ids(resumed) == without_evaluation_ids(fresh)
+    assert made and int(made[1]) >= 1 and int(made[2]) >= 2, again.stderr
+    assert "1/20:" not in again.stderr and "2/20:" not in again.stderr
+    uninterrupted = tmp_path / "uninterrupted"
+    assert scengen(*LONGER, "--workers", "1", "-o", str(uninterrupted)).returncode == 1
+    assert not (uninterrupted / ".campaign.lock").exists()
+    assert not (resumed / ".campaign.lock").exists()
+    assert without_evaluation_ids(resumed) == without_evaluation_ids(uninterrupted)
     assert re.search(r"^level +test-cases +sumo +sumo-rolling-stop$", again.stdout, re.M)
-    assert "FAIL sumo-rolling-stop: failed 3 of 3 test-cases; first at level 0" in again.stdout
+
+
+def test_a_campaigns_files_are_test_cases_a_user_replays(tmp_path: Path) -> None:
+    fresh = tmp_path / "fresh"
+    finished = scengen(*COMMAND, "--workers", "1", "-o", str(fresh))
+    assert finished.returncode == 1, finished.stderr  # rolling through the stop sign fails
+    assert "FAIL sumo-rolling-stop: failed 3 of 3 test-cases; first at level 0" in finished.stdout
 
     outcome = without_evaluation_ids(fresh)
     assert [lv["controllers"]["sumo-rolling-stop"]["share"] for lv in outcome["levels"]] == [1, 1]

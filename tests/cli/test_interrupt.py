@@ -93,10 +93,27 @@ def test_ctrl_c_of_extend_leaves_no_traceback_and_no_file(level1: Path) -> None:
 
 def test_ctrl_c_of_a_campaign_says_it_goes_on_when_run_again(tmp_path: Path) -> None:
     code, _, err = interrupted(
-        ["campaign", "4way-stop", "--ego", "S2C_0:C2N_0", "--depth", "2", "--chains", "2",
-         "--controller", "sumo", "--workers", "2", "--duration", "20", "-o", "c"],
-        "level 1 grown", tmp_path,
-    )  # fmt: skip
+        [
+            "campaign",
+            "4way-stop",
+            "--ego",
+            "S2C_0:C2N_0",
+            "--depth",
+            "4",
+            "--chains",
+            "4",
+            "--controller",
+            "sumo",
+            "--workers",
+            "2",
+            "--duration",
+            "20",
+            "-o",
+            "c",
+        ],
+        "level 1",
+        tmp_path,
+    )  # fmt: skip (about 10 s of work: stopped at its first step past the root)
     assert code == 130 and "Traceback" not in err, err
     assert err.strip().splitlines()[-1] == (
         "scengen: stopped (Ctrl-C); run the same command to go on where it stopped"
