@@ -65,7 +65,7 @@ def run_item(
             file=sys.stderr,
         )
     try:
-        Work(store, jobs, settings, item, owner, stop, step_broker).run()
+        _run_unless_shut_down(Work(store, jobs, settings, item, owner, stop, step_broker), shutdown)
     except Stopped:
         return  # cancelled (already marked) or taken over by another worker
     except ScengenError as error:
@@ -80,6 +80,18 @@ def run_item(
     finally:
         stop.set()
         beating.join()
+
+
+def _run_unless_shut_down(work: Work, shutdown: threading.Event | None) -> None:
+    """``work.run()``; whatever ends it once ``shutdown`` is set (Ctrl-C; the executor
+    going away, which also stops its thread pools) is Stopped, not a failure: the caller
+    gives the claim back and the work resumes later."""
+    try:
+        work.run()
+    except Exception:
+        if shutdown is not None and shutdown.is_set():
+            raise Stopped("shut down") from None
+        raise
 
 
 class Work:

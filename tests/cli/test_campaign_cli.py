@@ -67,7 +67,7 @@ def test_a_killed_campaign_resumes_and_ends_as_an_uninterrupted_one(tmp_path: Pa
     # evaluations (at least; more if the kill came late)
     made = re.search(r"resuming after (\d+) test-case\(s\) and (\d+) evaluation", again.stderr)
     assert made and int(made[1]) >= 1 and int(made[2]) >= 2, again.stderr
-    assert "1/20:" not in again.stderr and "2/20:" not in again.stderr
+    assert not re.search(r"(?<!\d)[12]/20:", again.stderr)
     uninterrupted = tmp_path / "uninterrupted"
     assert scengen(*LONGER, "--workers", "1", "-o", str(uninterrupted)).returncode == 1
     assert not (uninterrupted / ".campaign.lock").exists()
