@@ -87,6 +87,11 @@ class LocalExecutor:
             await asyncio.wait_for(self._slots.acquire(), max(0.0, deadline - time.monotonic()))
         except TimeoutError:
             self._count("budget")
+            if self.stats.running < self.stats.workers:  # a budget too small to start at all
+                raise BudgetExceeded(
+                    f"{what} did not finish within its budget of {budget:g} s and was stopped "
+                    "before it started; raise the budget"
+                ) from None
             raise BudgetExceeded(
                 f"{what} waited {budget:g} s for a free worker (all {self.stats.workers} were "
                 "busy) and was not started; retry later, raise the budget or SCENGEN_WORKERS"

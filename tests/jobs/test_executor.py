@@ -141,3 +141,14 @@ def test_a_cancelled_call_takes_its_child_and_a_child_retires_after_its_calls(
     while _alive(sleeper) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not _alive(sleeper)
+
+
+def test_a_budget_too_small_to_start_does_not_blame_busy_workers() -> None:
+    """With every worker free, a budget that runs out before the call starts says so."""
+    executor = LocalExecutor(2)
+
+    async def work() -> None:
+        with pytest.raises(BudgetExceeded, match="budget of 0 s and was stopped before it"):
+            await executor.run(os.getpid, (), 0.0, "the call")
+
+    _on(executor, work)
