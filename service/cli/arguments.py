@@ -24,6 +24,7 @@ if TYPE_CHECKING:  # the network and the test-case load sumolib, numpy and pydan
     from service.core.testcase import TestCase
 
 CONTROLS = [c.value for c in ControlType]
+COMMAND_BUDGET = 300.0  # s: the budget of a command whose work has no budget of its own
 
 NETWORK = (
     arg(
@@ -118,6 +119,33 @@ NETWORK_FILE = arg(
 TESTCASE = arg("testcase", type=Path, metavar="TESTCASE", help="a test-case JSON file")
 JUNIT = arg("--junit", type=Path, metavar="FILE", writes="file", help="also write JUnit XML here")
 TOKEN = arg("--token", metavar="T", help="the server's API token (or SCENGEN_TOKEN)")
+
+
+def seconds(text: str) -> float:
+    """A budget: a number of seconds above 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: a number of seconds above 0")
+    return value
+
+
+def budget(default: float, what: str) -> Argument:
+    """``--budget SECONDS``: the time ``what`` may take (service.cli.budgeted)."""
+    return arg(
+        "--budget",
+        type=seconds,
+        default=default,
+        metavar="SECONDS",
+        help=f"{what} (default {default:g} s); it is stopped after it, exit 3",
+    )
+
+
+def by_budget(args: argparse.Namespace) -> tuple[float, str]:
+    """A command's limit that is its ``--budget``."""
+    return args.budget, "--budget"
 
 
 def output(metavar: str, help: str | None = None, **options: Any) -> Argument:

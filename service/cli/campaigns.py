@@ -11,9 +11,12 @@ from pathlib import Path
 from urllib.parse import quote
 
 from service.cli.arguments import (
+    COMMAND_BUDGET,
     NETWORK,
     SIGNALS,
     TOKEN,
+    budget,
+    by_budget,
     controllers_named,
     output,
     signals_program,
@@ -200,9 +203,11 @@ def campaign(args: argparse.Namespace) -> int:
     arg("--server", metavar="URL", help="the server of JOB"),
     TOKEN,
     output("FILE", required=True),
+    budget(COMMAND_BUDGET, "time for the whole command"),
     description="SOURCE is a folder `scengen campaign` wrote, or a job id on a server "
     "(--server): the report is the results browser with the campaign's data inside; "
     "it opens offline.",
+    limit=by_budget,
 )
 def report(args: argparse.Namespace) -> int:
     if args.server is None:

@@ -13,7 +13,16 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from service.cli import campaigns, cosim, exports, judging, networks, servers, testcases
+from service.cli import (
+    budgeted,
+    campaigns,
+    cosim,
+    exports,
+    judging,
+    networks,
+    servers,
+    testcases,
+)
 from service.cli.output import (
     EXIT_BAD_INPUT,
     EXIT_INTERRUPTED,
@@ -96,6 +105,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         for destination, what in args.writes:  # before any work: nothing computed in vain
             if getattr(args, destination) is not None:
                 check_writable(getattr(args, destination), what)
+        if args.limit is not None and not budgeted.in_command_child():
+            return budgeted.run_in_child(Parser.given, args)
         code: int = args.run(args)
         return code
     except BrokenPipeError:  # the reader (head, less) went away: not an error

@@ -4,12 +4,25 @@ connected as a second TraCI client and judged by the checker (docs/cosim.md)."""
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 
 from service.cli.arguments import JUNIT, NETWORK_FILE, TESTCASE, read_input, testcase_intersection
+from service.cli.judging import JUDGING
 from service.cli.output import report_verdict
 from service.cli.table import arg, command
 from service.core.names import COSIM_BUDGET, COSIM_WAIT
+
+
+def cosim_limit(args: argparse.Namespace) -> tuple[float, str]:
+    """``cosim``'s budget: the wait, the run and ``JUDGING`` (a value the command refuses
+    counts as its default here: the refusal comes at once)."""
+
+    def given(value: float, default: float) -> float:
+        return value if math.isfinite(value) and value > 0 else default
+
+    seconds = given(args.wait, COSIM_WAIT) + given(args.budget, COSIM_BUDGET) + JUDGING
+    return seconds, f"--wait, --budget and {JUDGING:g} s to load and judge"
 
 
 @command(
@@ -35,6 +48,7 @@ from service.core.names import COSIM_BUDGET, COSIM_WAIT
     "connection and the ego's trajectory is judged as `evaluate` judges it. Exit codes: 0 "
     "pass, 1 fail, 2 bad input, 3 SUMO failed or the budget ran out, 4 the client never came, "
     "left before the end or took the ego off its route (docs/cosim.md).",
+    limit=cosim_limit,
 )  # fmt: skip
 def cosim(args: argparse.Namespace) -> int:
     from service.core.sim.cosim import cosimulate_testcase

@@ -155,8 +155,8 @@ def evaluate_levels(
     the ego-only level (which has no certificates) leaves its cell empty; ``on_verdict``
     hears ``NAME / CONTROLLER: pass`` (``FAIL``, ``(none)``) after each."""
     from service.core.budget import WarmWorker
+    from service.core.names import REPLAY_BUDGET
     from service.core.sim.controllers import CertificateDriver, resolve_driver
-    from service.core.sim.replay import REPLAY_BUDGET
     from service.core.testcase import testcase_level
 
     drivers = [resolve_driver(name) for name in controllers]  # bad names fail first

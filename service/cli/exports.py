@@ -8,7 +8,16 @@ import sys
 import time
 from typing import TYPE_CHECKING
 
-from service.cli.arguments import NETWORK_FILE, TESTCASE, output, read_input, testcase_intersection
+from service.cli.arguments import (
+    COMMAND_BUDGET,
+    NETWORK_FILE,
+    TESTCASE,
+    budget,
+    by_budget,
+    output,
+    read_input,
+    testcase_intersection,
+)
 from service.cli.output import EXIT_OK, StepProgress, make_folder, output_file, progress
 from service.cli.table import arg, command
 from service.core.errors import InvalidInput
@@ -32,6 +41,7 @@ if TYPE_CHECKING:  # Step 1's samples (libsumo's module) load when a picture is 
         "(1.0, 20 Hz, the CARLA town by name)",
     ),
     NETWORK_FILE,
+    budget(COMMAND_BUDGET, "time for the whole command"),
     description="--format sumo (default): writes into DIR the network, the test-case "
     "JSON, a README, run.py (the replay of `scengen evaluate`: python run.py --controller "
     "NAME writes the ego's FCD) with its plan, vehicle types and routes, and a .sumocfg "
@@ -41,6 +51,7 @@ if TYPE_CHECKING:  # Step 1's samples (libsumo's module) load when a picture is 
     "under test; at a signalized junction the signal program as a "
     "TrafficSignalController over the network's signal heads), one .xosc per certificate "
     "and verdict-rules.md; --flavour carla for CARLA's ScenarioRunner.",
+    limit=by_budget,
 )
 def export(args: argparse.Namespace) -> int:
     from service.core.export.bundle import export_bundle
@@ -82,9 +93,11 @@ def export(args: argparse.Namespace) -> int:
         help="write an animated GIF of the cars moving instead (FILE must end in .gif)",
     ),
     NETWORK_FILE,
+    budget(COMMAND_BUDGET, "time for the whole command, an evaluation with --controller included"),
     description="Draws the intersection with every car's path, the certificates (green "
     "solvability, red complexity) and a time-distance panel with the events. With "
     "--controller, the ego's path from that evaluation and its verdict instead.",
+    limit=by_budget,
 )
 def plot(args: argparse.Namespace) -> int:
     suffixes = (".gif",) if args.animate else (".png", ".svg")

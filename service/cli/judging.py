@@ -12,11 +12,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from service.cli.arguments import (
+    COMMAND_BUDGET,
     JUNIT,
     NETWORK_FILE,
     TESTCASE,
+    budget,
+    by_budget,
     controllers_named,
     read_input,
+    seconds,
     testcase_intersection,
 )
 from service.cli.output import (
@@ -36,9 +40,12 @@ from service.cli.output import (
 )
 from service.cli.table import arg, command
 from service.core.errors import InvalidInput, ScengenError
+from service.core.names import REPLAY_BUDGET
 
 if TYPE_CHECKING:
     from service.core.checker.verdict import Verdict
+
+JUDGING = 10.0  # s an evaluation may take beside its replay (reading, loading, judging)
 
 
 @command(
@@ -57,6 +64,8 @@ if TYPE_CHECKING:
     JUNIT,
     arg("--json", action="store_true", help="print the verdict as JSON"),
     NETWORK_FILE,
+    budget(COMMAND_BUDGET, "time for the whole command"),
+    limit=by_budget,
 )
 def check(args: argparse.Namespace) -> int:
     from service.core.checker.check import check_testcase
@@ -68,6 +77,14 @@ def check(args: argparse.Namespace) -> int:
         testcase, ego, args.controller or args.ego.stem, testcase_intersection(testcase, args)
     )
     return report_verdict(verdict, args.json, args.junit)
+
+
+def evaluate_limit(args: argparse.Namespace) -> tuple[float, str]:
+    """``evaluate``'s budget: each replay's ``--budget`` and ``JUDGING`` for each."""
+    evaluations = len(_testcase_files(args.testcases)) * len(args.controller or ["sumo"])
+    return (args.budget + JUDGING) * evaluations, (
+        f"--budget {args.budget:g} s and {JUDGING:g} s to judge for each of {evaluations} "
+        "evaluations")  # fmt: skip
 
 
 @command(
@@ -90,10 +107,11 @@ def check(args: argparse.Namespace) -> int:
     arg("--json", action="store_true", help="print the verdicts as JSON"),
     arg(
         "--budget",
-        type=float,
-        default=60.0,
+        type=seconds,
+        default=REPLAY_BUDGET,
         metavar="SECONDS",
-        help="time budget of each replay (default 60 s)",
+        help=f"time budget of each replay (default {REPLAY_BUDGET:g} s; the command's: "
+        f"{JUDGING:g} s more for each)",
     ),
     arg(
         "--rss-params",
@@ -109,6 +127,7 @@ def check(args: argparse.Namespace) -> int:
         f"{controllers_named()}, or a user controller as module:attribute (NAME+rss: under the "
         "RSS guard)."
     ),
+    limit=evaluate_limit,
 )
 def evaluate(args: argparse.Namespace) -> int:
     from service.core.checker.check import testcase_label

@@ -8,7 +8,14 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from service.cli.arguments import NETWORK, SIGNALS, signals_program
+from service.cli.arguments import (
+    COMMAND_BUDGET,
+    NETWORK,
+    SIGNALS,
+    budget,
+    by_budget,
+    signals_program,
+)
 from service.cli.output import EXIT_OK, output_file, print_table
 from service.cli.table import arg, command
 from service.core.names import bundled_networks
@@ -44,6 +51,8 @@ def networks(args: argparse.Namespace) -> int:
         writes="file",
         help="also draw it to FILE (.png/.svg)",
     ),
+    budget(COMMAND_BUDGET, "time for the whole command"),
+    limit=by_budget,
 )
 def intersection(args: argparse.Namespace) -> int:
     from service.core.network import load_intersection, with_signals

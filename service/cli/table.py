@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from typing import Any, Literal, NoReturn, Protocol
 
 Handler = Callable[[argparse.Namespace], int]  # a command's work: its exit code
+# a command's budget from its arguments: seconds, and how they come about (``--budget``)
+Limit = Callable[[argparse.Namespace], tuple[float, str]]
 Later = Callable[[], str]  # a help text or description, written when the help is shown
 
 
@@ -66,13 +68,15 @@ class OneOf:
 
 @dataclass(frozen=True)
 class Command:
-    """A subcommand: ``scengen NAME ARGUMENTS``, run by ``run``."""
+    """A subcommand: ``scengen NAME ARGUMENTS``, run by ``run``; with a ``limit``, in a
+    child process stopped at that budget (service.cli.budgeted)."""
 
     name: str
     help: str
     run: Handler
     arguments: tuple[Argument | OneOf, ...]
     description: str | Later | None = None
+    limit: Limit | None = None
 
 
 def command(
@@ -80,15 +84,17 @@ def command(
     help: str,
     *arguments: Argument | OneOf | Sequence[Argument],
     description: str | Later | None = None,
+    limit: Limit | None = None,
 ) -> Callable[[Handler], Command]:
     """Declare the handler below as the command ``name``; a tuple of arguments (a shared
-    group) stands for its members, in order."""
+    group) stands for its members, in order. ``limit``: the command's budget (its work
+    runs in a child stopped at it)."""
     flat: list[Argument | OneOf] = []
     for given in arguments:
         flat += [given] if isinstance(given, Argument | OneOf) else list(given)
 
     def declare(run: Handler) -> Command:
-        return Command(name, help, run, tuple(flat), description)
+        return Command(name, help, run, tuple(flat), description, limit)
 
     return declare
 
@@ -96,8 +102,8 @@ def command(
 def build_parser(commands: Sequence[Command], **options: Any) -> argparse.ArgumentParser:
     """The parser of a table of commands, in the table's order (the order of ``--help``);
     each parsed namespace carries its handler (``run``), its command's parser (``usage``,
-    for usage errors found after parsing) and the paths it writes (``writes``: destination
-    and file or folder)."""
+    for usage errors found after parsing), the paths it writes (``writes``: destination
+    and file or folder) and its budget (``limit``, or None)."""
     parser = Parser(**options)
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for entry in commands:
@@ -107,7 +113,7 @@ def build_parser(commands: Sequence[Command], **options: Any) -> argparse.Argume
         )
         sub.later_description = given if callable(given) else None
         writes = [written for argument in entry.arguments for written in argument.add_to(sub)]
-        sub.set_defaults(run=entry.run, usage=sub, writes=tuple(writes))
+        sub.set_defaults(run=entry.run, usage=sub, writes=tuple(writes), limit=entry.limit)
     return parser
 
 

@@ -11,10 +11,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from service.cli.arguments import (
+    COMMAND_BUDGET,
     NETWORK,
     NETWORK_FILE,
     SIGNALS,
     TESTCASE,
+    budget,
+    by_budget,
     distance_or_auto,
     locate_network,
     output,
@@ -22,7 +25,13 @@ from service.cli.arguments import (
     signals_program,
     testcase_intersection,
 )
-from service.cli.examples import EXAMPLES, evaluate_levels, run_example, write_testcase
+from service.cli.examples import (
+    EXAMPLES,
+    WORKER_SLACK,
+    evaluate_levels,
+    run_example,
+    write_testcase,
+)
 from service.cli.output import EXIT_OK, StepProgress, emit, output_file, print_table, progress
 from service.cli.table import arg, command
 from service.core.campaign.paper_table import PAPER_CONTROLLERS
@@ -30,6 +39,7 @@ from service.core.names import (
     DEFAULT_START_DISTANCE,
     DEFAULT_START_SPEED,
     MAX_COUNT,
+    REPLAY_BUDGET,
     bundled_networks,
 )
 
@@ -69,6 +79,8 @@ if TYPE_CHECKING:  # the generator, Step 1 and the test-case's models load in th
         "as in '4way-stop C S2C_1:C2W_1 level 0')",
     ),
     output("FILE", "write here, not stdout"),
+    budget(COMMAND_BUDGET, "time for the whole command"),
+    limit=by_budget,
 )
 def new(args: argparse.Namespace) -> int:
     from service.core.testcase import new_testcase, readable_name, renamed
@@ -117,6 +129,8 @@ def new(args: argparse.Namespace) -> int:
     arg("--json", action="store_true", help="print samples and events as JSON"),
     arg("--plot", type=Path, metavar="FILE", writes="file", help="draw the drive to FILE"),
     NETWORK_FILE,
+    budget(COMMAND_BUDGET, "time for the whole command"),
+    limit=by_budget,
 )
 def drive(args: argparse.Namespace) -> int:
     from service.core.motion.events import compute_events
@@ -208,13 +222,7 @@ def extension_count(text: str) -> int:
         "intersection` lists them (C_c0+; repeatable, mixable with --add)",
     ),
     arg("--seed", type=int, default=0, help="seed of the search (default 0)"),
-    arg(
-        "--budget",
-        type=float,
-        default=60.0,
-        metavar="SECONDS",
-        help="total time for the extension (default 60 s)",
-    ),
+    budget(60.0, "time for the whole command, the network's loading and the search included"),
     arg(
         "--start-distance",
         action="append",
@@ -240,6 +248,7 @@ def extension_count(text: str) -> int:
     ),
     output("FILE", "write here"),
     NETWORK_FILE,
+    limit=by_budget,
 )
 def extend(args: argparse.Namespace) -> int:
     from service.core.generator.extension import extend_testcase
@@ -275,8 +284,8 @@ def extend(args: argparse.Namespace) -> int:
     if args.count > 1:
         return _extend_variants(args, old, start_distance, intersection, network_file, started)
     extension = extend_testcase(
-        old, args.add, args.seed, args.budget, start_distance, progress(started), intersection,
-        walks=args.add_pedestrian,
+        old, args.add, args.seed, args.budget, start_distance, progress(started),
+        intersection, walks=args.add_pedestrian,
     )  # fmt: skip
     name = args.name or readable_name(extension.testcase, name_stem(old.name))
     extended = renamed(extension.testcase, name)
@@ -305,7 +314,8 @@ def _extend_variants(
     from service.core.generator.variety import describe_variants
 
     extensions = extend_testcases(
-        old, args.add, args.count, args.seed, args.budget, start_distance, progress(started),
+        old, args.add, args.count, args.seed, args.budget, start_distance,
+        progress(started),
         intersection, walks=args.add_pedestrian,
     )  # fmt: skip
     found = extensions.found
@@ -374,6 +384,17 @@ def controller_list(text: str) -> tuple[str, ...]:
     return names
 
 
+def example_limit(args: argparse.Namespace) -> tuple[float, str]:
+    """``example``'s budget: each extension's ``--budget``, and each replay's."""
+    chosen = EXAMPLES[args.name]
+    controllers = () if args.no_evaluate else (args.controllers or chosen.controllers)
+    replays = (len(chosen.steps) + 1) * len(controllers)
+    replay = REPLAY_BUDGET + WORKER_SLACK
+    seconds = args.budget * len(chosen.steps) + replay * replays
+    return seconds, (f"--budget {args.budget:g} s for each of {len(chosen.steps)} extensions "
+                     f"and {replay:g} s for each of {replays} replays")  # fmt: skip
+
+
 @command(
     "example",
     "run one of the paper's experiments: a chain of extensions, then the paper's table",
@@ -385,13 +406,7 @@ def controller_list(text: str) -> tuple[str, ...]:
     ),
     output("DIR", "folder for the test-cases (default examples-out)", default=Path("examples-out")),
     arg("--seed", type=int, default=0),
-    arg(
-        "--budget",
-        type=float,
-        default=120.0,
-        metavar="SECONDS",
-        help="budget of each extension (default 120 s)",
-    ),
+    budget(120.0, "time for each extension"),
     arg(
         "--controllers",
         type=controller_list,
@@ -408,6 +423,7 @@ def controller_list(text: str) -> tuple[str, ...]:
     "failed (FAIL LAW CAR for a rule, FAIL collision CAR, FAIL goal, FAIL error). Exit 0 "
     "when the chain was made and judged, whatever the verdicts: they are the experiment's "
     "findings.",
+    limit=example_limit,
 )
 def example(args: argparse.Namespace) -> int:
     from service.core.sim.controllers import resolve_driver

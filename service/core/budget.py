@@ -196,7 +196,7 @@ def outcome_of(answer: tuple[str, Any], what: str) -> Any:
     return payload
 
 
-def _die_with_parent() -> None:
+def die_with_parent() -> None:
     """On Linux, be killed when the process that started this one dies (a server or worker
     killed with -9 must not leave its solver children running)."""
     if sys.platform.startswith("linux"):
@@ -365,9 +365,16 @@ class WarmPool:
 STOP_POLL = 0.2  # seconds between looks at a call's stop event
 
 
-def read_frame(fd: int, deadline: float, stop: threading.Event | None = None) -> bytes:
+Echo = dict[int, Callable[[bytes], None]]  # a child's output pipes, each to where it goes
+
+
+def read_frame(
+    fd: int, deadline: float, stop: threading.Event | None = None, echo: Echo | None = None
+) -> bytes:
     """One frame from ``fd``; TimeoutError at the deadline, EOFError when the child is gone,
-    CallStopped soon after ``stop`` is set."""
+    CallStopped soon after ``stop`` is set. ``echo``: other pipes of the child, whose output
+    is passed on as it comes, and all of it that was written before the frame."""
+    echo = dict(echo or {})
     data = b""
     size: int | None = None
     while size is None or len(data) < FRAME.size + size:
@@ -377,7 +384,9 @@ def read_frame(fd: int, deadline: float, stop: threading.Event | None = None) ->
         if stop is not None and stop.is_set():
             raise CallStopped
         wait = left if stop is None else min(left, STOP_POLL)
-        if not select.select([fd], [], [], wait)[0]:
+        ready = select.select([fd, *echo], [], [], wait)[0]
+        _pass_on(echo, ready)
+        if fd not in ready:
             continue
         chunk = os.read(fd, 1 << 20)
         if not chunk:
@@ -385,10 +394,23 @@ def read_frame(fd: int, deadline: float, stop: threading.Event | None = None) ->
         data += chunk
         if size is None and len(data) >= FRAME.size:
             (size,) = FRAME.unpack(data[: FRAME.size])
+    while echo and (ready := select.select(list(echo), [], [], 0)[0]):  # written before it
+        _pass_on(echo, ready)
     return data[FRAME.size :]
 
 
-def _answer(request: bytes) -> bytes:
+def _pass_on(echo: Echo, ready: Sequence[int]) -> None:
+    """What the ``ready`` pipes of ``echo`` hold, to where each goes; a closed one is
+    dropped from ``echo``."""
+    for pipe in [r for r in ready if r in echo]:
+        chunk = os.read(pipe, 1 << 16)
+        if chunk:
+            echo[pipe](chunk)
+        else:
+            del echo[pipe]
+
+
+def answer_call(request: bytes) -> bytes:
     """Run one pickled call; the pickled outcome."""
     module, name, args = pickle.loads(request)
     try:
@@ -409,7 +431,7 @@ def _answer(request: bytes) -> bytes:
     return pickle.dumps(answer)
 
 
-def _limit_memory() -> None:
+def limit_memory() -> None:
     """Cap this worker's data segment (heap and private mappings: what a huge allocation
     takes) at ``SCENGEN_WORKER_MEMORY_MB`` (default 4096; 0: no cap), so that one call that
     asks for gigabytes fails alone instead of taking the machine's memory."""
@@ -433,8 +455,8 @@ def enter_child() -> None:
     """This process is a budget child: die with the parent, cap the memory, and run nested
     calls here (the flag is set on the importable module, which the calls import: this file
     runs as ``__main__``)."""
-    _die_with_parent()
-    _limit_memory()
+    die_with_parent()
+    limit_memory()
     vars(importlib.import_module("service.core.budget"))["INSIDE_CHILD"] = True
 
 
@@ -444,7 +466,7 @@ def _serve() -> None:
     request = sys.stdin.buffer.read()
     out = sys.stdout.buffer
     sys.stdout = sys.stderr  # anything the call prints must not corrupt the answer
-    out.write(_answer(request))
+    out.write(answer_call(request))
     out.flush()
 
 
@@ -455,7 +477,7 @@ def _serve_many() -> None:
     sys.stdout = sys.stderr
     while header := source.read(FRAME.size):
         (size,) = FRAME.unpack(header)
-        answer = _answer(source.read(size))
+        answer = answer_call(source.read(size))
         out.write(FRAME.pack(len(answer)) + answer)
         out.flush()
 

@@ -19,6 +19,7 @@ DEFAULT_START_DISTANCE = 30.0  # m: the ego's automatic start, where the road is
 DEFAULT_START_SPEED = 8.0  # m/s: the ego's automatic start speed, where its lane allows it
 MAX_COUNT = 50  # distinct extensions one call (CLI, API, batch item) asks for at most
 COSIM_WAIT = 60.0  # seconds the driving stack may take to connect
+REPLAY_BUDGET = 60.0  # seconds for one evaluation
 COSIM_BUDGET = 600.0  # seconds the run may take once it has connected
 
 

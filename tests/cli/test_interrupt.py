@@ -33,6 +33,8 @@ def interrupted(args: list[str], after: str, cwd: Path) -> tuple[int, str, str]:
             break
     else:
         raise AssertionError(f"{after!r} never came: {''.join(seen)}")
+    started = descendants(child.pid)  # the command's child too, in a session of its own
+    assert started, "the command's work runs in a child of its own"
     os.killpg(child.pid, signal.SIGINT)
     out, err = child.communicate(timeout=60)
     deadline = time.monotonic() + 10
@@ -40,11 +42,34 @@ def interrupted(args: list[str], after: str, cwd: Path) -> tuple[int, str, str]:
         try:
             os.killpg(child.pid, 0)
         except ProcessLookupError:
-            break
+            if not any(alive(pid) for pid in started):
+                break
         time.sleep(0.1)
     else:
         raise AssertionError("a process of the interrupted command is still running")
     return child.returncode, out, "".join(seen) + err
+
+
+def descendants(pid: int) -> set[int]:
+    """The processes ``pid`` started, and theirs (Linux's /proc)."""
+    found: set[int] = set()
+    for task in Path(f"/proc/{pid}/task").glob("*"):
+        try:
+            children = (task / "children").read_text().split()
+        except OSError:
+            continue
+        for child in map(int, children):
+            found |= {child, *descendants(child)}
+    return found
+
+
+def alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie does not: it has exited)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
 
 
 @pytest.fixture(scope="module")

@@ -24,11 +24,17 @@ HEAVY = (
     "service.api", "service.jobs", "service.settings", "service.store", "service.pictures",
 )  # fmt: skip
 MARK = "--imported--"
+IN_CHILD = "--as-the-child"  # the probe runs the command as the command's child does
 PROBE = f"""
-import json, sys
+import json, os, sys
 from service.cli import main
+from service.cli.budgeted import run_command
 try:
-    code = main(sys.argv[1:])
+    if sys.argv[1:2] == [{IN_CHILD!r}]:
+        code, _ = run_command(dict(argv=sys.argv[2:], cwd=os.getcwd(), environ=dict(os.environ),
+                                   ttys=(False, False), columns=80))
+    else:
+        code = main(sys.argv[1:])
 except SystemExit as stop:
     code = stop.code
 sys.stdout.flush()
@@ -100,8 +106,16 @@ def test_a_usage_error_loads_nothing_heavy(argv: tuple[str, ...], says: str) -> 
     assert says in err.splitlines()[-1]
 
 
-def test_the_probe_sees_a_command_that_loads_the_network() -> None:
-    """The check above is not blind: a command that works loads what it needs."""
+def test_a_command_that_works_loads_nothing_heavy_either() -> None:
+    """Its work runs in the command's child (service.cli.budgeted)."""
     code, loaded, out, _ = start("intersection", "4way-stop", "--json")
+    assert code == 0 and json.loads(out)["junction"] == "C"
+    assert loaded == []
+
+
+def test_the_probe_sees_a_command_that_loads_the_network() -> None:
+    """The checks above are not blind: the command's work, run where the child runs it,
+    loads what it needs."""
+    code, loaded, out, _ = start(IN_CHILD, "intersection", "4way-stop", "--json")
     assert code == 0 and json.loads(out)["junction"] == "C"
     assert {"sumolib", "service.core.network"} <= set(loaded)

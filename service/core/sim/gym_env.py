@@ -53,9 +53,10 @@ from numpy.typing import NDArray
 from service.core.budget import FRAME, kill_and_reap, read_frame
 from service.core.checker.verdict import Verdict
 from service.core.errors import BudgetExceeded, InvalidInput, ScengenError
+from service.core.names import REPLAY_BUDGET
 from service.core.network import Intersection
 from service.core.sim.controllers import LEADER_LOOKAHEAD, Observation, Vehicle
-from service.core.sim.replay import REPLAY_BUDGET, Evaluation, judge, prepare_replay
+from service.core.sim.replay import Evaluation, judge, prepare_replay
 from service.core.testcase import TestCase, load_testcase_intersection, read_testcase
 
 CHILD_COMMAND = [sys.executable, "-m", "service.core.sim.replay_child"]

@@ -40,6 +40,7 @@ from service.core.motion.poses import (
     route_end,
     start_distance_of,
 )
+from service.core.names import REPLAY_BUDGET
 from service.core.network import Intersection, SignalProgram, parsed_network
 from service.core.sim.controllers import (
     BUILT_IN,
@@ -57,7 +58,6 @@ from service.core.sumo import run as sumo_run
 from service.core.sumo.rss_guard import RSS_SUFFIX, GuardError, dynamics_from
 from service.core.testcase import TestCase, load_testcase_intersection
 
-REPLAY_BUDGET = 60.0  # seconds for one evaluation
 TYPES_FILE = "testcase.types.xml"
 ROUTES_FILE = "testcase.all.rou.xml"
 SIGNALS_FILE = "testcase.signals.xml"  # the test-case's signal program, at a signalized junction

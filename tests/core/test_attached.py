@@ -1,0 +1,117 @@
+"""The command's child (service.core.attached): its output is the caller's, in order and
+before its answer; its budget kills it with every process it started; Ctrl-C is passed on
+and the child's own answer to it comes back; a crash retires it and the next call works."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from service.core.attached import AttachedWorker
+from service.core.errors import BudgetExceeded, ScengenError
+
+
+def talk(lines: int) -> str:
+    for number in range(lines):
+        print(f"out {number}")
+        print(f"err {number}", file=sys.stderr)
+    sys.stdout.write("no newline, ä")  # written before the answer: it comes first
+    return "done"
+
+
+def sleep_with_a_grandchild(pid_file: str) -> None:
+    sleeper = subprocess.Popen(["sleep", "60"])
+    Path(pid_file).write_text(str(sleeper.pid))
+    time.sleep(60)
+
+
+def wait_for_ctrl_c(ready: str) -> str:
+    Path(ready).touch()
+    try:
+        time.sleep(60)
+    except KeyboardInterrupt:
+        print("stopping as asked", file=sys.stderr)
+        return "interrupted"
+    return "slept"
+
+
+def crash() -> None:
+    raise RuntimeError("boom")
+
+
+def test_the_childs_output_is_the_callers_in_order_before_its_answer(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    worker = AttachedWorker()
+    try:
+        assert worker.call(talk, (500,), 30, "talk") == "done"
+        captured = capsys.readouterr()
+        assert captured.out.splitlines() == [f"out {n}" for n in range(500)] + ["no newline, ä"]
+        assert captured.err.splitlines() == [f"err {n}" for n in range(500)]
+        assert worker.call(talk, (1,), 30, "talk") == "done"  # the same child, warm
+        assert capsys.readouterr().out == "out 0\nno newline, ä"
+    finally:
+        worker.close()
+
+
+def test_a_call_over_its_budget_is_killed_with_what_it_started(tmp_path: Path) -> None:
+    worker = AttachedWorker()
+    pid_file = tmp_path / "pid"
+    try:
+        with pytest.raises(BudgetExceeded, match=r"sleeper did not finish within its budget"):
+            worker.call(sleep_with_a_grandchild, (str(pid_file),), 2, "sleeper")
+        grandchild = int(pid_file.read_text())
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline and _alive(grandchild):
+            time.sleep(0.05)
+        assert not _alive(grandchild)
+    finally:
+        worker.close()
+
+
+def test_ctrl_c_is_passed_on_and_the_childs_answer_comes_back(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert threading.current_thread() is threading.main_thread()
+    worker = AttachedWorker()
+    ready = tmp_path / "ready"
+
+    def press_ctrl_c() -> None:
+        while not ready.exists():
+            time.sleep(0.02)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    presser = threading.Thread(target=press_ctrl_c)
+    presser.start()
+    try:
+        assert worker.call(wait_for_ctrl_c, (str(ready),), 30, "waiter") == "interrupted"
+        assert "stopping as asked" in capsys.readouterr().err
+        assert worker.call(talk, (0,), 30, "talk") == "done"  # a fresh child
+    finally:
+        presser.join()
+        worker.close()
+
+
+def test_a_crash_retires_the_child_and_the_next_call_works() -> None:
+    worker = AttachedWorker()
+    try:
+        with pytest.raises(ScengenError, match="crashed: RuntimeError: boom"):
+            worker.call(crash, (), 30, "crasher")
+        assert worker.call(talk, (0,), 30, "talk") == "done"
+    finally:
+        worker.close()
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
