@@ -67,7 +67,11 @@ def exported_cases(tmp_path_factory: pytest.TempPathFactory, worker_id: str) -> 
     """Every level of every example, a queue and two real-map chains (tests.helpers'
     every_exported_case): grown once per test run, shared by the export tests of every
     worker."""
+    from service.core.testcase import network_ref
     from tests.helpers import every_exported_case
     from tests.shared import made_once
 
-    return made_once("exported-cases", every_exported_case, tmp_path_factory, worker_id)
+    cases = made_once("exported-cases", every_exported_case, tmp_path_factory, worker_id)
+    for network in (TOWN05, TOWN07):  # the maps the worker that made them read, read here
+        network_ref(network)
+    return cases

@@ -23,7 +23,7 @@ import io
 import os
 import shutil
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -36,9 +36,12 @@ COMMANDS = AttachedWorker()
 _in_child = False  # true while this process runs a command for run_in_child
 
 
-def run_in_child(argv: Sequence[str], args: argparse.Namespace) -> int:
-    """The command ``argv`` (parsed as ``args``) run in the command child; its exit code.
-    BudgetExceeded when it ran out of its budget."""
+def run_in_child(
+    argv: Sequence[str], args: argparse.Namespace, run_command: Callable[..., tuple[int, bool]]
+) -> int:
+    """The command ``argv`` (parsed as ``args``) run in the command child by
+    ``run_command(request)`` (``as_the_command`` with ``main``, a module-level function the
+    child can import); its exit code. BudgetExceeded when it ran out of its budget."""
     limit, how = args.limit(args)
     what = f"scengen {args.command}"
     request = {
@@ -65,12 +68,13 @@ def over_budget(what: str, limit: float, how: str) -> str:
             "stopped; a larger --budget gives it more time")  # fmt: skip
 
 
-def run_command(request: dict[str, Any]) -> tuple[int, bool]:
+def as_the_command(
+    request: dict[str, Any], main: Callable[[Sequence[str]], int]
+) -> tuple[int, bool]:
     """Child side: the command of ``request`` as ``main`` runs it, in the caller's folder
     and environment, its output the caller's; its exit code, and whether it exited
     (SystemExit: argparse's usage errors)."""
     global _in_child
-    from service.cli.commands import main
 
     os.chdir(request["cwd"])
     scratch = os.environ.get("TMPDIR")

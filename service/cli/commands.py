@@ -106,7 +106,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             if getattr(args, destination) is not None:
                 check_writable(getattr(args, destination), what)
         if args.limit is not None and not budgeted.in_command_child():
-            return budgeted.run_in_child(Parser.given, args)
+            return budgeted.run_in_child(Parser.given, args, run_command)
         code: int = args.run(args)
         return code
     except BrokenPipeError:  # the reader (head, less) went away: not an error
@@ -125,6 +125,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         print(f"scengen: stopped (Ctrl-C); {again}", file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+def run_command(request: dict[str, Any]) -> tuple[int, bool]:
+    """The command's child runs the command here (service.cli.budgeted)."""
+    return budgeted.as_the_command(request, main)
 
 
 if __name__ == "__main__":

@@ -28,7 +28,7 @@ IN_CHILD = "--as-the-child"  # the probe runs the command as the command's child
 PROBE = f"""
 import json, os, sys
 from service.cli import main
-from service.cli.budgeted import run_command
+from service.cli.commands import run_command
 try:
     if sys.argv[1:2] == [{IN_CHILD!r}]:
         code, _ = run_command(dict(argv=sys.argv[2:], cwd=os.getcwd(), environ=dict(os.environ),
