@@ -14,6 +14,8 @@ from xml.etree import ElementTree as ET
 
 import pytest
 
+from tests.processes import alive, descendants
+
 pytestmark = pytest.mark.slow
 
 
@@ -48,28 +50,6 @@ def interrupted(args: list[str], after: str, cwd: Path) -> tuple[int, str, str]:
     else:
         raise AssertionError("a process of the interrupted command is still running")
     return child.returncode, out, "".join(seen) + err
-
-
-def descendants(pid: int) -> set[int]:
-    """The processes ``pid`` started, and theirs (Linux's /proc)."""
-    found: set[int] = set()
-    for task in Path(f"/proc/{pid}/task").glob("*"):
-        try:
-            children = (task / "children").read_text().split()
-        except OSError:
-            continue
-        for child in map(int, children):
-            found |= {child, *descendants(child)}
-    return found
-
-
-def alive(pid: int) -> bool:
-    """Whether ``pid`` runs (a zombie does not: it has exited)."""
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"
 
 
 @pytest.fixture(scope="module")

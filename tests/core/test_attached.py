@@ -16,6 +16,7 @@ import pytest
 
 from service.core.attached import AttachedWorker
 from service.core.errors import BudgetExceeded, ScengenError
+from tests.processes import alive
 
 
 def talk(lines: int) -> str:
@@ -69,9 +70,9 @@ def test_a_call_over_its_budget_is_killed_with_what_it_started(tmp_path: Path) -
             worker.call(sleep_with_a_grandchild, (str(pid_file),), 2, "sleeper")
         grandchild = int(pid_file.read_text())
         deadline = time.monotonic() + 5
-        while time.monotonic() < deadline and _alive(grandchild):
+        while time.monotonic() < deadline and alive(grandchild):
             time.sleep(0.05)
-        assert not _alive(grandchild)
+        assert not alive(grandchild)
     finally:
         worker.close()
 
@@ -107,11 +108,3 @@ def test_a_crash_retires_the_child_and_the_next_call_works() -> None:
         assert worker.call(talk, (0,), 30, "talk") == "done"
     finally:
         worker.close()
-
-
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"
