@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from service.core.attached import AttachedWorker
-from service.core.errors import BudgetExceeded
+from service.core.errors import BudgetExceeded, MemoryExceeded
 
 KILL_GRACE = 2.0  # s after the budget: the command's own stops come first (budget + 2 s)
 
@@ -55,7 +55,11 @@ def run_in_child(
     }
     try:
         code, exits = COMMANDS.call(run_command, (request,), limit + KILL_GRACE, what)
-    except BudgetExceeded:  # killed, whatever it was doing
+    except MemoryExceeded as error:  # the child ran out of its memory cap
+        _remove_partial_files(args)
+        called = f"{run_command.__module__}.{run_command.__qualname__}"
+        raise MemoryExceeded(error.message.replace(called, what, 1)) from None
+    except BudgetExceeded:  # killed at the budget, whatever it was doing
         _remove_partial_files(args)
         raise BudgetExceeded(over_budget(what, limit, how)) from None
     if exits:  # a usage error found after parsing: argparse's exit, as without a child

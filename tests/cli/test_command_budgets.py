@@ -144,3 +144,22 @@ def test_the_child_serves_the_next_command_after_one_was_stopped(
     COMMANDS.close()  # as a kill leaves it
     assert cli.main(["drive", str(flicker), "--budget", "60"]) == 0
     assert "route S2C_0:C2N_0 (straight)" in capsys.readouterr().out
+
+
+def test_a_command_past_its_memory_cap_says_so_and_leaves_no_partial_file(
+    flicker: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:  # fmt: skip
+    """The command's child is capped as a worker is: 520 MB hold about half of the
+    animation's frames."""
+    gif = tmp_path / "a.gif"
+    monkeypatch.setenv("SCENGEN_WORKER_MEMORY_MB", "520")
+    COMMANDS.close()  # the cap is the child's from its start: a fresh one
+    try:
+        assert cli.main(["plot", str(flicker), "-o", str(gif), "--animate"]) == 3
+    finally:
+        COMMANDS.close()
+    said = capsys.readouterr().err.strip().splitlines()[-1]
+    assert said == ("scengen: failed: scengen plot needed more memory than a worker may use "
+                    "(520 MB, SCENGEN_WORKER_MEMORY_MB)")  # fmt: skip
+    assert list(tmp_path.iterdir()) == []
