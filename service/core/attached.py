@@ -26,7 +26,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -48,6 +47,7 @@ from service.core.budget import (
     outcome_of,
     read_answer,
     read_frame,
+    scratch_folder,
 )
 from service.core.errors import BudgetExceeded
 
@@ -156,7 +156,7 @@ class AttachedWorker:
             self._process, self._scratch, self._owner = None, None, os.getpid()
         if self._process is None or self._process.poll() is not None:
             self._stop()
-            self._scratch = tempfile.mkdtemp(prefix="scengen-command-")
+            self._scratch = scratch_folder("command")
             self._calls = 0
             answers, written = os.pipe()
             try:

@@ -62,24 +62,49 @@ def run_with_budget(
     if INSIDE_CHILD:
         return run_here(function, args, budget, what)
     request = encode_call(function, args)
+    scratch = scratch_folder("call")
     try:
-        with tempfile.TemporaryDirectory(prefix="scengen-call-") as scratch:
-            result = subprocess.run(
-                CHILD_COMMAND,
-                input=request,
-                capture_output=True,
-                timeout=budget,
-                check=False,
-                env=child_environment(scratch),
-            )
+        result = subprocess.run(
+            CHILD_COMMAND,
+            input=request,
+            capture_output=True,
+            timeout=budget,
+            check=False,
+            env=child_environment(scratch),
+        )
     except subprocess.TimeoutExpired:
         raise BudgetExceeded(
             f"{what} did not finish within its budget of {budget:g} s and was stopped"
         ) from None
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
     return decode_outcome(result.stdout, result.stderr, what)  # type: ignore[no-any-return]
 
 
 CHILD_COMMAND = [sys.executable, "-m", "service.core.budget"]
+
+
+def scratch_folder(kind: str) -> str:
+    """A new folder for a child's temporary files, named for its kind and this process
+    (``scengen-KIND-PID-...``). The folders of the same kind whose process is gone are
+    removed first: a process that ended without its exit handlers (a Celery pool process
+    leaves by ``os._exit``, a kill -9) could not remove its children's."""
+    base = Path(tempfile.gettempdir())
+    for stale in base.glob(f"scengen-{kind}-*-*"):
+        owner = stale.name.split("-")[2]
+        if owner.isdigit() and not _runs(int(owner)):
+            shutil.rmtree(stale, ignore_errors=True)
+    return tempfile.mkdtemp(prefix=f"scengen-{kind}-{os.getpid()}-")
+
+
+def _runs(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's: running
+        return True
+    return True
 
 
 def child_environment(scratch: str) -> dict[str, str]:
@@ -282,7 +307,7 @@ class WarmWorker:
             self._stderr = None
         if self._process is None or self._process.poll() is not None:
             self._stop()
-            self._scratch = tempfile.mkdtemp(prefix="scengen-worker-")
+            self._scratch = scratch_folder("worker")
             self._stderr = Path(self._scratch, ".stderr").open("a+b")  # noqa: SIM115
             self._calls = 0
             self._process = subprocess.Popen(

@@ -19,7 +19,6 @@ import contextlib
 import os
 import shutil
 import signal
-import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -35,6 +34,7 @@ from service.core.budget import (
     leaves_child_sound,
     outcome_of,
     read_answer,
+    scratch_folder,
 )
 from service.core.errors import BudgetExceeded
 
@@ -171,7 +171,7 @@ class _WarmChild:
 
     @classmethod
     async def start(cls) -> _WarmChild:
-        scratch = tempfile.mkdtemp(prefix="scengen-worker-")
+        scratch = scratch_folder("worker")
         process = await asyncio.create_subprocess_exec(
             *WORKER_COMMAND,
             "--many",

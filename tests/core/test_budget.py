@@ -149,3 +149,25 @@ def test_a_child_killed_at_its_budget_leaves_no_temporary_files(warm: bool, tmp_
     left = Path(marker.read_text())
     assert left.name.startswith("half-done-") and not left.exists() and not left.parent.exists()
     worker.close()
+
+
+def test_the_scratch_of_a_process_that_is_gone_is_removed_by_the_next(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A Celery pool process leaves by os._exit (and a kill -9 runs no exit handler): its
+    children's folders stay; the next child's start removes them, not a living one's."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    ended = subprocess.Popen(["true"])  # a process that has ended: its pid is free
+    ended.wait()
+    stale = tmp_path / f"scengen-worker-{ended.pid}-abc"
+    (stale / "inner").mkdir(parents=True)
+    living = tmp_path / f"scengen-call-{os.getpid()}-def"
+    living.mkdir()
+    other = tmp_path / "not-ours"
+    other.mkdir()
+    worker = WarmWorker()
+    try:
+        assert worker.call(math.sqrt, (4.0,), 30, "sqrt") == 2.0
+    finally:
+        worker.close()
+    assert not stale.exists() and living.exists() and other.exists()
