@@ -139,7 +139,7 @@ def budget(default: float, what: str) -> Argument:
         type=seconds,
         default=default,
         metavar="SECONDS",
-        help=f"{what} (default {default:g} s); it is stopped after it, exit 3",
+        help=f"{what} (default {default:g} s); exit 3 when it runs out",
     )
 
 

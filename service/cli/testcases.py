@@ -222,7 +222,7 @@ def extension_count(text: str) -> int:
         "intersection` lists them (C_c0+; repeatable, mixable with --add)",
     ),
     arg("--seed", type=int, default=0, help="seed of the search (default 0)"),
-    budget(60.0, "time for the whole command, the network's loading and the search included"),
+    budget(60.0, "time for the search, after which the whole command is stopped within 2 s"),
     arg(
         "--start-distance",
         action="append",
