@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from service.core.attached import AttachedWorker
+from service.core.budget import memory_exceeded
 from service.core.errors import BudgetExceeded, MemoryExceeded
 
 KILL_GRACE = 2.0  # s after the budget: the command's own stops come first (budget + 2 s)
@@ -50,15 +51,13 @@ def run_in_child(
         "environ": dict(os.environ),
         "ttys": (_isatty(sys.stdout), _isatty(sys.stderr)),
         "columns": shutil.get_terminal_size().columns,
-        "limit": limit,
-        "how": how,
+        "what": what,
     }
     try:
         code, exits = COMMANDS.call(run_command, (request,), limit + KILL_GRACE, what)
-    except MemoryExceeded as error:  # the child ran out of its memory cap
+    except MemoryExceeded:  # the child ran out of its memory cap (said as the command's)
         _remove_partial_files(args)
-        called = f"{run_command.__module__}.{run_command.__qualname__}"
-        raise MemoryExceeded(error.message.replace(called, what, 1)) from None
+        raise
     except BudgetExceeded:  # killed at the budget, whatever it was doing
         _remove_partial_files(args)
         raise BudgetExceeded(over_budget(what, limit, how)) from None
@@ -95,6 +94,8 @@ def as_the_command(
         return main(request["argv"]), False
     except SystemExit as exit:
         return exit.code if isinstance(exit.code, int) else 1, True
+    except MemoryError:  # not the domain's: main lets it through
+        raise memory_exceeded(request["what"]) from None
     finally:
         sys.stdout.flush()
         sys.stderr.flush()

@@ -284,8 +284,8 @@ def extend(args: argparse.Namespace) -> int:
     if args.count > 1:
         return _extend_variants(args, old, start_distance, intersection, network_file, started)
     extension = extend_testcase(
-        old, args.add, args.seed, args.budget, start_distance, progress(started),
-        intersection, walks=args.add_pedestrian,
+        old, args.add, args.seed, args.budget, start_distance, progress(started), intersection,
+        walks=args.add_pedestrian,
     )  # fmt: skip
     name = args.name or readable_name(extension.testcase, name_stem(old.name))
     extended = renamed(extension.testcase, name)
@@ -314,8 +314,7 @@ def _extend_variants(
     from service.core.generator.variety import describe_variants
 
     extensions = extend_testcases(
-        old, args.add, args.count, args.seed, args.budget, start_distance,
-        progress(started),
+        old, args.add, args.count, args.seed, args.budget, start_distance, progress(started),
         intersection, walks=args.add_pedestrian,
     )  # fmt: skip
     found = extensions.found

@@ -157,10 +157,7 @@ def run_here(function: Callable[..., T], args: tuple[Any, ...], budget: float, w
     except ScengenError:
         raise
     except MemoryError:
-        limit = os.environ.get(MEMORY_VARIABLE, str(DEFAULT_MEMORY_MB))
-        raise MemoryExceeded(
-            f"{what} needed more memory than a worker may use ({limit} MB, {MEMORY_VARIABLE})"
-        ) from None
+        raise memory_exceeded(what) from None
     except Exception as exc:
         raise ScengenError(
             f"{what} crashed: {type(exc).__name__}: {exc}", traceback=traceback.format_exc()
@@ -169,6 +166,14 @@ def run_here(function: Callable[..., T], args: tuple[Any, ...], budget: float, w
         if alarm:
             signal.setitimer(signal.ITIMER_REAL, 0)
             signal.signal(signal.SIGALRM, previous)
+
+
+def memory_exceeded(what: str) -> MemoryExceeded:
+    """The error of ``what`` that failed to allocate under this worker's memory cap."""
+    limit = os.environ.get(MEMORY_VARIABLE, str(DEFAULT_MEMORY_MB))
+    return MemoryExceeded(
+        f"{what} needed more memory than a worker may use ({limit} MB, {MEMORY_VARIABLE})"
+    )
 
 
 def encode_call(function: Callable[..., Any], args: tuple[Any, ...]) -> bytes:
@@ -446,11 +451,7 @@ def answer_call(request: bytes) -> bytes:
     except ScengenError as exc:
         answer = ("error", exc)
     except MemoryError:
-        limit = os.environ.get(MEMORY_VARIABLE, str(DEFAULT_MEMORY_MB))
-        answer = ("error", MemoryExceeded(
-            f"{module}.{name} needed more memory than a worker may use ({limit} MB, "
-            f"{MEMORY_VARIABLE})"
-        ))  # fmt: skip
+        answer = ("error", memory_exceeded(f"{module}.{name}"))
     except BaseException as exc:  # report anything, the parent decides
         answer = ("crash", f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}")
     return pickle.dumps(answer)
