@@ -116,15 +116,22 @@ class AttachedWorker:
     def _interrupted(self, process: subprocess.Popen[bytes], echo: Echo) -> bytes:
         """Ctrl-C during a call: passed on to the child's process group; the child's answer,
         after which it retires (the interrupt may have landed anywhere in its work). A second
-        Ctrl-C, or no answer in ``INTERRUPT_WAIT`` seconds, kills it."""
+        Ctrl-C, or no answer in ``INTERRUPT_WAIT`` seconds, kills it. What the child writes
+        on stderr from here on is passed on only with its answer: a native library the
+        interrupt ended inside (clingo's callbacks terminate the process) says so on its
+        way out, and that is not the command's to say."""
+        assert process.stderr is not None
+        errors, held = process.stderr.fileno(), bytearray()
         with contextlib.suppress(ProcessLookupError, PermissionError):
             os.killpg(process.pid, signal.SIGINT)
         try:
-            reply = read_frame(self._answers, time.monotonic() + INTERRUPT_WAIT, None, echo)
+            reply = read_frame(self._answers, time.monotonic() + INTERRUPT_WAIT, None,
+                               {**echo, errors: held.extend})  # fmt: skip
         except BaseException:
             self._stop()
             raise KeyboardInterrupt from None
         self._stop()
+        echo[errors](bytes(held))
         return reply
 
     def _echo(self, process: subprocess.Popen[bytes]) -> Echo:

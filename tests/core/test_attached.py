@@ -43,6 +43,16 @@ def wait_for_ctrl_c(ready: str) -> str:
     return "slept"
 
 
+def die_on_ctrl_c(ready: str) -> None:
+    print("working", file=sys.stderr)
+    Path(ready).touch()
+    try:
+        time.sleep(60)
+    except KeyboardInterrupt:
+        print("terminate called inside a native library", file=sys.stderr, flush=True)
+        os._exit(134)
+
+
 def crash() -> None:
     raise RuntimeError("boom")
 
@@ -98,6 +108,30 @@ def test_ctrl_c_is_passed_on_and_the_childs_answer_comes_back(
     finally:
         presser.join()
         worker.close()
+
+
+def test_a_child_that_dies_of_ctrl_c_leaves_no_last_words(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """What it wrote before Ctrl-C is kept; what a library says as Ctrl-C ends the process
+    (clingo's "going to terminate") is not the command's to say."""
+    worker = AttachedWorker()
+    ready = tmp_path / "ready"
+
+    def press_ctrl_c() -> None:
+        while not ready.exists():
+            time.sleep(0.02)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    presser = threading.Thread(target=press_ctrl_c)
+    presser.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            worker.call(die_on_ctrl_c, (str(ready),), 30, "dier")
+    finally:
+        presser.join()
+        worker.close()
+    assert capsys.readouterr().err == "working\n"
 
 
 def test_a_crash_retires_the_child_and_the_next_call_works() -> None:
