@@ -36,7 +36,8 @@ from service.core.generator.timing_windows import Windows, event_windows
 from service.core.motion.kinematics import SAME, Bounds
 
 PIECE = 2.0  # seconds: the longest piece of a curve (free knots between events)
-CLEARANCE = 0.01  # metres a free knot keeps from the knots around it (events stay sharp)
+CLEARANCE = 0.01  # metres a free knot keeps from the knots around it (events stay sharp),
+# and a car passes on either side of an event's point within the event's window
 STOP_LEAD = 0.1  # seconds before a stand when a stopping car is still faster than v_stop
 STOP_LEAD_BRAKING = 3.0  # ... or this many times v_stop over its strongest braking, when
 # that is longer (a pedestrian's gentle braking: a stand within 0.1 s of v_stop is too abrupt)
@@ -67,9 +68,10 @@ def _anchors(
     problem: TimingProblem, car: CarPlan, windows: Sequence[tuple[float, float]]
 ) -> list[tuple[_Boundary, bool]]:
     """The fixed points of a car's curve, with whether each is a stand: the start; each
-    knot at its planned time (a point window), or the start and end of its window (below
-    the knot's distance at the start, at or beyond it at the end: the event happens
-    within); the end of the duration (distance free up to ``reach``)."""
+    knot at its planned time (a point window), or the start and end of its window (up to
+    CLEARANCE below the knot's distance at the start, as far beyond it at the end: the
+    event happens within, and so does an event the checker or a replay in SUMO places a
+    few millimetres off); the end of the duration (distance free up to ``reach``)."""
     distances = [0.0] + [k.distance for k in car.knots] + [car.reach]
     found = [(_Boundary(0.0, 0.0, 0.0, 0.0, car.start_speed), False)]
     for j, (knot, (low, high)) in enumerate(zip(car.knots, windows, strict=True), start=1):
@@ -77,9 +79,10 @@ def _anchors(
         if high - low <= SAME:
             found.append((_Boundary(low, here, here, here, 0.0 if knot.stop else None), knot.stop))
             continue
-        clearance = min(CLEARANCE, (here - distances[j - 1]) / 4)
-        found.append((_Boundary(low, None, distances[j - 1], here - clearance, None), False))
-        found.append((_Boundary(high, None, here, distances[j + 1], None), False))
+        before = min(CLEARANCE, (here - distances[j - 1]) / 4)
+        after = min(CLEARANCE, (distances[j + 1] - here) / 4)
+        found.append((_Boundary(low, None, distances[j - 1], here - before, None), False))
+        found.append((_Boundary(high, None, here + after, distances[j + 1], None), False))
     return found
 
 

@@ -38,6 +38,8 @@ from service.core.sumo.run import front_to_centre as front_to_centre
 Point = tuple[float, float]
 
 DRIVE_BUDGET = 60.0  # seconds for one batch of drives
+SPACING = 0.1  # metres at most between two poses of a drive: a pose between two is
+# interpolated (straight between them), and where a lane turns, SUMO's own poses do not
 CLEARANCE = 1.0  # metres the back must be past the exit lane's start to count as left
 
 
@@ -338,9 +340,17 @@ def drive(plans: list[DrivePlan]) -> list[list[PoseSample]]:
     return [_drive_one(libsumo, plan) for plan in plans]
 
 
+def substeps(plan: DrivePlan) -> int:
+    """SUMO steps per time step of a drive, so that its samples are at most SPACING apart:
+    a divisor of the time step in milliseconds (SUMO's steps are whole milliseconds)."""
+    needed = max(1, math.ceil(plan.speed * plan.timestep / SPACING - 1e-9))
+    milliseconds = max(1, round(plan.timestep * 1000))
+    return next((k for k in range(needed, milliseconds) if milliseconds % k == 0), milliseconds)
+
+
 def _drive_one(traci: Any, plan: DrivePlan) -> list[PoseSample]:
     traci.start([
-        "sumo", "-n", plan.network_file, "--step-length", repr(plan.timestep),
+        "sumo", "-n", plan.network_file, "--step-length", repr(plan.timestep / substeps(plan)),
         "--no-step-log", "true", "--no-warnings", "true", "--time-to-teleport", "-1",
         "--collision.action", "none", "--ignore-route-errors", "false",
     ])  # fmt: skip
@@ -367,6 +377,8 @@ def _record(traci: Any, plan: DrivePlan) -> list[PoseSample]:
     samples: list[PoseSample] = []
     visited: list[str] = []
     step = 0
+    each = substeps(plan)
+    dt = plan.timestep / each
     while True:
         traci.simulationStep()
         if "car" not in traci.vehicle.getIDList():
@@ -384,8 +396,8 @@ def _record(traci: Any, plan: DrivePlan) -> list[PoseSample]:
         x, y = front_to_centre(fx, fy, heading, plan.length)
         distance = traci.vehicle.getDistance("car")
         speed = plan.speed if step == 0 else traci.vehicle.getSpeed("car")
-        samples.append(PoseSample(step * plan.timestep, x, y, heading, speed, distance))
-        if step >= plan.steps and distance >= plan.leave_distance:
+        samples.append(PoseSample(step * dt, x, y, heading, speed, distance))
+        if step >= plan.steps * each and distance >= plan.leave_distance:
             break
         step += 1
     if not samples or samples[-1].distance < plan.leave_distance:
@@ -402,11 +414,12 @@ def _drop_skipped(raw: list[PoseSample], plan: DrivePlan) -> list[PoseSample]:
     """Resample a drive that started ``plan.skip`` metres early so that it starts on time."""
     shifted = PoseTrack("", plan.length, plan.width, 0.0, tuple(raw))
     samples = []
-    step = plan.speed * plan.timestep
+    dt = plan.timestep / substeps(plan)
+    step = plan.speed * dt
     for k in range(math.floor((raw[-1].distance - plan.skip) / step + 1e-9) + 1):
         distance = k * step
         x, y, heading = shifted.pose_at(distance + plan.skip)
-        samples.append(PoseSample(k * plan.timestep, x, y, heading, plan.speed, distance))
+        samples.append(PoseSample(k * dt, x, y, heading, plan.speed, distance))
     return samples
 
 

@@ -73,11 +73,12 @@ def test_left_turn_starts_with_the_front_at_the_start_distance(
 
 
 def test_left_turn_samples_are_at_constant_speed_every_step(left_turn: PoseTrack) -> None:
+    # at most 0.1 m apart: at 8 m/s, 10 SUMO steps of 10 ms in every 0.1 s time step
     samples = left_turn.samples
-    assert len(samples) == 201  # 0 .. 20 s
-    assert [s.t for s in samples] == pytest.approx([k * 0.1 for k in range(201)])
+    assert len(samples) == 2001  # 0 .. 20 s
+    assert [s.t for s in samples] == pytest.approx([k * 0.01 for k in range(2001)])
     steps = [b.distance - a.distance for a, b in itertools.pairwise(samples)]
-    assert steps == pytest.approx([0.8] * 200)
+    assert steps == pytest.approx([0.08] * 2000)
     assert all(s.speed == pytest.approx(8.0) for s in samples)
 
 

@@ -8,12 +8,15 @@ real maps, with people on foot at crosswalks, and at a real signalized junction 
 examples', which tests/core/export/test_bundle.py replays with every controller); every
 level is checked on the road geometry (independently of the generator,
 tests.helpers.off_road_samples and off_walkable_samples) and replayed in SUMO with every
-controller.
+controller; a replayed certificate keeps its recorded poses.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -29,6 +32,19 @@ pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves i
 
 UNSEEN = Path(__file__).parents[2] / "data" / "junctions"
 DURATION = 45.0
+POSE_GAP = 0.01  # metres a replayed certificate's pose may be from the recorded one ...
+HEADING_GAP = 0.2  # ... and degrees its heading (Step 1's poses are 0.1 m apart)
+
+
+def _pose_gap(recorded: Sequence[Any], replayed: Sequence[Any]) -> tuple[float, float]:
+    """The farthest apart two trajectories' poses are at the same step, and headings."""
+    assert len(replayed) >= 2
+    far = turned = 0.0
+    for a, b in zip(recorded, replayed, strict=False):  # the replay stops at the goal
+        assert abs(a.t - b.t) < 1e-6
+        far = max(far, math.hypot(a.x - b.x, a.y - b.y))
+        turned = max(turned, abs((a.heading - b.heading + 180.0) % 360.0 - 180.0))
+    return far, turned
 
 
 def _queue_root() -> TestCase:
@@ -99,6 +115,10 @@ def test_every_level_replays_with_every_controller_on_the_map(name: str) -> None
             verdict = evaluation.verdict
             assert evaluation.error is None, (level, controller, evaluation.error)
             assert not verdict.errors, (level, controller, verdict.errors)
+            if controller.startswith("certificate:"):
+                recorded = getattr(testcase.certificates, controller.split(":")[1])
+                far, turned = _pose_gap(recorded, evaluation.trajectory)
+                assert far < POSE_GAP and turned < HEADING_GAP, (level, controller, far, turned)
             if controller == "certificate:solvability":
                 assert verdict.passed, (level, verdict.reasons)
             if controller == "certificate:complexity":
