@@ -48,7 +48,7 @@ from service.core.generator.search import (
     Progress,
 )
 from service.core.generator.timing import TimingProblem
-from service.core.generator.variety import AIM_POINTS, is_new, signature
+from service.core.generator.variety import AIM_POINTS, ALIKE_POINTS, is_new, signature
 from service.core.generator.verification import checked_judge
 from service.core.generator.walkers import (
     NewPedestrians,
@@ -115,6 +115,7 @@ class Extensions:
     exhausted: bool  # every order of events was drawn
     timings_tried: int  # other timings of verified orders
     timings_limited: bool = False  # their count (TIMINGS_PER_WANTED a wanted one) ran out
+    alike_orders: int = 0  # orders alike to a verified one whose windows were aimed in too
 
     def shortfall(self, wanted: int) -> str | None:
         """Why fewer than ``wanted`` came back (None when that many did): which of the
@@ -129,11 +130,16 @@ class Extensions:
             orders = f"the search's count of {self.orders_tried} answer sets ran out"
         timings = ""
         if self.timings_tried:
-            timings = f"; {self.timings_tried} other timings of the verified orders tried, " + (
+            alike = f" and of {self.alike_orders} orders alike" if self.alike_orders else ""
+            why = (
                 f"their count ({TIMINGS_PER_WANTED} per extension wanted, at most "
                 f"{MAX_TIMINGS}) ran out"
                 if self.timings_limited
                 else f"all {AIM_POINTS} points of their entry and arrival windows looked at"
+                + (f" ({ALIKE_POINTS} over the orders alike)" if self.alike_orders else "")
+            )
+            timings = (
+                f"; {self.timings_tried} other timings of the verified orders{alike} tried, {why}"
             )
         return f"{have} distinct extensions found: {orders}{timings}"
 
@@ -156,7 +162,11 @@ def extend_testcases(
     from each other and from ``avoid`` (variety.Signature): different orders of events
     first, each answer set at most once (those alike in the test-case's cars ruled out
     once one of them is verified); then other timings of the verified orders, aimed at the
-    points of variety.aim_points over the new cars' entry and arrival windows. Raises what
+    points of variety.aim_points over the new cars' entry and arrival windows; when every
+    point was looked at and fewer were found, the orders alike to the verified ones (the
+    certificates drive otherwise, which opens other windows), aimed at the points of
+    variety.joint_points. TIMINGS_PER_WANTED timings per extension still wanted after
+    the orders (at most MAX_TIMINGS) are tried in all. Raises what
     ``extend_testcase`` raises when there is none; fewer than ``count`` is not an error
     (``Extensions.shortfall`` says why). ``walks``: new pedestrians, one on each walk
     (docs/pedestrians.md), with the new cars or without them."""
@@ -234,8 +244,18 @@ def extend_testcases(
         found.append(Extension(candidate, list(attempts), dict(seconds), search.problem))
         if len(found) >= count:
             break
+    limit = min(TIMINGS_PER_WANTED * (count - len(found)), MAX_TIMINGS)  # timings, in all
+    alike: list[Ordering] = []
     if len(found) < count and verified:
-        for _, candidate in search.timings(verified, taken, count - len(found)):
+        for _, candidate in search.timings(verified, taken, count - len(found), limit):
+            taken.append(signature(candidate))
+            _note_shortened(candidate, shortened, ids)
+            found.append(Extension(candidate, list(attempts), dict(seconds), search.problem))
+    if len(found) < count and verified and not search.timings_limited:
+        # every point of the verified orders looked at: the windows of the orders alike
+        alike = search.alike_orders(max_orders)
+        wanted = count - len(found)
+        for _, candidate in search.timings(alike, taken, wanted, limit, joint=True):
             taken.append(signature(candidate))
             _note_shortened(candidate, shortened, ids)
             found.append(Extension(candidate, list(attempts), dict(seconds), search.problem))
@@ -252,8 +272,9 @@ def extend_testcases(
         raise not_found(old, junction, cars, queue.bounds, seed, routes, attempts,
                         search.exhausted, walks)  # fmt: skip
     return Extensions(
-        found, len(search.tried), search.exhausted, len(search.variants), search.timings_limited
-    )
+        found, len(search.tried), search.exhausted, len(search.variants), search.timings_limited,
+        len(alike),
+    )  # fmt: skip
 
 
 def _note_shortened(

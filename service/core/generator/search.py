@@ -43,12 +43,14 @@ from service.core.generator.timing import (
 from service.core.generator.timing_solve import solve_timing
 from service.core.generator.variety import (
     AIM_POINTS,
+    ALIKE_POINTS,
     DISTINCT_GAP,
     LATTICE,
     Signature,
     aim_points,
     describe_aim,
     is_new,
+    joint_points,
     seed_aim,
     signature,
     test_relations,
@@ -134,6 +136,7 @@ class ExtensionSearch:
         self.exhausted = False
         self.problem: TimingProblem | None = None  # of the last verified candidate
         self.variants: list[tuple[int, float]] = []  # (answer set, aim) of every timing tried
+        self.own_plans: dict[Ordering, bool] = {}  # an alike order's own plan: timed?
         self.keys: dict[tuple[tuple[str, ...], frozenset[str]], int] = {}  # verified: number
         # by order (not by its number: each round of SEARCH_SHARES numbers its answer sets
         # from 0 again, so a number names different orders in the two rounds)
@@ -205,6 +208,41 @@ class ExtensionSearch:
             if not self.exhausted:
                 return
 
+    def alike_orders(self, max_orders: int) -> list[Ordering]:
+        """The orders alike in the test-case's cars to one verified (``_key``), drawn but
+        not timed, within ``max_orders`` answer sets in all. They differ from it in how the
+        certificates drive, and so in the windows of arrival (and entry) times their
+        timings leave: ``--count`` aims in them (``timings`` over both windows) once the
+        verified orders' timings fall short. Every other order was drawn before
+        (``orders``): one drawn here is passed over."""
+        keys = {self._key(ordering) for ordering in self.verified}
+        clock = time.monotonic()
+        search = OrderingSearch(
+            self.junction, self.cars, self.old.params.m, self.seed,
+            order_limits(self.old, share=SEARCH_SHARES[0]), self.queue.bounds,
+        )  # fmt: skip
+        for ordering in self.tried:
+            search.block(ordering)
+        alike: list[Ordering] = []
+        while len(self.attempts) < max_orders:
+            self.deadline.check(self.attempts, "Step 2")
+            try:
+                drawn = search.next_ordering()
+            except SearchLimitReached:
+                break
+            if drawn is None:
+                break
+            self.tried.append(drawn)
+            number = self.keys.get(self._key(drawn))
+            if self._key(drawn) in keys and number is not None:
+                alike.append(drawn)
+                outcome = f"alike to #{number}: --count aims in its windows"
+            else:
+                outcome = "not alike to a verified order: passed over"
+            self.attempts.append(Attempt(len(self.attempts), outcome))
+        self.seconds["ordering"] += time.monotonic() - clock
+        return alike
+
     def _block_alike(self, search: OrderingSearch, ordering: Ordering) -> None:
         """Rule out the answer sets that differ from a verified order only in how the
         certificates drive (the same test-case: ``_key``), so that the search's count goes
@@ -228,24 +266,33 @@ class ExtensionSearch:
         return tuple(test_relations(ordering.describe())), ordering.stops & set(ids)
 
     def timings(
-        self, verified: Sequence[Ordering], taken: list[Signature], wanted: int
-    ) -> Iterator[tuple[Ordering, TestCase]]:
-        """Up to ``wanted`` more candidates from the verified orders, aimed at the points
-        of variety.aim_points in turn (each point in every order before the next point), those
-        that differ from ``taken`` (which the caller extends with every one it keeps); at
-        most TIMINGS_PER_WANTED x ``wanted`` timings are tried, and at most MAX_TIMINGS (a
-        count). A point whose entry and arrival times are close to
+        self, verified: Sequence[Ordering], taken: list[Signature], wanted: int, limit: int,
+        joint: bool = False,
+    ) -> Iterator[tuple[Ordering, TestCase]]:  # fmt: skip
+        """Up to ``wanted`` more candidates from ``verified`` orders, aimed at the points
+        of variety.aim_points in turn (``joint``: variety.joint_points, over the entry and
+        arrival windows together, ALIKE_POINTS points in all the orders), each point in every
+        order before the next point, those that differ from ``taken`` (which the caller
+        extends with every one it keeps); at most ``limit`` timings are tried in all the
+        calls of this search (a count). A point whose entry and arrival times are close to
         those of one taken is passed over without solving."""
-        given, tried = 0, 0
-        points = {ordering: aim_points(self._lattice_step(ordering)) for ordering in verified}
+        given = 0
+        points = {
+            ordering: joint_points() if joint else aim_points(self._lattice_step(ordering))
+            for ordering in verified
+        }
+        looked = 0  # points looked at: the orders alike (``joint``) share ALIKE_POINTS
         for rank in range(AIM_POINTS):
             for ordering in verified:
                 aim, arrival = points[ordering][rank]
-                if given >= wanted:
+                if given >= wanted or (joint and looked >= ALIKE_POINTS):
                     return
-                if tried >= min(TIMINGS_PER_WANTED * wanted, MAX_TIMINGS):
+                looked += 1
+                if len(self.variants) >= limit:
                     self.timings_limited = True
                     return
+                if joint and not self._timeable(ordering):
+                    continue
                 aims = self._aims(ordering, aim)
                 if not aims:
                     continue
@@ -254,7 +301,6 @@ class ExtensionSearch:
                     continue
                 number = self.keys[self._key(ordering)]
                 self.variants.append((number, aim))
-                tried += 1
                 outcome, candidate, _ = self.attempt(ordering, aim, number, arrival=arrival)
                 aimed = {"share": aim, "arrival_share": arrival}
                 self.say(f"step 3 answer set {number}, {describe_aim(aimed)}: {outcome}")
@@ -262,6 +308,14 @@ class ExtensionSearch:
                     continue
                 given += 1
                 yield ordering, candidate
+
+    def _timeable(self, ordering: Ordering) -> bool:
+        """Whether Step 3 times an order drawn but not timed (``alike_orders``) by its own
+        plan: an order without curves is not aimed in (each aim would fail after every
+        fall-back)."""
+        if ordering not in self.own_plans:
+            self.own_plans[ordering] = not isinstance(self._solve(ordering, ()), TimingFailure)
+        return self.own_plans[ordering]
 
     def _aims(
         self, ordering: Ordering, aim: float, apart: bool = False

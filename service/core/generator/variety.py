@@ -35,6 +35,8 @@ from service.core.testcase import MAX_NAME_LENGTH, Pedestrian, TestCase, testcas
 DISTINCT_GAP = 1.0  # seconds: new cars entering the junction this far apart make a new test-case
 AIMS = (0.0, 1.0, 0.5, 0.25, 0.75, 0.125, 0.375, 0.625, 0.875)  # shares of the entry window
 AIM_POINTS = 256  # points of the timings --count looks at, at most (a count)
+# ... over all the orders alike to the verified ones (each point costs a window's program)
+ALIKE_POINTS = 2 * AIM_POINTS
 LATTICE = 1.02  # entries aimed this many DISTINCT_GAPs apart are distinct test-cases
 AimPoint = tuple[float, float | None]  # (share of the entry window, of the arrival window)
 
@@ -59,11 +61,15 @@ def aim_points(step: float | None = None) -> list[AimPoint]:
         points += [(j * step, None) for j in multiples]
     else:
         points += [(aim, None) for aim in AIMS]
-    n = 1
-    while len(points) < AIM_POINTS:
-        points.append((_radical_inverse(n, 2), _radical_inverse(n, 3)))
-        n += 1
+    points += joint_points(AIM_POINTS - len(points))
     return points[:AIM_POINTS]
+
+
+def joint_points(count: int = AIM_POINTS) -> list[AimPoint]:
+    """The first ``count`` points of the Halton sequence (bases 2 and 3) over the entry
+    window and the window of arrival times that the aimed entry leaves: inside both
+    windows, spread over them jointly."""
+    return [(_radical_inverse(n, 2), _radical_inverse(n, 3)) for n in range(1, count + 1)]
 
 
 def _radical_inverse(n: int, base: int) -> float:

@@ -18,18 +18,22 @@ from service.core.generator.variety import (
     signature,
     variant_name,
 )
+from service.core.sim.replay import evaluate
 from service.core.testcase import (
     MAX_NAME_LENGTH,
     TestCase,
     dump_testcase,
+    load_testcase_intersection,
     name_stem,
     new_testcase,
 )
+from tests.conftest import DATA
 from tests.core.generator.test_extension import assert_strictly_more_complex
 
 pytestmark = pytest.mark.slow  # 14 s of work or more: `make test-fast` leaves it out
 
 ROUTE = ["W2C_0:C2E_0"]  # crosses the ego's route at the four-way stop
+JUNCTIONS = DATA / "junctions"
 
 
 @pytest.fixture(scope="module")
@@ -182,3 +186,35 @@ def test_variant_names_keep_the_level_last(name: str, number: int, expected: str
     named = variant_name(name, number)
     assert named == expected and len(named) <= MAX_NAME_LENGTH
     assert name_stem(named).endswith(f" variant {number}")  # the next level renames it
+
+
+@pytest.mark.parametrize(
+    ("network", "ego", "route"),
+    [
+        ("t-stop", "E2C_0:C2S_0", "W2C_0:C2E_0"),
+        (str(JUNCTIONS / "y-uneven.net.xml"), "ESE2C_0:C2SW_0", "N2C_0:C2SW_0"),
+    ],
+    ids=["t-stop", "y-uneven"],
+)
+def test_count_aims_in_the_orders_alike_once_the_verified_ones_are_looked_through(
+    network: str, ego: str, route: str
+) -> None:
+    """Here Step 2 verifies one order of the test-case's cars, and every point of its
+    windows gives fewer than 20 test-cases (14 on the T, 16 on the uneven Y); the orders
+    alike to it, where the certificates drive otherwise, open other windows of entry and
+    arrival times: 20 distinct ones, each verified on its own, and each certificate
+    replayed in SUMO as recorded (the T's variant 20 once crept over its line there and
+    entered 0.36 s late, giving the oncoming car the right-of-way)."""
+    start = new_testcase(network, ego, duration=25.0)
+    twenty = extend_testcases(start, [route], count=20, seed=0, budget=600)
+    testcases = [e.testcase for e in twenty.found]
+    assert len(testcases) == 20, twenty.shortfall(20)
+    assert twenty.alike_orders > 0
+    assert distinct_count(testcases) == 20
+    intersection = load_testcase_intersection(start)
+    for testcase in testcases:
+        assert_strictly_more_complex(start, testcase)
+        solvable = evaluate(testcase, "certificate:solvability", intersection).verdict
+        assert solvable.passed, (testcase.name, solvable.reasons)
+        harder = evaluate(testcase, "certificate:complexity", intersection).verdict
+        assert harder.goal_reached and not harder.passed, (testcase.name, harder.reasons)
