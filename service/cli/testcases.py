@@ -158,17 +158,18 @@ def drive(args: argparse.Namespace) -> int:
         testcase.params.arrival_distance,
         testcase.params.v_stop,
     )
+    samples = track.at_time_steps(testcase.timestep)
     if args.plot:
         from service.pictures.junction import plot_intersection
 
         with output_file(args.plot) as picture:
-            plot_intersection(intersection, picture, [route.id], track.samples)
+            plot_intersection(intersection, picture, [route.id], samples)
     if args.json:
         print(
             json.dumps(
                 {
                     "route": route.id,
-                    "samples": [vars(s) for s in track.samples],
+                    "samples": [vars(s) for s in samples],
                     "events": [
                         {"kind": e.kind.value, "lane": e.lane, "t": e.time, "distance": e.distance}
                         for e in events
@@ -179,8 +180,8 @@ def drive(args: argparse.Namespace) -> int:
         )
         return EXIT_OK
     print(
-        f"route {route.id} ({route.turn.value}), {len(track.samples)} samples, "
-        f"{track.samples[-1].distance:.1f} m in {track.samples[-1].t:.1f} s"
+        f"route {route.id} ({route.turn.value}), {len(samples)} samples, "
+        f"{samples[-1].distance:.1f} m in {samples[-1].t:.1f} s"
     )
     rows = [["t (s)", "distance (m)", "event", "lane"]]
     for e in events:

@@ -96,6 +96,10 @@ class PoseTrack:
     def _distances(self) -> list[float]:
         return [s.distance for s in self.samples]
 
+    def at_time_steps(self, timestep: float) -> list[PoseSample]:
+        """The samples at every ``timestep`` (a drive records several in each: SPACING)."""
+        return [s for s in self.samples if abs(s.t / timestep - round(s.t / timestep)) < 1e-6]
+
     def pose_at(self, distance: float) -> tuple[float, float, float]:
         """(x, y, heading) at ``distance`` travelled, interpolated between samples. Beyond
         the last sample straight on along the last heading (a drive covers the farthest a

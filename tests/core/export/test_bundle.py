@@ -283,7 +283,8 @@ def test_plain_sumo_inserts_a_car_that_starts_in_a_junction_on_a_network_with_si
     route = junction.route("D2C_1:C2S_1")
     into_d = parsed_network(junction.network_file).getEdge("D2C").getLength() + 4.0
     (track,) = generate_poses(junction, [(route, into_d)], 6.0, 20.0, 0.1)
-    case = with_nonegos(base, [("car1", route.id, list(track.samples))])
+    steps = track.at_time_steps(0.1)
+    case = with_nonegos(base, [("car1", route.id, steps)])
     folder = tmp_path / "bundle"
     export_bundle(case, folder, junction)
     rows = list(ET.parse(folder / "testcase.fcd.xml").getroot().iter("vehicle"))
@@ -298,7 +299,7 @@ def test_plain_sumo_inserts_a_car_that_starts_in_a_junction_on_a_network_with_si
     for step in ET.parse(folder / "plain.fcd.xml").getroot().iter("timestep"):
         for car in step.iter("vehicle"):
             if car.get("id") == "car1":
-                sample = track.samples[round(float(step.get("time", "nan")) / 0.1)]
+                sample = steps[round(float(step.get("time", "nan")) / 0.1)]
                 expected = centre_to_front(sample.x, sample.y, sample.heading, 5.0)
                 misses.append(math.dist(expected, (float(car.get("x", "nan")),
                                                    float(car.get("y", "nan")))))  # fmt: skip

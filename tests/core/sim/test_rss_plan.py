@@ -75,7 +75,7 @@ def test_the_plan_names_only_the_cars_that_matter() -> None:
             "aside": ("W2C_0:C2S_0", 20.0)}  # fmt: skip
     tracks = generate_poses(junction, [(junction.route(r), d) for r, d in cars.values()],
                             8.0, 10.0, 0.1)  # fmt: skip
-    nonegos = [(car, route, list(track.samples))
+    nonegos = [(car, route, track.at_time_steps(0.1))
                for (car, (route, _)), track in zip(cars.items(), tracks, strict=True)]  # fmt: skip
     section = rss_section(with_nonegos(alone, nonegos), junction)
     assert rss_section(alone, junction)["cars"] == {}
