@@ -239,9 +239,27 @@ def car_events(
     fork: str,
     old: TestCase,
 ) -> list[LaneEvent]:
-    return compute_events(
+    """A drive's events; remembered for the same samples (Step 1 keeps a drive, so the
+    ego's drive of a chain's every level and every attempt is the same object) on the same
+    junction."""
+    key = (id(samples), length, width, id(junction), fork, old.params.arrival_distance,
+           old.params.v_stop)  # fmt: skip
+    kept = _EVENTS.get(key)
+    if kept is not None and kept[0] is samples and kept[1] is junction:
+        return list(kept[2])
+    events = compute_events(
         samples, length, width, junction, fork, old.params.arrival_distance, old.params.v_stop
     )
+    if len(_EVENTS) >= EVENTS_KEPT:
+        _EVENTS.pop(next(iter(_EVENTS)))
+    _EVENTS[key] = (samples, junction, tuple(events))
+    return events
+
+
+EVENTS_KEPT = 64  # drives whose events are remembered (the objects keep their ids alive)
+_EVENTS: dict[
+    tuple[object, ...], tuple[Sequence[PoseSample], Intersection, tuple[LaneEvent, ...]]
+] = {}
 
 
 def ordering_cars(
