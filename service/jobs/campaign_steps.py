@@ -89,6 +89,11 @@ class StepRunner(Protocol):
 
     def run(self, key: str, request: dict[str, Any]) -> Any: ...
 
+    def unfinished(self, key: str) -> bool:
+        """Whether the step of ``key`` was started and is not done (its worker may have
+        kept what it made and died before saying so)."""
+        ...
+
 
 class LocalSteps:
     """Every step in the coordinator's own thread, its work in a killable child process."""
@@ -99,6 +104,9 @@ class LocalSteps:
 
     def run(self, key: str, request: dict[str, Any]) -> Any:
         return self.campaign.perform(request)
+
+    def unfinished(self, key: str) -> bool:
+        return False  # a step here ends with its thread
 
 
 class JobCampaign:
@@ -202,7 +210,9 @@ class JobCampaign:
         key = self.item.evaluation_id(ident, controller)
         stored = self.work.store.evaluation(key)
         self.step.recalled = stored is not None
-        if stored is None:
+        # A worker that stored the verdict and died before finishing its step: the step is
+        # done again (it finds the verdict stored), so that no step is left running
+        if stored is None or self.steps.unfinished(f"evaluate/{key}"):
             request = {"step": "evaluate", "testcase": ident, "controller": controller,
                        "evaluation": key}  # fmt: skip
             verdict = self.steps.run(f"evaluate/{key}", request)

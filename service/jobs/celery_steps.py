@@ -25,7 +25,7 @@ import redis
 from service.core import errors
 from service.jobs.calls import Stopped
 from service.jobs.step_news import is_redis, wait_for_news
-from service.jobs.steps import WORKER_LOST, StepRecord, StepStore
+from service.jobs.steps import WORKER_LOST, StepRecord, StepStore, step_id
 
 if TYPE_CHECKING:
     from service.jobs.campaign_steps import ItemWork
@@ -93,6 +93,10 @@ class CelerySteps:
             with self.lock:
                 record = self.answers.pop(record.step)
         return step_answer(record)
+
+    def unfinished(self, key: str) -> bool:
+        record = self.steps.get(self.job, self.position, step_id(key))
+        return record is not None and record.state in ("queued", "running")
 
     def _poll(self) -> None:
         news = (

@@ -9,12 +9,13 @@ import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
 from service.core.errors import NoneFound, ScengenError
 from service.jobs.batch import parse_batch
-from service.jobs.celery_steps import StepFailed, step_answer
+from service.jobs.celery_steps import CelerySteps, StepFailed, step_answer
 from service.jobs.steps import WORKER_LOST, StepStore, step_id
 from service.jobs.store import JobStore
 from service.store import Store
@@ -133,3 +134,25 @@ def test_a_failed_step_raises_its_error_on_the_coordinator(
         step_answer(first)
     with pytest.raises(StepFailed, match=r"campaign step b: internal error .*KeyError"):
         step_answer(second)
+
+
+def test_a_step_whose_worker_kept_its_verdict_and_died_is_unfinished(
+    stores: tuple[JobStore, StepStore],
+) -> None:
+    """A worker stores its verdict, then dies before finishing its step: the coordinator,
+    which finds the verdict stored, must still see the step unfinished and have it done
+    again (JobCampaign.evaluate), so that no step of a finished job is left running."""
+    jobs, steps = stores
+    job = running_item(jobs)
+    work = SimpleNamespace(store=SimpleNamespace(engine=steps.engine),
+                           item=SimpleNamespace(job=job, position=0), settings=None,
+                           stop=threading.Event())  # fmt: skip
+    coordinator = CelerySteps(work, broker=None)  # type: ignore[arg-type]
+    key = "evaluate/e1"
+    assert not coordinator.unfinished(key)  # never posted
+    posted = steps.post(job, 0, key, {"step": "evaluate"})
+    assert coordinator.unfinished(key)
+    assert steps.claim(job, 0, posted.step, "w1", 30)
+    assert coordinator.unfinished(key)  # w1 died here, its verdict stored
+    assert steps.finish(job, 0, posted.step, "w1", 1.0, result={"passed": True})
+    assert not coordinator.unfinished(key)

@@ -1,13 +1,14 @@
 """Step 1: drive one car alone along a route with libsumo and record its poses.
 
 The car drives at a constant cruise speed, ignoring every rule (speed mode 0, no lane
-changes), from a start given as the front bumper's distance before the stop line (the
-fork's limit line, service.core.network.forks: the lane's end, or before a short fork
-between two nodes of one light, the end of the lane before it). Poses are
-rectangle centres: SUMO reports the front-bumper centre and the heading (degrees clockwise
-from north), so the centre lies half a car length behind along the heading. Where the fork
-or the exit lane is short, the drive continues along the straightest upstream and
-downstream lanes; it never re-enters the junction.
+changes), in SUMO steps short enough that its poses are at most SPACING apart, from a
+start given as the front bumper's distance before the stop line (the fork's limit line,
+service.core.network.forks: the lane's end, or before a short fork between two nodes of
+one light, the end of the lane before it). Poses are rectangle centres: SUMO reports the
+front-bumper centre and the heading (degrees clockwise from north), so the centre lies
+half a car length behind along the heading. Where the fork or the exit lane is short, the
+drive continues along the straightest upstream and downstream lanes; it never re-enters
+the junction.
 """
 
 from __future__ import annotations
