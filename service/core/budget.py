@@ -35,7 +35,7 @@ import time
 import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, BinaryIO, TypeVar
 
 from service.core.errors import BudgetExceeded, MemoryExceeded, ScengenError
 
@@ -486,12 +486,23 @@ def enter_child() -> None:
     vars(importlib.import_module("service.core.budget"))["INSIDE_CHILD"] = True
 
 
+def answer_pipe() -> BinaryIO:
+    """The pipe the parent reads answers from (this child's stdout when it started), kept
+    apart: stdout then goes where stderr goes, so that nothing the call prints, neither
+    Python nor a native library writing to file descriptor 1 (ad-rss logs there), can
+    corrupt an answer."""
+    sys.stdout.flush()
+    answers = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)
+    sys.stdout = sys.stderr
+    return answers
+
+
 def _serve() -> None:
     """Child side: read one pickled call from stdin, write the pickled outcome to stdout."""
     enter_child()
     request = sys.stdin.buffer.read()
-    out = sys.stdout.buffer
-    sys.stdout = sys.stderr  # anything the call prints must not corrupt the answer
+    out = answer_pipe()
     out.write(answer_call(request))
     out.flush()
 
@@ -499,8 +510,7 @@ def _serve() -> None:
 def _serve_many() -> None:
     """Warm child side: answer framed calls from stdin until it closes."""
     enter_child()
-    source, out = sys.stdin.buffer, sys.stdout.buffer
-    sys.stdout = sys.stderr
+    source, out = sys.stdin.buffer, answer_pipe()
     while header := source.read(FRAME.size):
         (size,) = FRAME.unpack(header)
         answer = answer_call(source.read(size))

@@ -171,3 +171,20 @@ def test_the_scratch_of_a_process_that_is_gone_is_removed_by_the_next(
     finally:
         worker.close()
     assert not stale.exists() and living.exists() and other.exists()
+
+
+@pytest.mark.parametrize("warm", [False, True], ids=["fresh", "warm"])
+def test_what_native_code_writes_to_stdout_does_not_corrupt_the_answer(warm: bool) -> None:
+    """ad-rss logs to file descriptor 1 ("[info] restrictToLimits ... -nan value out of
+    range"): in a warm child that was the answer pipe, and the parent read the log line as
+    a frame's size and waited out the replay's budget."""
+    line = b"[2026-12-08 02:33:00.837] [info] a native library's log line\\n"
+    if warm:
+        worker = WarmWorker()
+        try:
+            assert worker.call(os.write, (1, line), 30.0, "a native write") == len(line)
+            assert worker.call(math.hypot, (3.0, 4.0), 30.0, "hypot") == 5.0  # still in step
+        finally:
+            worker.close()
+    else:
+        assert run_with_budget(os.write, (1, line), 30.0, "a native write") == len(line)

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import pickle
 import signal
 import sys
@@ -128,13 +127,12 @@ def serve_episodes() -> None:
     (``run_episode``) and answers ``("done", rows, error, last observation)``, or
     ``("error", ScengenError)`` / ``("crash", text)``; until stdin closes. It dies with its
     parent and leaves Ctrl-C to it (the parent kills it)."""
-    from service.core.budget import FRAME, enter_child
+    from service.core.budget import FRAME, answer_pipe, enter_child
 
     enter_child()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     source = sys.stdin.buffer
-    out = os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)  # whatever SUMO prints must not corrupt the answers
+    out = answer_pipe()  # whatever SUMO prints must not corrupt the answers
 
     def send(message: tuple[Any, ...]) -> None:
         data = pickle.dumps(message)
