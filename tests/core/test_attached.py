@@ -4,12 +4,14 @@ and the child's own answer to it comes back; a crash retires it and the next cal
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -87,12 +89,9 @@ def test_a_call_over_its_budget_is_killed_with_what_it_started(tmp_path: Path) -
         worker.close()
 
 
-def test_ctrl_c_is_passed_on_and_the_childs_answer_comes_back(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    assert threading.current_thread() is threading.main_thread()
-    worker = AttachedWorker()
-    ready = tmp_path / "ready"
+@contextlib.contextmanager
+def ctrl_c_once(ready: Path) -> Iterator[None]:
+    """Ctrl-C to this process as soon as the child has made ``ready``."""
 
     def press_ctrl_c() -> None:
         while not ready.exists():
@@ -102,11 +101,23 @@ def test_ctrl_c_is_passed_on_and_the_childs_answer_comes_back(
     presser = threading.Thread(target=press_ctrl_c)
     presser.start()
     try:
-        assert worker.call(wait_for_ctrl_c, (str(ready),), 30, "waiter") == "interrupted"
+        yield
+    finally:
+        presser.join()
+
+
+def test_ctrl_c_is_passed_on_and_the_childs_answer_comes_back(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert threading.current_thread() is threading.main_thread()
+    worker = AttachedWorker()
+    ready = tmp_path / "ready"
+    try:
+        with ctrl_c_once(ready):
+            assert worker.call(wait_for_ctrl_c, (str(ready),), 30, "waiter") == "interrupted"
         assert "stopping as asked" in capsys.readouterr().err
         assert worker.call(talk, (0,), 30, "talk") == "done"  # a fresh child
     finally:
-        presser.join()
         worker.close()
 
 
@@ -117,19 +128,10 @@ def test_a_child_that_dies_of_ctrl_c_leaves_no_last_words(
     (clingo's "going to terminate") is not the command's to say."""
     worker = AttachedWorker()
     ready = tmp_path / "ready"
-
-    def press_ctrl_c() -> None:
-        while not ready.exists():
-            time.sleep(0.02)
-        os.kill(os.getpid(), signal.SIGINT)
-
-    presser = threading.Thread(target=press_ctrl_c)
-    presser.start()
     try:
-        with pytest.raises(KeyboardInterrupt):
+        with ctrl_c_once(ready), pytest.raises(KeyboardInterrupt):
             worker.call(die_on_ctrl_c, (str(ready),), 30, "dier")
     finally:
-        presser.join()
         worker.close()
     assert capsys.readouterr().err == "working\n"
 

@@ -233,32 +233,30 @@ def extend_testcases(
     taken = [signature(t) for t in avoid]
     found: list[Extension] = []
     verified: list[Ordering] = []
-    for ordering, candidate in search.orders(max_orders):
-        verified.append(ordering)
-        mark = signature(candidate)
-        if not is_new(mark, taken):
-            say(f"step 2/3 answer set {len(attempts)}: the same test-case as one before")
-            continue
-        taken.append(mark)
+
+    def keep(candidate: TestCase) -> None:
+        taken.append(signature(candidate))
         _note_shortened(candidate, shortened, ids)
         found.append(Extension(candidate, list(attempts), dict(seconds), search.problem))
+
+    for ordering, candidate in search.orders(max_orders):
+        verified.append(ordering)
+        if not is_new(signature(candidate), taken):
+            say(f"step 2/3 answer set {len(attempts)}: the same test-case as one before")
+            continue
+        keep(candidate)
         if len(found) >= count:
             break
     limit = min(TIMINGS_PER_WANTED * (count - len(found)), MAX_TIMINGS)  # timings, in all
     alike: list[Ordering] = []
     if len(found) < count and verified:
         for _, candidate in search.timings(verified, taken, count - len(found), limit):
-            taken.append(signature(candidate))
-            _note_shortened(candidate, shortened, ids)
-            found.append(Extension(candidate, list(attempts), dict(seconds), search.problem))
+            keep(candidate)
     if len(found) < count and verified and not search.timings_limited:
         # every point of the verified orders looked at: the windows of the orders alike
         alike = search.alike_orders(max_orders)
-        wanted = count - len(found)
-        for _, candidate in search.timings(alike, taken, wanted, limit, joint=True):
-            taken.append(signature(candidate))
-            _note_shortened(candidate, shortened, ids)
-            found.append(Extension(candidate, list(attempts), dict(seconds), search.problem))
+        for _, candidate in search.timings(alike, taken, count - len(found), limit, joint=True):
+            keep(candidate)
     if not found and verified:
         raise NoneFound(
             f"every extension found ({len(verified)} orders of events"
